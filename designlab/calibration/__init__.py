@@ -1,0 +1,1 @@
+"""Virtual tests, metrics, calibration and stiffness fits, compensation models, measured data, the residual -> effect loop."""

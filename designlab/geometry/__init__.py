@@ -1,0 +1,1 @@
+"""Parametric CAD of the sensors, assemblies, printable export and tetrahedral meshing (mm)."""

@@ -1,0 +1,1 @@
+"""Design sweeps, executors (local, Dask), result store, optimizer, Pareto fronts."""
