@@ -1,0 +1,92 @@
+"""B-rep -> triangle mesh: one tessellation shared by export, printability checks and meshing (mm).
+
+Accepts a :class:`~designlab.geometry.body.Body`, a build123d or CadQuery shape (anything with a
+``wrapped`` ``TopoDS_Shape``) or a raw ``TopoDS_Shape``. OpenCascade's ``BRepMesh`` meshes each
+face with a chordal ``tolerance`` (mm) and an ``angular_tolerance`` (rad); faces share their edge
+discretisation, so merging coincident vertices gives a closed, consistently oriented mesh.
+The defaults (0.01 mm, 0.2 rad) stay well below a 0.1 mm print layer.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import trimesh
+
+from designlab.errors import MeshingError
+
+
+def topods(obj: Any):
+    """The OCP ``TopoDS_Shape`` inside a Body, build123d/CadQuery shape or a TopoDS_Shape."""
+    shape = getattr(obj, "shape", obj)  # Body -> its shape
+    shape = getattr(shape, "wrapped", shape)  # build123d / cadquery -> TopoDS_Shape
+    if shape is None or not hasattr(shape, "IsNull") or shape.IsNull():
+        raise MeshingError(f"cannot tessellate {type(obj).__name__}: not a non-empty B-rep shape")
+    return shape
+
+
+def triangulate(obj: Any, tolerance: float = 0.01,
+                angular_tolerance: float = 0.2) -> tuple[np.ndarray, np.ndarray]:
+    """Raw per-face triangulation: ``(vertices (n, 3) float mm, faces (m, 3) int)``, outward
+    oriented, vertices not merged across faces."""
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+    from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopLoc import TopLoc_Location
+    from OCP.TopoDS import TopoDS
+
+    if not (tolerance > 0 and angular_tolerance > 0):
+        raise MeshingError(f"tessellation tolerances must be > 0, got {tolerance}, "
+                           f"{angular_tolerance}")
+    shape = topods(obj)
+    BRepMesh_IncrementalMesh(shape, tolerance, False, angular_tolerance, True)
+    verts, faces, offset = [], [], 0
+    explorer = TopExp_Explorer(shape, TopAbs_FACE)
+    while explorer.More():
+        face = TopoDS.Face_s(explorer.Current())
+        explorer.Next()
+        loc = TopLoc_Location()
+        poly = BRep_Tool.Triangulation_s(face, loc)
+        if poly is None:
+            raise MeshingError("OpenCascade could not triangulate a face of the shape")
+        trsf = loc.Transformation()
+        n = poly.NbNodes()
+        pts = np.empty((n, 3))
+        for i in range(n):
+            p = poly.Node(i + 1).Transformed(trsf)
+            pts[i] = (p.X(), p.Y(), p.Z())
+        tri = np.array([poly.Triangle(j + 1).Get() for j in range(poly.NbTriangles())],
+                       dtype=np.int64).reshape(-1, 3) - 1
+        if face.Orientation() == TopAbs_REVERSED:
+            tri = tri[:, ::-1]
+        verts.append(pts)
+        faces.append(tri + offset)
+        offset += n
+    if not faces:
+        raise MeshingError("shape has no faces to tessellate")
+    return np.vstack(verts), np.vstack(faces)
+
+
+def tessellate(shape: Any, tolerance: float = 0.01, angular_tolerance: float = 0.2, *,
+               check: bool = True) -> trimesh.Trimesh:
+    """Merged triangle mesh of a solid, mm.
+
+    With ``check`` (default) a mesh that is not watertight, or encloses no positive volume,
+    raises :class:`MeshingError`; ``check=False`` returns it as is (the printability report
+    uses that to describe what is wrong).
+    """
+    v, f = triangulate(shape, tolerance, angular_tolerance)
+    mesh = trimesh.Trimesh(vertices=v, faces=f, process=True, validate=False)
+    # drop zero-area slivers OpenCascade sometimes leaves on seams
+    mesh.update_faces(mesh.nondegenerate_faces(height=1e-12))
+    mesh.remove_unreferenced_vertices()
+    if check:
+        if not mesh.is_watertight:
+            raise MeshingError("tessellated shape is not watertight (open or non-manifold "
+                               "B-rep); check the part's booleans")
+        if not mesh.volume > 0:
+            raise MeshingError(f"tessellated shape encloses no positive volume "
+                               f"({mesh.volume:.4g} mm^3)")
+    return mesh
