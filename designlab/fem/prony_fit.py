@@ -1,0 +1,371 @@
+"""Prony series from measured relaxation or creep data, and the exact uniaxial responses of a
+generalized Maxwell material (the analytic references the FEM viscoelastic solver is checked against).
+
+Units: time s, modulus/stress MPa, compliance 1/MPa, strain dimensionless.
+
+Two material views share one set of functions:
+
+* ``nu=None``: a 1-D rod whose Young's modulus relaxes as ``E(t) = E0 (g_inf + sum g_i exp(-t/tau_i))``
+  (equivalently a 3-D isotropic solid whose shear and bulk moduli relax alike, constant Poisson ratio);
+* ``nu`` given: a 3-D isotropic bar in uniaxial stress (lateral faces free) whose shear modulus
+  relaxes with ``prony.g/tau`` and bulk modulus with ``prony.k/k_tau`` (elastic bulk if none), with
+  instantaneous moduli from ``E0`` and ``nu``.
+
+Either model is a linear state-space system ``x' = A x + B u``, ``y = C x + D u`` in the internal
+(viscous) strains; responses to piecewise-linear inputs use its exact first-order-hold
+discretisation (``scipy.linalg.expm``), step responses its eigen-decomposition.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import eig, expm
+from scipy.optimize import least_squares, nnls
+
+from designlab.errors import DataError, ParameterError
+from designlab.fem.prony import Prony
+
+
+# --------------------------------------------------------------------------- state-space models
+
+
+@dataclass(frozen=True)
+class _LinearModel:
+    A: np.ndarray
+    B: np.ndarray  # (n,)
+    C: np.ndarray  # (n,)
+    D: float
+
+    def step(self, t: np.ndarray, u0: float = 1.0) -> np.ndarray:
+        """Output at times ``t`` >= 0 after a step of the input to ``u0`` at t = 0 (state 0 before)."""
+        t = np.asarray(t, float)
+        if len(self.B) == 0:
+            return np.full(t.shape, self.D * u0)
+        x_ss = -np.linalg.solve(self.A, self.B) * u0
+        lam, V = eig(self.A)
+        if np.linalg.cond(V) < 1e8 and np.all(np.abs(lam.imag) <= 1e-9 * np.abs(lam.real)):
+            # x(t) = x_ss - expm(A t) x_ss, diagonalised
+            w = (self.C @ V).real * np.linalg.solve(V, x_ss).real
+            return self.C @ x_ss + self.D * u0 - np.exp(np.multiply.outer(t, lam.real)) @ w
+        y = [self.C @ (x_ss - expm(self.A * s) @ x_ss) for s in t.ravel()]
+        return self.D * u0 + np.reshape(y, t.shape)
+
+    def spectrum(self) -> tuple[float, np.ndarray, np.ndarray]:
+        """Step response to a unit input as ``y_inf + sum_k a_k exp(-t/theta_k)``:
+        returns ``(y_inf, a, theta)`` (theta ascending)."""
+        if len(self.B) == 0:
+            return self.D, np.zeros(0), np.zeros(0)
+        lam, V = eig(self.A)
+        lam = lam.real
+        x_ss = -np.linalg.solve(self.A, self.B)
+        a = -(self.C @ V).real * np.linalg.solve(V, x_ss).real
+        theta = -1.0 / lam
+        o = np.argsort(theta)
+        return float(self.C @ x_ss + self.D), a[o], theta[o]
+
+    def response(self, t: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Output at the knots of a piecewise-linear input history ``u(t)`` starting from rest;
+        ``u[0]`` is applied as a jump at ``t[0]``; repeated times are jumps (exact between knots)."""
+        t, u = np.asarray(t, float), np.asarray(u, float)
+        n = len(self.B)
+        x = np.zeros(n)
+        y = np.empty(len(t))
+        y[0] = self.D * u[0]
+        cache: dict[float, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        for k in range(1, len(t)):
+            dt = t[k] - t[k - 1]
+            if n and dt > 0:
+                key = round(dt, 15)
+                if key not in cache:
+                    # first-order hold: d/ds [x, u, udot] = [[A, B, 0], [0, 0, 1], [0, 0, 0]]
+                    M = np.zeros((n + 2, n + 2))
+                    M[:n, :n] = self.A
+                    M[:n, n] = self.B
+                    M[n, n + 1] = 1.0
+                    E = expm(M * dt)
+                    cache[key] = (E[:n, :n], E[:n, n], E[:n, n + 1])
+                Phi, G0, G1 = cache[key]
+                x = Phi @ x + G0 * u[k - 1] + G1 * (u[k] - u[k - 1]) / dt
+            y[k] = self.C @ x + self.D * u[k]
+        return y
+
+
+def _chain(modulus: float, g: np.ndarray, tau: np.ndarray):
+    """One Maxwell chain ``s = M (e - g . a)``, ``a_i' = (e - a_i)/tau_i``: the pieces
+    (A_aa, e-coefficient per a, output coefficients) of its equations."""
+    return (-np.diag(1.0 / tau), 1.0 / tau, modulus * g)
+
+
+def _model(E0: float, prony: Prony, nu: float | None, controlled: str) -> _LinearModel:
+    """State-space model of the uniaxial bar; ``controlled`` is 'strain' (output stress) or
+    'stress' (output strain)."""
+    g, tau = np.asarray(prony.g, float), np.asarray(prony.tau, float)
+    if nu is None:
+        Ad, bd, cd = _chain(E0, g, tau)
+        if controlled == "strain":  # sigma = E0 (eps - g.a), a' = Ad a + bd eps
+            return _LinearModel(Ad, bd, -cd, E0)
+        # eps = sigma/E0 + g.a
+        return _LinearModel(Ad + np.outer(bd, g), bd / E0, g.copy(), 1.0 / E0)
+    G0, K0 = E0 / (2 * (1 + nu)), E0 / (3 * (1 - 2 * nu))
+    k, kt = np.asarray(prony.k, float), np.asarray(prony.k_tau, float)
+    ng, nk = len(g), len(k)
+    n = ng + nk
+    # state x = [alpha (shear, on gamma = eps_a - eps_l), beta (bulk, on e_v = eps_a + 2 eps_l)]
+    # S = 2 G0 (gamma - g.alpha) = sigma; p = K0 (e_v - k.beta) = sigma / 3; eps_a = e_v/3 + 2 gamma/3
+    rate = np.concatenate([1.0 / tau, 1.0 / kt])
+    Gx = np.concatenate([g, np.zeros(nk)])  # gamma = Gx.x + ...
+    Kx = np.concatenate([np.zeros(ng), k])  # e_v = Kx.x + ...
+    sel_g = np.concatenate([np.ones(ng), np.zeros(nk)])
+    if controlled == "stress":
+        # gamma = sigma/(2 G0) + g.alpha; e_v = sigma/K0/3 + k.beta
+        cg, ck = 1 / (2 * G0), 1 / (3 * K0)
+    else:
+        # 2 G0 gamma - 3 K0 e_v = 2 G0 g.alpha - 3 K0 k.beta ; 2/3 gamma + 1/3 e_v = eps
+        Mx = np.array([[2 * G0, -3 * K0], [2 / 3, 1 / 3]])
+        Minv = np.linalg.inv(Mx)
+        rhs_x = np.vstack([2 * G0 * Gx - 3 * K0 * Kx, np.zeros(n)])
+        gam_x, ev_x = Minv @ rhs_x
+        cg, ck = Minv @ np.array([0.0, 1.0])
+        Gx, Kx = gam_x, ev_x
+    # a' = rate * (driver - a), driver = gamma for shear states, e_v for bulk states
+    drive_x = np.where(sel_g[:, None] > 0, Gx[None, :], Kx[None, :])
+    drive_u = np.where(sel_g > 0, cg, ck)
+    A = rate[:, None] * (drive_x - np.eye(n))
+    B = rate * drive_u
+    if controlled == "stress":  # output eps_a = e_v/3 + 2 gamma/3
+        return _LinearModel(A, B, Kx / 3 + 2 * Gx / 3, ck / 3 + 2 * cg / 3)
+    # output sigma = 2 G0 (gamma - g.alpha)
+    return _LinearModel(A, B, 2 * G0 * (Gx - np.concatenate([g, np.zeros(nk)])), 2 * G0 * cg)
+
+
+def _check_material(E0: float, nu: float | None) -> None:
+    if not (np.isfinite(E0) and E0 > 0):
+        raise ParameterError("E0", E0, "a finite instantaneous modulus > 0 MPa")
+    if nu is not None and not (-1 < nu < 0.5):
+        raise ParameterError("nu", nu, "-1 < nu < 0.5")
+
+
+def relaxation_modulus(E0: float, prony: Prony, t, nu: float | None = None) -> np.ndarray:
+    """Uniaxial relaxation modulus E(t) (MPa): stress after a unit step strain at t = 0."""
+    _check_material(E0, nu)
+    if nu is None:
+        return E0 * prony.relaxation(t)
+    return _model(E0, prony, nu, "strain").step(t)
+
+
+def creep_compliance(E0: float, prony: Prony, t, nu: float | None = None) -> np.ndarray:
+    """Uniaxial creep compliance J(t) (1/MPa): strain after a unit step stress at t = 0.
+    J(0) = 1/E0, J(inf) = 1/E(inf); exact (eigen-decomposition of the internal-variable ODEs)."""
+    _check_material(E0, nu)
+    return _model(E0, prony, nu, "stress").step(t)
+
+
+def retardation_spectrum(E0: float, prony: Prony, nu: float | None = None):
+    """Creep compliance as ``J(t) = J_inf - sum_k j_k exp(-t/lambda_k)``: ``(J_inf, j, lambda)``."""
+    _check_material(E0, nu)
+    J_inf, a, theta = _model(E0, prony, nu, "stress").spectrum()
+    return J_inf, -a, theta
+
+
+def stress_response(E0: float, prony: Prony, t, strain, nu: float | None = None) -> np.ndarray:
+    """Uniaxial stress (MPa) at the knots ``t`` (s, non-decreasing; repeats are jumps) of a
+    piecewise-linear strain history, starting from rest (exact)."""
+    _check_material(E0, nu)
+    t, strain = _history(t, strain, "strain")
+    return _model(E0, prony, nu, "strain").response(t, strain)
+
+
+def strain_response(E0: float, prony: Prony, t, stress, nu: float | None = None) -> np.ndarray:
+    """Uniaxial strain at the knots of a piecewise-linear stress history (MPa), from rest (exact)."""
+    _check_material(E0, nu)
+    t, stress = _history(t, stress, "stress")
+    return _model(E0, prony, nu, "stress").response(t, stress)
+
+
+def _history(t, u, name):
+    t, u = np.asarray(t, float).ravel(), np.asarray(u, float).ravel()
+    if len(t) != len(u) or len(t) < 1:
+        raise DataError(f"t and {name} must have the same length >= 1 (got {len(t)} and {len(u)})")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(u))):
+        raise DataError(f"t and {name} must be finite numbers")
+    if np.any(np.diff(t) < 0):
+        raise DataError("t must be non-decreasing (s)")
+    return t, u
+
+
+# --------------------------------------------------------------------------- fitting
+
+
+def _check_data(t, y, name: str, n_terms: int):
+    if isinstance(n_terms, bool) or not isinstance(n_terms, (int, np.integer)) or not 1 <= n_terms <= 12:
+        raise ParameterError("n_terms", n_terms, "an integer 1..12")
+    t, y = np.asarray(t, float).ravel(), np.asarray(y, float).ravel()
+    if len(t) != len(y):
+        raise DataError(f"t and {name} have different lengths ({len(t)} and {len(y)})")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(y))):
+        raise DataError(f"t and {name} must be finite (NaN or inf found)")
+    if np.any(t < 0):
+        raise DataError(f"t has negative times (min {t.min():g} s); times since loading must be >= 0 s")
+    if np.any(np.diff(t) <= 0):
+        raise DataError("t must be strictly increasing (s)")
+    if len(t) < 2 * n_terms + 2:
+        raise DataError(f"{len(t)} points are too few for {n_terms} Prony terms "
+                        f"(need >= {2 * n_terms + 2})")
+    if np.any(y <= 0):
+        raise DataError(f"{name} must be > 0 at every time")
+    if t[-1] <= 0 or np.count_nonzero(t > 0) < 2:
+        raise DataError("t must span a positive duration (s)")
+    return t, y
+
+
+def _tau_grid(t: np.ndarray, n: int) -> np.ndarray:
+    tp = t[t > 0]
+    lo, hi = np.log10(tp[0]), np.log10(t[-1])
+    return 10 ** np.linspace(lo + 0.25 * (hi - lo) / n, hi - 0.25 * (hi - lo) / n, n)
+
+
+def _finish(E_inf, E_i, tau, t, y, model_fn, res, n_terms, kind, nu):
+    keep = E_i > 1e-7 * (E_inf + E_i.sum())
+    E0 = float(E_inf + E_i.sum())
+    g, tau = E_i[keep] / E0, tau[keep]
+    o = np.argsort(tau)
+    prony = Prony(g=tuple(float(x) for x in g[o]), tau=tuple(float(x) for x in tau[o]))
+    pred = model_fn(E0, prony)
+    rel = (pred - y) / y
+    report = {
+        "kind": kind,
+        "n_terms_requested": int(n_terms),
+        "n_terms": len(prony.g),
+        "dropped_terms": int(np.count_nonzero(~keep)),
+        "E0": E0,
+        "E_inf": float(E_inf),
+        "g_inf": prony.g_inf,
+        "nu": nu,
+        "rms_rel_error": float(np.sqrt(np.mean(rel ** 2))),
+        "max_rel_error": float(np.max(np.abs(rel))),
+        "n_points": int(len(t)),
+        "success": bool(res.success),
+        "message": str(res.message),
+    }
+    return E0, prony, report
+
+
+def _fit(t, y, n_terms, forward, init_amp, kind, nu):
+    """Least squares on relative residuals over ``[E_inf, E_1..n, log tau_1..n]``
+    (E_inf > 0, E_i >= 0, tau within a decade of the data span), from several starts."""
+    n = n_terms
+    scale = float(np.max(y) if kind == "relaxation" else 1.0 / np.min(y))
+    tp = t[t > 0]
+    lt_lo, lt_hi = np.log(tp[0]) - np.log(10.0), np.log(t[-1]) + np.log(10.0)
+
+    def unpack(p):
+        return p[0] * scale, p[1:n + 1] * scale, np.exp(p[n + 1:])
+
+    def resid(p):
+        E_inf, E_i, tau = unpack(p)
+        return forward(E_inf, E_i, tau) / y - 1.0
+
+    lb = np.concatenate([[1e-9], np.zeros(n), np.full(n, lt_lo)])
+    ub = np.concatenate([[np.inf], np.full(n, np.inf), np.full(n, lt_hi)])
+    best = None
+    for shrink in (1.0, 0.6, 1.6):
+        tau0 = _tau_grid(t, n)
+        mid = np.exp(np.mean(np.log(tau0)))
+        tau0 = mid * (tau0 / mid) ** shrink
+        E_inf0, E_i0 = init_amp(tau0)
+        p0 = np.concatenate([[max(E_inf0 / scale, 1e-6)], np.maximum(E_i0 / scale, 1e-6),
+                             np.clip(np.log(tau0), lt_lo + 1e-9, lt_hi - 1e-9)])
+        res = least_squares(resid, p0, bounds=(lb, ub), x_scale="jac", method="trf",
+                            xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=400 * (2 * n + 1))
+        if best is None or res.cost < best.cost:
+            best = res
+    E_inf, E_i, tau = unpack(best.x)
+    return E_inf, E_i, tau, best
+
+
+def fit_prony_relaxation(t, modulus_or_stress, n_terms: int = 3, *, strain0: float | None = None,
+                         nu: float | None = None):
+    """Fit a generalized Maxwell material to a uniaxial relaxation test.
+
+    ``t`` (s, strictly increasing, >= 0); ``modulus_or_stress``: relaxation modulus E(t) (MPa),
+    or stress (MPa) under the step strain ``strain0``. With ``nu`` the shear modulus relaxes and
+    the bulk modulus stays elastic (3-D bar in uniaxial stress); without, E relaxes (1-D rod).
+    Returns ``(E0, Prony, report)``: instantaneous modulus E0 (MPa), positive relative terms
+    (sum < 1), report with the relative residuals. Terms that fit to zero are dropped.
+    """
+    name = "modulus" if strain0 is None else "stress"
+    if strain0 is not None and not (np.isfinite(strain0) and strain0 != 0):
+        raise ParameterError("strain0", strain0, "a finite, non-zero step strain")
+    t, y = _check_data(t, modulus_or_stress, name, n_terms)
+    if strain0 is not None:
+        y = y / strain0
+        if np.any(y <= 0):
+            raise DataError("stress/strain0 must be > 0 at every time")
+    if nu is not None:
+        _check_material(1.0, nu)
+
+    def forward(E_inf, E_i, tau):
+        if nu is None:
+            return E_inf + np.exp(-np.outer(t, 1.0 / tau)) @ E_i
+        E0 = E_inf + E_i.sum()
+        return _model(E0, _raw_prony(E_i / E0, tau), nu, "strain").step(t)
+
+    def init_amp(tau0):
+        Phi = np.column_stack([np.ones_like(t), np.exp(-np.outer(t, 1.0 / tau0))])
+        a, _ = nnls(Phi / y[:, None], np.ones_like(y))
+        return a[0], a[1:]
+
+    E_inf, E_i, tau, res = _fit(t, y, n_terms, forward, init_amp, "relaxation", nu)
+    return _finish(E_inf, E_i, tau, t, y, lambda E0, p: relaxation_modulus(E0, p, t, nu), res,
+                   n_terms, "relaxation", nu)
+
+
+def fit_prony_creep(t, compliance_or_strain, n_terms: int = 3, *, stress0: float | None = None,
+                    nu: float | None = None):
+    """Fit a generalized Maxwell material to a uniaxial creep test.
+
+    ``compliance_or_strain``: creep compliance J(t) (1/MPa), or strain under the step stress
+    ``stress0`` (MPa). The relaxation Prony terms are fitted directly through the exact creep
+    compliance of the model, so the result plugs into the FEM material unchanged.
+    Returns ``(E0, Prony, report)`` as :func:`fit_prony_relaxation`.
+    """
+    name = "compliance" if stress0 is None else "strain"
+    if stress0 is not None and not (np.isfinite(stress0) and stress0 != 0):
+        raise ParameterError("stress0", stress0, "a finite, non-zero step stress (MPa)")
+    t, y = _check_data(t, compliance_or_strain, name, n_terms)
+    if stress0 is not None:
+        y = y / stress0
+        if np.any(y <= 0):
+            raise DataError("strain/stress0 must be > 0 at every time")
+    if nu is not None:
+        _check_material(1.0, nu)
+
+    def forward(E_inf, E_i, tau):
+        E0 = E_inf + E_i.sum()
+        return _model(E0, _raw_prony(E_i / E0, tau), nu, "stress").step(t)
+
+    def init_amp(tau0):
+        # relaxation guess from the reciprocal compliance (exact at both ends of the test)
+        Phi = np.column_stack([np.ones_like(t), np.exp(-np.outer(t, 0.5 / tau0))])
+        a, _ = nnls(Phi * y[:, None], np.ones_like(y))
+        E0 = 1.0 / y[0] if t[0] == 0 else a.sum()
+        E_inf = min(a[0], 0.9 * E0)
+        w = a[1:] if a[1:].sum() > 0 else np.ones(len(tau0))
+        return E_inf, (E0 - E_inf) * w / w.sum()
+
+    E_inf, E_i, tau, res = _fit(t, y, n_terms, forward, init_amp, "creep", nu)
+    return _finish(E_inf, E_i, tau, t, y, lambda E0, p: creep_compliance(E0, p, t, nu), res,
+                   n_terms, "creep", nu)
+
+
+class _RawProny:
+    """Prony-like terms without the strict positivity check (zero terms allowed while fitting)."""
+
+    def __init__(self, g, tau):
+        self.g, self.tau, self.k, self.k_tau = tuple(g), tuple(tau), (), ()
+
+
+def _raw_prony(g, tau):
+    return _RawProny(g, tau)
