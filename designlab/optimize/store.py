@@ -1,0 +1,141 @@
+"""Result store of a sweep: a per-design prediction cache and a Parquet table that grows as
+designs finish.
+
+Layout under the sweep's output directory::
+
+    cache/<key>.json          the full result of one design (atomic write)
+    results/<key>.parquet     one row per finished design: a Parquet dataset (atomic write)
+    results.parquet           the consolidated table (written at the end of a run)
+
+Every file is written to a temporary name and renamed, so an interrupted sweep (Ctrl-C, kill -9)
+leaves only complete files; the key (a hash of part, parameters, settings, protocol and the
+designlab version) names both files, so a resumed sweep never duplicates a design.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from designlab import __version__
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix="." + path.name, suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, (np.floating, np.integer, np.bool_)):
+        return x.item()
+    return x
+
+
+def design_key(part: str, params: dict[str, Any], settings: dict[str, Any] | None = None,
+               protocol: dict[str, Any] | None = None, extra: dict[str, Any] | None = None) -> str:
+    """Stable hash of everything that determines a design's prediction (and the version)."""
+    blob = json.dumps(_jsonable({"part": part, "params": params, "settings": settings or {},
+                                 "protocol": protocol or {}, "extra": extra or {},
+                                 "designlab": __version__}), sort_keys=True)
+    return hashlib.sha256(blob.encode()).hexdigest()[:20]
+
+
+def flatten_metrics(result: dict[str, Any]) -> dict[str, Any]:
+    """Scalar columns for the table: numbers and strings as they are, ``{"a": {"b": 1}}`` ->
+    ``a.b``, lists/matrices as JSON text."""
+    out: dict[str, Any] = {}
+
+    def walk(prefix: str, v: Any) -> None:
+        if isinstance(v, dict):
+            for k, w in v.items():
+                walk(f"{prefix}.{k}" if prefix else str(k), w)
+        elif isinstance(v, (bool, np.bool_)):
+            out[prefix] = bool(v)
+        elif isinstance(v, (int, float, np.integer, np.floating)):
+            out[prefix] = float(v)
+        elif v is None or isinstance(v, str):
+            out[prefix] = v
+        else:
+            out[prefix] = json.dumps(_jsonable(v))
+
+    walk("", result)
+    return out
+
+
+class ResultStore:
+    """Cache + Parquet rows of one sweep directory."""
+
+    def __init__(self, root: str | Path):
+        self.root = Path(root)
+        self.cache_dir = self.root / "cache"
+        self.rows_dir = self.root / "results"
+
+    def cached(self, key: str) -> dict[str, Any] | None:
+        p = self.cache_dir / f"{key}.json"
+        if not p.exists():
+            return None
+        return json.loads(p.read_text())
+
+    def has_row(self, key: str) -> bool:
+        return (self.rows_dir / f"{key}.parquet").exists()
+
+    def put(self, key: str, row: dict[str, Any], result: dict[str, Any] | None) -> None:
+        """Store a finished design: its full result in the cache, then its table row."""
+        if result is not None:
+            atomic_write_bytes(self.cache_dir / f"{key}.json",
+                               json.dumps(_jsonable(result), indent=1).encode())
+        table = pa.Table.from_pylist([row])
+        sink = pa.BufferOutputStream()
+        pq.write_table(table, sink)
+        atomic_write_bytes(self.rows_dir / f"{key}.parquet", sink.getvalue().to_pybytes())
+
+    def keys(self) -> set[str]:
+        if not self.rows_dir.is_dir():
+            return set()
+        return {p.stem for p in self.rows_dir.glob("*.parquet")}
+
+    def table(self) -> pa.Table:
+        """All rows (columns unified across designs; missing values are null)."""
+        files = sorted(self.rows_dir.glob("*.parquet")) if self.rows_dir.is_dir() else []
+        if not files:
+            return pa.table({})
+        return pa.concat_tables([pq.read_table(f) for f in files], promote_options="permissive")
+
+    def rows(self, keys: Iterable[str] | None = None) -> list[dict[str, Any]]:
+        rows = self.table().to_pylist()
+        if keys is None:
+            return rows
+        order = {k: i for i, k in enumerate(keys)}
+        rows = [r for r in rows if r.get("key") in order]
+        return sorted(rows, key=lambda r: order[r["key"]])
+
+    def consolidate(self, path: Path | None = None) -> Path:
+        """Write the whole table to ``results.parquet`` (atomic)."""
+        path = path or self.root / "results.parquet"
+        sink = pa.BufferOutputStream()
+        pq.write_table(self.table(), sink)
+        atomic_write_bytes(path, sink.getvalue().to_pybytes())
+        return path

@@ -1,0 +1,147 @@
+"""Run a design sweep: every design of a :class:`SweepConfig` through an evaluator on an
+executor, caching and storing results as they finish; resumable with the same command."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from designlab.optimize.executors import LocalExecutor
+from designlab.optimize.pareto import non_dominated
+from designlab.optimize.space import SweepConfig, feasible, objective_value
+from designlab.optimize.store import ResultStore, design_key, flatten_metrics
+
+Evaluator = Callable[[dict[str, Any]], dict[str, Any]]
+
+
+def default_evaluator(task: dict[str, Any]) -> dict[str, Any]:
+    """Geometry metrics + the virtual-test prediction of one design (imported lazily so that
+    worker processes load only what they need)."""
+    from designlab.optimize.evaluate import evaluate_design
+
+    return evaluate_design(task)
+
+
+def _timed(evaluator: Evaluator, task: dict[str, Any]) -> dict[str, Any]:
+    t0 = time.perf_counter()
+    out = evaluator(task)
+    return {"metrics": out, "elapsed_s": time.perf_counter() - t0}
+
+
+class _Timed:
+    """Picklable wrapper timing the evaluator inside the worker."""
+
+    def __init__(self, evaluator: Evaluator):
+        self.evaluator = evaluator
+
+    def __call__(self, task):
+        return _timed(self.evaluator, task)
+
+
+@dataclass
+class SweepResult:
+    rows: list[dict[str, Any]]        # one per design, in config order
+    new: int                          # designs evaluated in this run
+    reused: int                       # designs found in the store
+    failed: int
+    pareto_keys: list[str]
+    best_key: str | None
+    table_path: Path
+
+
+def tasks_of(config: SweepConfig) -> list[dict[str, Any]]:
+    out = []
+    for swept in config.designs():
+        params = {**config.fixed, **swept}
+        out.append({"part": config.part, "params": params, "swept": swept,
+                    "settings": config.settings, "protocol": config.protocol,
+                    "key": design_key(config.part, params, config.settings, config.protocol)})
+    return out
+
+
+def scores(rows: list[dict[str, Any]], config: SweepConfig) -> np.ndarray:
+    """(n, k) objective values to minimise; NaN for failed or infeasible designs."""
+    names = list(config.objectives)
+    F = np.full((len(rows), len(names)), np.nan)
+    for i, r in enumerate(rows):
+        if r.get("status") != "ok" or not r.get("feasible", False):
+            continue
+        for j, n in enumerate(names):
+            v = r.get(n)
+            if v is not None:
+                F[i, j] = objective_value(v, config.objectives[n])
+    return F
+
+
+def run_sweep(config: SweepConfig, out: str | Path, *, evaluator: Evaluator | None = None,
+              executor=None, progress: Callable[[int, int, dict], None] | None = None,
+              retry_failed: bool = False) -> SweepResult:
+    """Evaluate every design not yet in ``out``; ``progress(done, total, row)`` after each."""
+    out = Path(out)
+    store = ResultStore(out)
+    evaluator = evaluator or default_evaluator
+    executor = executor or LocalExecutor()
+    tasks = tasks_of(config)
+    done_keys = store.keys()
+    if retry_failed:
+        failed = {r["key"] for r in store.rows() if r.get("status") != "ok"}
+        done_keys -= failed
+    todo = [t for t in tasks if t["key"] not in done_keys]
+    # a design cached (finished) but killed before its row was written: write the row now
+    reused = len(tasks) - len(todo)
+    remaining = []
+    for t in todo:
+        cached = store.cached(t["key"])
+        if cached is not None and not retry_failed:
+            store.put(t["key"], _row(t, cached["metrics"], None, cached["elapsed_s"], config), None)
+            reused += 1
+        else:
+            remaining.append(t)
+    n_done, n_failed = reused, 0
+    if progress:
+        progress(n_done, len(tasks), {})
+    for i, res, err in executor.run(_Timed(evaluator), remaining):
+        t = remaining[i]
+        if err is None:
+            row = _row(t, res["metrics"], None, res["elapsed_s"], config)
+            store.put(t["key"], row, res)
+        else:
+            row = _row(t, {}, err, float("nan"), config)
+            store.put(t["key"], row, None)
+            n_failed += 1
+        n_done += 1
+        if progress:
+            progress(n_done, len(tasks), row)
+    rows = store.rows([t["key"] for t in tasks])
+    table_path = store.consolidate()
+    F = scores(rows, config)
+    pareto, best = [], None
+    if F.shape[1] and len(rows):
+        mask = non_dominated(F)
+        pareto = [rows[i]["key"] for i in np.flatnonzero(mask)]
+        if F.shape[1] >= 1 and np.isfinite(F[:, 0]).any():
+            best = rows[int(np.nanargmin(F[:, 0]))]["key"] if len(pareto) else None
+            if len(pareto) > 1:
+                # several objectives: the Pareto design closest to the ideal point (normalised)
+                Fp = F[mask]
+                lo, hi = Fp.min(0), Fp.max(0)
+                z = (Fp - lo) / np.where(hi > lo, hi - lo, 1)
+                best = pareto[int(np.argmin(np.linalg.norm(z, axis=1)))]
+    return SweepResult(rows, len(remaining), reused, sum(r.get("status") != "ok" for r in rows),
+                       pareto, best, table_path)
+
+
+def _row(task: dict[str, Any], metrics: dict[str, Any], error: str | None, elapsed: float,
+         config: SweepConfig) -> dict[str, Any]:
+    flat = flatten_metrics(metrics)
+    row = {"key": task["key"], "part": task["part"], "status": "error" if error else "ok",
+           "error": error, "elapsed_s": float(elapsed)}
+    row.update({f"param.{k}": float(v) if isinstance(v, (int, float)) else str(v)
+                for k, v in task["params"].items()})
+    row.update(flat)
+    row["feasible"] = bool(error is None and feasible(flat, config.constraints))
+    return row

@@ -1,0 +1,111 @@
+import subprocess
+import sys
+import textwrap
+import time
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from designlab.errors import ParameterError
+from designlab.optimize.executors import DaskExecutor, LocalExecutor
+from designlab.optimize.pareto import non_dominated
+from designlab.optimize.space import sweep_config
+from designlab.optimize.sweep import run_sweep
+from sweep_fixtures import quadratic
+
+CFG = {"part": "fingertip", "method": "grid",
+       "parameters": {"h": {"range": [0.0, 4.0], "levels": 3}, "r": {"values": [6.0, 8.0]}},
+       "objectives": {"condition_number": "min", "printed_volume_mm3": "min"},
+       "constraints": {"printable": True}}
+
+
+def test_grid_lhs_sobol_designs():
+    c = sweep_config(CFG)
+    d = c.designs()
+    assert len(d) == 6 and {x["h"] for x in d} == {0.0, 2.0, 4.0}
+    lhs = sweep_config({**CFG, "method": "lhs", "samples": 7,
+                        "parameters": {"h": [0.0, 4.0], "r": [6.0, 9.0]}}).designs()
+    assert len(lhs) == 7 and all(0 <= x["h"] <= 4 and 6 <= x["r"] <= 9 for x in lhs)
+    # Latin hypercube: one sample per stratum in each dimension
+    assert len({int(x["h"] / 4 * 7) for x in lhs}) == 7
+    sob = sweep_config({**CFG, "method": "sobol", "samples": 5,
+                        "parameters": {"h": [0.0, 4.0]}}).designs()
+    assert len(sob) == 8
+
+
+@pytest.mark.parametrize("bad, name", [({"part": "wing"}, "part"), ({"method": "random"}, "method"),
+                                       ({"parameters": {}}, "parameters"),
+                                       ({"parameters": {"h": [3, 1]}}, "parameters.h.range"),
+                                       ({"objectives": {"x": "smallest"}}, "objectives.x"),
+                                       ({"fixed": {"h": 1.0}}, "fixed.h"),
+                                       ({"colour": 1}, "colour")])
+def test_bad_configs(bad, name):
+    with pytest.raises(ParameterError) as e:
+        sweep_config({**CFG, **bad})
+    assert e.value.name == name
+
+
+def test_pareto_mask():
+    F = np.array([[1, 5], [2, 2], [3, 3], [5, 1], [np.nan, 0]])
+    assert non_dominated(F).tolist() == [True, True, False, True, False]
+
+
+def test_sweep_records_failures_caches_and_resumes(tmp_path):
+    c = sweep_config(CFG)
+    r1 = run_sweep(c, tmp_path, evaluator=quadratic, executor=LocalExecutor(1))
+    assert r1.new == 6 and r1.failed == 2
+    errs = [r for r in r1.rows if r["status"] == "error"]
+    assert all("deliberately failing" in r["error"] for r in errs)
+    best = next(r for r in r1.rows if r["key"] == r1.best_key)
+    assert best["status"] == "ok" and best["feasible"]
+    table = pq.read_table(tmp_path / "results.parquet")
+    assert table.num_rows == 6 and len(set(table.column("key").to_pylist())) == 6
+    r2 = run_sweep(c, tmp_path, evaluator=quadratic, executor=LocalExecutor(1))
+    assert r2.new == 0 and r2.reused == 6
+    assert [r["key"] for r in r2.rows] == [r["key"] for r in r1.rows]
+
+
+def test_process_pool_and_dask_give_identical_results(tmp_path):
+    from distributed import LocalCluster
+
+    c = sweep_config(CFG)
+    local = run_sweep(c, tmp_path / "a", evaluator=quadratic, executor=LocalExecutor(2))
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
+                      dashboard_address=None) as cluster:
+        dask = run_sweep(c, tmp_path / "b", evaluator=quadratic,
+                         executor=DaskExecutor(cluster.scheduler_address))
+    strip = lambda rows: [{k: v for k, v in r.items() if k != "elapsed_s"} for r in rows]
+    assert strip(local.rows) == strip(dask.rows)
+    assert local.best_key == dask.best_key and local.pareto_keys == dask.pareto_keys
+
+
+def test_kill_9_then_resume(tmp_path):
+    script = textwrap.dedent(f"""
+        import sys; sys.path.insert(0, {str(__import__('pathlib').Path(__file__).parent)!r})
+        from designlab.optimize.space import sweep_config
+        from designlab.optimize.sweep import run_sweep
+        from designlab.optimize.executors import LocalExecutor
+        from sweep_fixtures import slow_quadratic
+        cfg = {CFG!r}
+        cfg["parameters"] = {{"h": {{"range": [0.0, 3.0], "levels": 4}}, "r": [6.0, 9.0]}}
+        run_sweep(sweep_config(cfg), {str(tmp_path)!r}, evaluator=slow_quadratic,
+                  executor=LocalExecutor(1))
+    """)
+    proc = subprocess.Popen([sys.executable, "-c", script])
+    rows = tmp_path / "results"
+    deadline = time.time() + 60
+    while time.time() < deadline and len(list(rows.glob("*.parquet")) if rows.is_dir() else []) < 3:
+        time.sleep(0.05)
+    proc.kill()
+    proc.wait()
+    n_before = len(list(rows.glob("*.parquet")))
+    assert 3 <= n_before < 12
+    from sweep_fixtures import slow_quadratic
+    cfg = dict(CFG, parameters={"h": {"range": [0.0, 3.0], "levels": 4}, "r": [6.0, 9.0]})
+    res = run_sweep(sweep_config(cfg), tmp_path, evaluator=slow_quadratic,
+                    executor=LocalExecutor(1))
+    assert res.reused >= n_before and res.reused + res.new == 12
+    assert not list(tmp_path.rglob("*.tmp"))
+    keys = pq.read_table(tmp_path / "results.parquet").column("key").to_pylist()
+    assert len(keys) == 12 and len(set(keys)) == 12
