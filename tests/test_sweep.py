@@ -109,3 +109,40 @@ def test_kill_9_then_resume(tmp_path):
     assert not list(tmp_path.rglob("*.tmp"))
     keys = pq.read_table(tmp_path / "results.parquet").column("key").to_pylist()
     assert len(keys) == 12 and len(set(keys)) == 12
+
+
+def test_surrogate_finds_the_bowl_minimum(tmp_path):
+    from designlab.optimize.optimizer import optimize
+
+    cfg = sweep_config({**CFG, "parameters": {"h": {"range": [0.0, 3.0], "levels": 4},
+                                              "r": {"range": [6.0, 9.0], "levels": 4}},
+                        "objectives": {"condition_number": "min"}})
+    res = optimize(cfg, tmp_path, method="surrogate", evaluator=quadratic,
+                   executor=LocalExecutor(1))
+    assert res.method == "surrogate"
+    assert abs(res.chosen_params["h"] - 2.0) < 0.2 and abs(res.chosen_params["r"] - 8.0) < 0.2
+    assert res.chosen["condition_number"] < 1.05
+
+
+def test_de_and_pareto(tmp_path):
+    from designlab.optimize.optimizer import optimize
+
+    cfg = sweep_config({**CFG, "parameters": {"h": [0.0, 3.0], "r": [6.0, 9.0]},
+                        "objectives": {"condition_number": "min"}})
+    res = optimize(cfg, tmp_path / "de", method="de", evaluator=quadratic,
+                   executor=LocalExecutor(1), maxiter=8, popsize=5)
+    assert res.chosen["condition_number"] < 1.3
+    par = optimize(sweep_config(CFG), tmp_path / "p", evaluator=quadratic,
+                   executor=LocalExecutor(1))
+    assert par.method == "pareto" and par.chosen["key"] in par.sweep.pareto_keys
+
+
+def test_report_writes_plots_and_html(tmp_path):
+    from designlab.optimize.report import write_report
+
+    c = sweep_config(CFG)
+    r = run_sweep(c, tmp_path, evaluator=quadratic, executor=LocalExecutor(1))
+    files = write_report(tmp_path, r.rows, c, r.pareto_keys, r.best_key)
+    assert files["pareto"].stat().st_size > 1000 and files["sensitivity"].stat().st_size > 1000
+    page = files["html"].read_text()
+    assert "data:image/png;base64" in page and "deliberately failing" in page
