@@ -1,0 +1,226 @@
+"""Printability checks of a part's bodies before export (FDM, build direction = model +z, mm).
+
+Per printed body:
+
+* the B-rep is a valid solid without self-intersection (OpenCascade ``BRepCheck_Analyzer`` and
+  ``BOPAlgo_ArgumentAnalyzer``);
+* its tessellation is watertight and consistently wound (trimesh) and a valid manifold
+  (``manifold3d.Manifold(...).status() == NoError``), enclosing a positive volume;
+* smallest features, measured by casting a ray from surface samples along the inward normal to the
+  opposite wall (VTK cell locator): *walls* (samples whose normal is mostly horizontal) must be at
+  least the nozzle diameter wide, *skins* (normal mostly vertical) at least one layer thick.
+  A conductive trace 0.2 mm thick and 0.6 mm wide is thus fine with 0.1 mm layers and a 0.4 mm
+  nozzle: its thickness is governed by the layer height, its width by the nozzle.
+
+Per part: printed bodies must not overlap each other (manifold3d intersection volume), otherwise
+the slicer would print the shared volume with one material only.
+
+Bought bodies (``printed=False``) are not checked.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+import trimesh
+
+from designlab.errors import DesignlabError, MeshingError
+from designlab.geometry.body import Body
+from designlab.geometry.tessellate import tessellate, topods
+
+#: a sample's normal with |n_z| above this measures a skin (vertical thickness), else a wall
+SKIN_NZ = 0.7
+#: overlaps smaller than this fraction of the smaller body (or 1e-3 mm^3) are tessellation noise
+OVERLAP_REL = 1e-4
+
+
+@dataclass(frozen=True)
+class BodyReport:
+    """Printability of one body. Lengths mm, volumes mm^3."""
+
+    part: str
+    body: str
+    printed: bool
+    extruder: int
+    volume_mm3: float = float("nan")
+    watertight: bool = False
+    manifold: bool = False
+    valid_brep: bool = False
+    min_wall_mm: float = float("nan")
+    min_skin_mm: float = float("nan")
+    nozzle_mm: float = 0.4
+    layer_mm: float = 0.1
+    problems: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems
+
+
+class PrintabilityError(DesignlabError):
+    """Some bodies are not printable; ``reports`` holds every body's report."""
+
+    def __init__(self, reports: list[BodyReport]):
+        self.reports = reports
+        bad = [f"{r.part}/{r.body}: {'; '.join(r.problems)}" for r in reports if not r.ok]
+        super().__init__("not printable, nothing written: " + " | ".join(bad))
+
+
+def brep_problems(shape) -> list[str]:
+    """Problems OpenCascade finds in a solid: invalid topology/geometry, self-intersection."""
+    from OCP.BOPAlgo import BOPAlgo_ArgumentAnalyzer
+    from OCP.BRepCheck import BRepCheck_Analyzer
+
+    s = topods(shape)
+    out = []
+    if not BRepCheck_Analyzer(s).IsValid():
+        out.append("invalid B-rep (BRepCheck)")
+    aa = BOPAlgo_ArgumentAnalyzer()
+    aa.SetShape1(s)
+    aa.SelfInterMode = True  # all other checks are off by default
+    aa.Perform()
+    if aa.HasFaulty():
+        out.append("self-intersecting solid (BOPAlgo_ArgumentAnalyzer)")
+    return out
+
+
+def manifold_of(mesh: trimesh.Trimesh):
+    """``manifold3d.Manifold`` of a merged triangle mesh (status tells whether it is valid)."""
+    import manifold3d as m3
+
+    return m3.Manifold(m3.Mesh(vert_properties=np.asarray(mesh.vertices, np.float32),
+                               tri_verts=np.asarray(mesh.faces, np.uint32)))
+
+
+def _surface_samples(mesh: trimesh.Trimesh, max_faces: int, n_area: int,
+                     seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Points and outward unit normals: face centroids (all, or a random subset of ``max_faces``:
+    tessellation is finest on small features) plus ``n_area`` area-weighted samples."""
+    rng = np.random.default_rng(seed)
+    nf = len(mesh.faces)
+    idx = np.arange(nf) if nf <= max_faces else rng.choice(nf, max_faces, replace=False)
+    pts = [mesh.triangles_center[idx]]
+    nrm = [mesh.face_normals[idx]]
+    if n_area:
+        p, fi = trimesh.sample.sample_surface(mesh, n_area, seed=seed)
+        pts.append(p)
+        nrm.append(mesh.face_normals[fi])
+    return np.vstack(pts), np.vstack(nrm)
+
+
+def ray_thickness(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray,
+                  max_depth: float | None = None) -> np.ndarray:
+    """Distance (mm) from each surface point along its inward normal to the opposite wall
+    (inf when the ray leaves the bounding box without a hit)."""
+    import vtk
+    from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
+    from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData, vtkStaticCellLocator
+
+    pd = vtkPolyData()
+    pts = vtk.vtkPoints()
+    pts.SetData(numpy_to_vtk(np.ascontiguousarray(mesh.vertices, dtype=np.float64), deep=True))
+    pd.SetPoints(pts)
+    conn = np.hstack([np.full((len(mesh.faces), 1), 3), mesh.faces]).astype(np.int64).ravel()
+    cells = vtkCellArray()
+    cells.SetCells(len(mesh.faces), numpy_to_vtkIdTypeArray(conn, deep=True))
+    pd.SetPolys(cells)
+    loc = vtkStaticCellLocator()
+    loc.SetDataSet(pd)
+    loc.BuildLocator()
+    depth = float(max_depth or np.linalg.norm(mesh.extents) * 1.01)
+    eps = 1e-5 * max(1.0, depth)
+    t, sub, cid = vtk.reference(0.0), vtk.reference(0), vtk.reference(0)
+    x, pc = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
+    starts = points - eps * normals
+    ends = points - depth * normals
+    out = np.full(len(points), np.inf)
+    for i in range(len(points)):
+        if loc.IntersectWithLine(starts[i], ends[i], 1e-9, t, x, pc, sub, cid):
+            out[i] = eps + t.get() * (depth - eps)
+    return out
+
+
+def feature_sizes(mesh: trimesh.Trimesh, max_faces: int = 20000, n_area: int = 4000,
+                  seed: int = 0) -> tuple[float, float]:
+    """``(min_wall, min_skin)`` in mm: smallest thickness seen from samples whose normal is
+    mostly horizontal (wall width) and mostly vertical (skin thickness); inf if none."""
+    p, n = _surface_samples(mesh, max_faces, n_area, seed)
+    d = ray_thickness(mesh, p, n)
+    skin = np.abs(n[:, 2]) >= SKIN_NZ
+    wall = float(d[~skin].min()) if (~skin).any() else float("inf")
+    skin_t = float(d[skin].min()) if skin.any() else float("inf")
+    return wall, skin_t
+
+
+def check_body(part: str, body: Body, nozzle: float = 0.4, layer: float = 0.1,
+               mesh: trimesh.Trimesh | None = None, tolerance: float = 0.01,
+               angular_tolerance: float = 0.2) -> BodyReport:
+    """Report on one body; ``mesh`` is its tessellation if already computed."""
+    base = dict(part=part, body=body.name, printed=body.printed, extruder=body.extruder,
+                nozzle_mm=nozzle, layer_mm=layer)
+    if not body.printed:
+        return BodyReport(**base)
+    problems = brep_problems(body.shape)
+    valid_brep = not problems
+    try:
+        mesh = mesh if mesh is not None else tessellate(body.shape, tolerance,
+                                                        angular_tolerance, check=False)
+    except MeshingError as exc:
+        return BodyReport(**base, problems=tuple(problems + [str(exc)]))
+    watertight = bool(mesh.is_watertight and mesh.is_winding_consistent)
+    if not watertight:
+        problems.append("mesh not watertight")
+    import manifold3d as m3
+
+    is_manifold = manifold_of(mesh).status() == m3.Error.NoError
+    if not is_manifold:
+        problems.append("not a manifold (manifold3d)")
+    volume = float(mesh.volume)
+    if not volume > 0:
+        problems.append(f"volume {volume:.3g} mm^3 is not positive")
+    wall = skin = float("nan")
+    if watertight and volume > 0:
+        wall, skin = feature_sizes(mesh)
+        # 1% slack: tessellation chords and ray round-off on exact-size features
+        if wall < 0.99 * nozzle:
+            problems.append(f"wall {wall:.3g} mm thinner than the {nozzle:g} mm nozzle")
+        if skin < 0.99 * layer:
+            problems.append(f"skin {skin:.3g} mm thinner than a {layer:g} mm layer")
+    return BodyReport(**base, volume_mm3=volume, watertight=watertight, manifold=is_manifold,
+                      valid_brep=valid_brep, min_wall_mm=wall, min_skin_mm=skin,
+                      problems=tuple(problems))
+
+
+def overlaps(meshes: Mapping[str, trimesh.Trimesh]) -> dict[tuple[str, str], float]:
+    """Intersection volume (mm^3) of every pair of meshes that overlap beyond tessellation noise."""
+    names = list(meshes)
+    mani = {k: manifold_of(m) for k, m in meshes.items()}
+    out = {}
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            va = mani[a].volume()
+            vb = mani[b].volume()
+            inter = (mani[a] ^ mani[b]).volume()
+            if inter > max(1e-3, OVERLAP_REL * min(va, vb)):
+                out[(a, b)] = float(inter)
+    return out
+
+
+def check_part(part: str, bodies: Mapping[str, Body], nozzle: float = 0.4, layer: float = 0.1,
+               meshes: Mapping[str, trimesh.Trimesh] | None = None) -> list[BodyReport]:
+    """Reports for every body of a part (bought bodies included, unchecked), with overlaps of
+    printed bodies added to both bodies' problems."""
+    meshes = dict(meshes or {})
+    reports = {name: check_body(part, b, nozzle, layer, meshes.get(name))
+               for name, b in bodies.items()}
+    printed = {n: meshes[n] for n, r in reports.items()
+               if r.printed and r.watertight and r.manifold and n in meshes}
+    for (a, b), vol in overlaps(printed).items():
+        for x, y in ((a, b), (b, a)):
+            r = reports[x]
+            reports[x] = BodyReport(**{**r.__dict__,
+                                       "problems": r.problems + (
+                                           f"overlaps {y} by {vol:.3g} mm^3",)})
+    return list(reports.values())
