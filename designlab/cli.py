@@ -159,6 +159,62 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
     console.print(f"exported {len(files)} files to {design_dir}")
 
 
+@app.command()
+def flexure(preset: str = typer.Option("visiflex", "--preset",
+                                       help="Spring preset: visiflex (seed 002 as printed) or "
+                                            "visiflex-catalog (wire diameter 2.03 mm, 1.75 active turns)."),
+            set_: Optional[List[str]] = typer.Option(None, "--set", metavar="NAME=VALUE",
+                                                     help="Override a spring parameter (mm, rad, MPa)."),
+            frame: str = typer.Option("camera", "--frame", help="spring (centre of the spring) or camera."),
+            json_out: Optional[Path] = typer.Option(None, "--json", help="Write all matrices as JSON (SI)."),
+            no_fem: bool = typer.Option(False, "--no-fem", help="Skip the FEM 6x6 (closed form only)."),
+            edge_length: Optional[float] = typer.Option(None, "--edge-length",
+                                                        help="FEM tet edge length, mm (default: wire radius)."),
+            paper_json: Optional[Path] = typer.Option(None, "--paper-json",
+                                                      help="Seed 002 JSON (default ../shared/data/papers/visiflex_flexure.json).")):
+    """Seed 002 spring flexure 6x6 stiffness: closed form, FEM, paper theory and measurement (SI)."""
+    from designlab.calibration import flexure_report as fr
+    from designlab.fem.spring import preset as spring_preset
+    from designlab.params import parse_sets, with_overrides
+
+    if frame not in fr.FRAMES:
+        from designlab.errors import ParameterError
+        raise ParameterError("--frame", frame, "one of " + ", ".join(fr.FRAMES))
+    spring = with_overrides(spring_preset(preset), parse_sets(set_))
+    paper = fr.load_paper(paper_json)
+    K_fem = None
+    fem_info = None
+    if not no_fem:
+        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+        from designlab.fem.flexure_fem import fem_stiffness
+
+        with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TimeElapsedColumn(),
+                      console=console, transient=True) as prog:
+            task = prog.add_task("FEM 6x6", total=None)
+
+            def step(text: str, done: int, total: int) -> None:
+                prog.update(task, description=f"FEM: {text}", completed=done, total=total)
+
+            fem = fem_stiffness(spring, edge_length=edge_length, progress=step)
+        K_fem, fem_info = fem.K_centre_si, fem.summary()
+    report = fr.flexure_report(spring, frame=frame, K_fem_spring_si=K_fem, paper=paper)
+    report["fem_info"] = fem_info
+    console.print(fr.report_table(report))
+    r = report["ratios"]
+    console.print("ratios (closed form vs paper theory): " + ", ".join(
+        f"{k} {r['closed_form'][k]:.4g} vs {r['paper_theory'][k]:.4g} ({v:+.2f} %)"
+        for k, v in r["closed_form_vs_paper_pct"].items()), highlight=False)
+    if fem_info is not None:
+        console.print(f"FEM: {fem_info['n_nodes']} nodes, {fem_info['n_cells']} TET{fem_info['cell_nodes']}"
+                      f", asymmetry ||K-K^T||/||K|| = {fem_info['asymmetry']:.2e}", highlight=False)
+    for note in report["notes"]:
+        console.print(f"[bold]note:[/] {note}", highlight=False)
+    if json_out is not None:
+        fr.write_json(json_out, report)
+        console.print(f"wrote {json_out}")
+
+
 # --- commands (each helper inserts its command above this line) ---
 
 
