@@ -1,1 +1,42 @@
-"""Finite elements: TET4/TET10 elasticity, viscoelastic Prony materials, solvers, transducers (mm, N, MPa, s)."""
+"""Finite elements: TET4/TET10 elasticity, viscoelastic Prony materials, solvers, transducers (mm, N, MPa, s).
+
+API summary (stable names)::
+
+    from designlab.fem import Model, solve_static
+    from designlab.geometry.mesh import box_tet_mesh
+
+    mesh = box_tet_mesh(100, 10, 10, 20, 4, 4, material="ABS").quadratic()   # TET10
+    model = Model(mesh)                      # materials: mesh.materials {body: name}, or
+                                             # Model(mesh, materials={"block": Material(...)})
+    model.fix("xmin")                        # facet set / point set / node ids; components="xz"
+    model.prescribe("xmax", displacement=(0.1, None, None), case="pull")
+    model.traction("xmax", (0, 0, -0.01), case="tip")      # MPa; also pressure(), body_force(),
+    model.gravity(case="g")                                # nodal_force()
+    hook = model.distributing_coupling("hook", "xmax", ref_point=(110, 5, 5))   # RBE3-like
+    model.force(hook, force=(0, 0, -1.0), moment=(0, 0, 0), case="weight")      # N, N mm
+    disc = model.rigid("disc", "zmax")                     # RBE2-like 6-dof master (elimination)
+    model.fix(disc, "rx")                                  # master dofs "x".."rz"
+    model.spring("button", a=(disc, (5, 5, 10)), b=None, k=1e4, axis=(0, 0, -1),
+                 preload=0.0, case="default")              # stiff spring = force sensor
+    res = solve_static(model, solver="auto")               # all load cases, one factorisation
+    res.displacement("tip")            # (n_points, 3) mm
+    res.reactions("tip")               # (n_points, 3) N
+    res.wrench("xmin", "tip", about=(0, 0, 0))      # (m_x, m_y, m_z, f_x, f_y, f_z)
+    res.twist(disc, "tip")             # (w_x, w_y, w_z, v_x, v_y, v_z)
+    res.spring_force("button", "tip")  # N, k * elongation along axis + preload
+    res.strain(case), res.stress(case), res.von_mises(case)   # (m, nq, 6) Voigt xx yy zz xy xz yz
+
+Building blocks: ``elements`` (TET4, TET10, TRI3, TRI6, quadrature), ``assembly``
+(``cell_basis``, ``stiffness``, ``mass``, ``strain_operator``, ``body_load``), ``facets``
+(``facet_basis``, ``traction_load``, ``pressure_load``, ``area_weights``), ``solvers``
+(``factorize(K, solver="auto"|"direct"|"cholmod"|"amg") -> .solve(F)`` for (n,) or (n, k)),
+``materials`` (``Material``, ``MATERIALS``, ``get_material``).
+"""
+
+from designlab.fem.materials import MATERIALS, Material, get_material
+from designlab.fem.model import Model, RefPoint, Spring, System
+from designlab.fem.solvers import factorize
+from designlab.fem.static import StaticResult, solve_static
+
+__all__ = ["MATERIALS", "Material", "get_material", "Model", "RefPoint", "Spring", "System",
+           "factorize", "StaticResult", "solve_static"]

@@ -1,0 +1,104 @@
+"""Material library: isotropic linear elastic (optionally viscoelastic, piezoresistive) solids.
+
+Units: E in MPa, density in t/mm^3 (1 g/cm^3 = 1e-9 t/mm^3), resistivity in ohm*mm, tcr per K.
+Every value carries its source in a comment. ``get_material(name)`` looks one up;
+``dataclasses.replace(m, prony=...)`` gives a variant (e.g. with a fitted Prony series).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from designlab.errors import ParameterError
+from designlab.fem.prony import Prony
+
+
+@dataclass(frozen=True)
+class Material:
+    """Isotropic linear elastic solid.
+
+    name: library name; E: Young's modulus (MPa, instantaneous when ``prony`` is given);
+    nu: Poisson's ratio (-1 < nu < 0.5); density: t/mm^3; prony: generalized Maxwell terms or None;
+    gauge_factor: dR/R per unit strain (piezoresistive materials) or None;
+    gauge_quadratic: second-order coefficient c2 in dR/R = GF eps + c2 eps^2;
+    tcr: temperature coefficient of resistance, 1/K; resistivity: ohm*mm or None.
+    """
+
+    name: str
+    E: float
+    nu: float
+    density: float = 0.0
+    prony: Prony | None = None
+    gauge_factor: float | None = None
+    gauge_quadratic: float = 0.0
+    tcr: float = 0.0
+    resistivity: float | None = None
+    source: str = field(default="", compare=False)
+
+    def __post_init__(self):
+        if not (self.E > 0):
+            raise ParameterError(f"{self.name}.E", self.E, "Young's modulus > 0 MPa")
+        if not (-1.0 < self.nu < 0.5):
+            raise ParameterError(f"{self.name}.nu", self.nu, "Poisson's ratio in (-1, 0.5)")
+        if not (self.density >= 0):
+            raise ParameterError(f"{self.name}.density", self.density, ">= 0 t/mm^3")
+
+    @property
+    def G(self) -> float:
+        """Shear modulus, MPa."""
+        return self.E / (2.0 * (1.0 + self.nu))
+
+    @property
+    def K(self) -> float:
+        """Bulk modulus, MPa."""
+        return self.E / (3.0 * (1.0 - 2.0 * self.nu))
+
+    @property
+    def lame(self) -> tuple[float, float]:
+        """(lambda, mu) in MPa."""
+        return self.K - 2.0 * self.G / 3.0, self.G
+
+
+MATERIALS: dict[str, Material] = {m.name: m for m in [
+    # Seed 000 Table I (../shared/data/papers/fingertip_strap_tpu.json): E = 12 MPa, Shore 85A.
+    # nu: TPU elastomers are nearly incompressible; 0.45 is the usual small-strain value for
+    # printed TPU (an assumption, not in the paper). Density 1.19 g/cm^3 (NinjaTek datasheet).
+    Material("NinjaFlex", E=12.0, nu=0.45, density=1.19e-9,
+             source="E: seed 000 Table I; nu assumed 0.45; density NinjaTek datasheet"),
+    # Seed 000 Table I: PI-ETPU 95-250 carbon black, E = 12 MPa, Shore 95A, resistivity
+    # <= 800 ohm*cm = 8000 ohm*mm; TCR 0.002 /K (seed 000 discussion, ref [32]). The paper
+    # gives no gauge factor; GF = 5 is the carbon-black/elastomer value measured from the
+    # stretch-rig data (see `silicone` below) used as a stand-in until calibrated.
+    Material("PI-ETPU", E=12.0, nu=0.45, density=1.25e-9, gauge_factor=5.0, tcr=0.002,
+             resistivity=8000.0,
+             source="E, resistivity: seed 000 Table I; TCR: seed 000 [32]; nu assumed; "
+                    "GF: stand-in (carbon-black elastomer), calibrate"),
+    # Stratasys ABSplus-P430 datasheet (seed 001 printer Dimension BST 768): tensile modulus
+    # 2200 MPa (XZ); nu 0.35 typical for ABS; density 1.04 g/cm^3.
+    Material("ABS", E=2200.0, nu=0.35, density=1.04e-9,
+             source="ABSplus-P430 datasheet (E); nu, density: typical ABS"),
+    # Printed PLA: E ~ 3500 MPa (NatureWorks 4043D datasheet, bulk); nu 0.36; 1.24 g/cm^3.
+    Material("PLA", E=3500.0, nu=0.36, density=1.24e-9,
+             source="NatureWorks Ingeo 4043D datasheet; nu typical"),
+    # Seed 002 spring: stainless 302, ASTM A313 spring wire. Handbook design values
+    # E = 193 GPa, G = 69 GPa (SMI/Associated Spring tables); nu = E/(2G) - 1 = 0.399 keeps
+    # the shear modulus that governs a coil spring exact. Density 7.92 g/cm^3.
+    Material("SS302", E=193000.0, nu=193000.0 / (2.0 * 69000.0) - 1.0, density=7.92e-9,
+             source="ASTM A313 302 spring wire: E 193 GPa, G 69 GPa (spring handbooks)"),
+    # Generic structural / bearing steel (seed 001 ball and M2.5 bolt): E 210 GPa, nu 0.30.
+    Material("steel", E=210000.0, nu=0.30, density=7.85e-9, source="EN 10025 typical values"),
+    # Dragon Skin (Smooth-On) filled with carbon black (the stretch-rig specimen,
+    # ../shared/data/README.md). Dragon Skin 20 datasheet: 100 % modulus 0.34 MPa, 1.08 g/cm^3;
+    # filler stiffens it: E = 0.6 MPa small-strain (assumed, fit from stretch data to refine);
+    # nearly incompressible, nu = 0.49.
+    Material("silicone", E=0.6, nu=0.49, density=1.08e-9, gauge_factor=5.0,
+             source="Dragon Skin 20 datasheet; carbon-black filled, E and GF estimates"),
+]}
+
+
+def get_material(name: str) -> Material:
+    """Library material by name (case-sensitive), else ParameterError listing the names."""
+    try:
+        return MATERIALS[name]
+    except KeyError:
+        raise ParameterError("material", name, "one of " + ", ".join(MATERIALS)) from None
