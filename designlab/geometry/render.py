@@ -1,0 +1,145 @@
+"""PNG pictures of a part: bodies in their colours, bought parts semi-transparent.
+
+Rendering uses pyvista/VTK off screen. The VTK wheels pinned by CadQuery (9.3) need an X server:
+when ``DISPLAY`` is unset, one private ``Xvfb`` is started for the process (``-displayfd`` picks a
+free display) and stopped at exit. Without an X server and without ``Xvfb`` on the PATH, a
+matplotlib (Agg) picture of the same triangles is drawn instead, so export never fails for lack of
+a screen.
+"""
+
+from __future__ import annotations
+
+import atexit
+import os
+import shutil
+import subprocess
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+import trimesh
+
+from designlab.geometry.body import Body
+from designlab.geometry.tessellate import tessellate
+
+BOUGHT_OPACITY = 0.35
+HOST_OPACITY = 0.55
+_XVFB: subprocess.Popen | None = None
+
+
+def _stop_xvfb() -> None:
+    global _XVFB
+    if _XVFB is not None and _XVFB.poll() is None:
+        _XVFB.terminate()
+        try:
+            _XVFB.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            _XVFB.kill()
+    _XVFB = None
+
+
+def ensure_display() -> bool:
+    """True when VTK can open a window: ``DISPLAY`` is set, or a private Xvfb was started."""
+    global _XVFB
+    if os.environ.get("DISPLAY"):
+        return True
+    xvfb = shutil.which("Xvfb")
+    if xvfb is None:
+        return False
+    r, w = os.pipe()
+    try:
+        _XVFB = subprocess.Popen([xvfb, "-displayfd", str(w), "-screen", "0", "1600x1200x24",
+                                  "-nolisten", "tcp"], pass_fds=(w,),
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    finally:
+        os.close(w)
+    num = b""
+    with os.fdopen(r, "rb") as fh:  # Xvfb writes the display number once it is ready
+        num = fh.readline().strip()
+    if not num:
+        _stop_xvfb()
+        return False
+    atexit.register(_stop_xvfb)
+    os.environ["DISPLAY"] = ":" + num.decode()
+    return True
+
+
+def _meshes(bodies: Mapping[str, Body], tolerance: float) -> list[tuple[Body, trimesh.Trimesh]]:
+    return [(b, tessellate(b.shape, tolerance, 0.3, check=False)) for b in bodies.values()]
+
+
+def _opacity(body: Body, items) -> float:
+    """Bought parts are see-through; so is the host body of a multi-material part, so that the
+    embedded second-extruder bodies (traces) show."""
+    if not body.printed:
+        return BOUGHT_OPACITY
+    multi = any(b.printed and b.extruder > 1 for b, _ in items)
+    return HOST_OPACITY if multi and body.extruder == 1 else 1.0
+
+
+def _render_pyvista(items, path: Path, size: tuple[int, int], title: str) -> None:
+    import pyvista as pv
+
+    pl = pv.Plotter(off_screen=True, window_size=list(size))
+    pl.set_background("white")
+    for body, m in items:
+        faces = np.hstack([np.full((len(m.faces), 1), 3), m.faces]).ravel()
+        pl.add_mesh(pv.PolyData(np.asarray(m.vertices), faces), color=body.color,
+                    opacity=_opacity(body, items), smooth_shading=False, specular=0.2,
+                    label=f"{body.name} ({body.material})")
+    pl.add_legend(bcolor="white", face="rectangle", loc="lower left", border=False,
+                  size=(0.3, min(0.5, 0.05 * len(items))))
+    if title:
+        pl.add_text(title, position="upper_edge", font_size=12, color="black")
+    pl.view_isometric()
+    pl.enable_parallel_projection()
+    pl.reset_camera()
+    pl.screenshot(str(path))
+    pl.close()
+
+
+def _render_matplotlib(items, path: Path, size: tuple[int, int], title: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    fig = plt.figure(figsize=(size[0] / 100, size[1] / 100), dpi=100)
+    ax = fig.add_subplot(projection="3d")
+    light = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for body, m in items:
+        shade = 0.45 + 0.55 * np.clip(m.face_normals @ light, 0, 1)
+        rgb = np.clip(np.outer(shade, body.color), 0, 1)
+        alpha = _opacity(body, items)
+        ax.add_collection3d(Poly3DCollection(m.triangles, facecolors=np.c_[rgb, np.full(
+            len(rgb), alpha)], linewidths=0, label=f"{body.name} ({body.material})"))
+        lo, hi = np.minimum(lo, m.bounds[0]), np.maximum(hi, m.bounds[1])
+    c, r = (lo + hi) / 2, (hi - lo).max() / 2
+    ax.set(xlim=(c[0] - r, c[0] + r), ylim=(c[1] - r, c[1] + r), zlim=(c[2] - r, c[2] + r),
+           xlabel="x (mm)", ylabel="y (mm)", zlabel="z (mm)")
+    ax.set_box_aspect((1, 1, 1))
+    if title:
+        ax.set_title(title)
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def render_bodies(bodies: Mapping[str, Body], path: str | Path, size: tuple[int, int] = (1200, 900),
+                  title: str = "", tolerance: float = 0.05, backend: str = "auto") -> str:
+    """Write a PNG of ``bodies`` to ``path``; returns the backend used (``pyvista`` or
+    ``matplotlib``). ``backend="auto"`` prefers pyvista when an X display can be had."""
+    items = _meshes(bodies, tolerance)
+    path = Path(path)
+    if backend == "auto":
+        backend = "pyvista" if ensure_display() else "matplotlib"
+    if backend == "pyvista":
+        _render_pyvista(items, path, size, title)
+    elif backend == "matplotlib":
+        _render_matplotlib(items, path, size, title)
+    else:
+        from designlab.errors import ParameterError
+
+        raise ParameterError("backend", backend, "one of auto, pyvista, matplotlib")
+    return backend
