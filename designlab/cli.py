@@ -215,6 +215,82 @@ def flexure(preset: str = typer.Option("visiflex", "--preset",
         console.print(f"wrote {json_out}")
 
 
+def _parts_from_cli(part: str, set_: Optional[List[str]], config: Optional[Path]):
+    from designlab.geometry.export import resolve_parts
+    from designlab.params import load_toml, parse_sets
+
+    overrides = parse_sets(set_)
+    cfg = load_toml(config) if config is not None else None
+    return resolve_parts(part, overrides, cfg)
+
+
+@app.command()
+def export(part: str = typer.Argument(..., help="strap | fingertip | flexure | all"),
+           out: Path = typer.Option(..., "--out", help="Output directory (one folder per part)."),
+           set_: Optional[List[str]] = typer.Option(None, "--set", metavar="NAME=VALUE",
+                                                    help="Override a part parameter (mm); with 'all' "
+                                                         "write PART.NAME=VALUE."),
+           config: Optional[Path] = typer.Option(None, "--config", help="Part parameters (TOML)."),
+           formats: str = typer.Option("stl,3mf,step,gltf", "--format",
+                                       help="Comma-separated: stl (per body), 3mf (one object, "
+                                            "one volume per body/extruder), step, gltf."),
+           png: bool = typer.Option(True, "--png/--no-png", help="Also render <part>.png."),
+           nozzle: float = typer.Option(0.4, "--nozzle", help="Nozzle diameter for the wall check, mm."),
+           layer: float = typer.Option(0.1, "--layer-height", help="Layer height for the skin check, mm.")):
+    """Check printability, then write STL/3MF/STEP/glTF (+PNG) of a part or of all parts."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from designlab.errors import ParameterError
+    from designlab.geometry.export import export_parts, parse_formats
+    from designlab.geometry.printability import PrintabilityError, reports_table
+
+    fmts = parse_formats(formats)
+    for name, v, lo, hi in (("--nozzle", nozzle, 0.05, 2.0), ("--layer-height", layer, 0.01, 1.0)):
+        if not lo <= v <= hi:
+            raise ParameterError(name, v, f"{lo:g} <= value <= {hi:g} mm")
+    parts = _parts_from_cli(part, set_, config)
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), console=console, transient=True) as prog:
+        task = prog.add_task("export", total=2 * len(parts))
+
+        def step(text: str, done: int, total: int) -> None:
+            prog.update(task, description=text, completed=done, total=total)
+
+        try:
+            res = export_parts(parts, out, fmts, png=png, nozzle=nozzle, layer=layer, progress=step)
+        except PrintabilityError as exc:
+            prog.stop()
+            err_console.print(reports_table(exc.reports))
+            raise
+    console.print(reports_table(res.reports))
+    for f in res.files:
+        console.print(f"wrote {f}", highlight=False)
+
+
+@app.command()
+def show(part: str = typer.Argument(..., help="strap | fingertip | flexure"),
+         out: Path = typer.Option(..., "--out", help="PNG file to write."),
+         set_: Optional[List[str]] = typer.Option(None, "--set", metavar="NAME=VALUE",
+                                                  help="Override a part parameter (mm)."),
+         config: Optional[Path] = typer.Option(None, "--config", help="Part parameters (TOML)."),
+         width: int = typer.Option(1200, "--width", help="Image width, px."),
+         height: int = typer.Option(900, "--height", help="Image height, px.")):
+    """Render a part (bodies in colour, bought parts see-through) to a PNG."""
+    from designlab.errors import ParameterError
+    from designlab.geometry.export import write_png
+
+    if part == "all":
+        raise ParameterError("part", part, "a single part: strap, fingertip or flexure")
+    if out.suffix.lower() != ".png":
+        raise ParameterError("--out", str(out), "a file name ending in .png")
+    for name, v in (("--width", width), ("--height", height)):
+        if not 64 <= v <= 8000:
+            raise ParameterError(name, v, "64 <= value <= 8000 px")
+    (name, obj), = _parts_from_cli(part, set_, config).items()
+    path = write_png(obj.build(), out, title=name, size=(width, height))
+    console.print(f"wrote {path}", highlight=False)
+
+
 # --- commands (each helper inserts its command above this line) ---
 
 

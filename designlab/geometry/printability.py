@@ -224,3 +224,26 @@ def check_part(part: str, bodies: Mapping[str, Body], nozzle: float = 0.4, layer
                                        "problems": r.problems + (
                                            f"overlaps {y} by {vol:.3g} mm^3",)})
     return list(reports.values())
+
+
+def reports_table(reports: list[BodyReport]):
+    """A rich table of printability reports (one row per body)."""
+    from rich.table import Table
+
+    def mm(x: float) -> str:
+        return "-" if x != x else ("inf" if x == float("inf") else f"{x:.3g}")
+
+    t = Table(title="printability (build direction +z)")
+    for col in ("part", "body", "ext.", "volume mm^3", "watertight", "manifold",
+                "min wall mm", "min skin mm", "status"):
+        t.add_column(col, justify="right" if "mm" in col else "left")
+    for r in reports:
+        if not r.printed:
+            t.add_row(r.part, r.body, "-", "-", "-", "-", "-", "-", "[dim]bought, not printed[/]")
+            continue
+        status = "[green]ok[/]" if r.ok else "[red]" + "; ".join(r.problems) + "[/]"
+        t.add_row(r.part, r.body, str(r.extruder), f"{r.volume_mm3:.4g}",
+                  "yes" if r.watertight else "no", "yes" if r.manifold else "no",
+                  f"{mm(r.min_wall_mm)} (>= {r.nozzle_mm:g})",
+                  f"{mm(r.min_skin_mm)} (>= {r.layer_mm:g})", status)
+    return t

@@ -1,0 +1,283 @@
+"""Printable export of a part: per-body STL, one (multi-material) 3MF, coloured STEP and glTF of
+the assembly, and a PNG picture. Units mm.
+
+Export runs in two steps so that nothing is half-written:
+
+1. :func:`prepare` builds the bodies, tessellates the printed ones (:func:`tessellate`) and runs
+   the printability checks; :func:`require_printable` raises :class:`PrintabilityError` (one line,
+   every body's report attached) when any body fails;
+2. :func:`write` renders every file into a temporary file inside the target directory and, only
+   when all of them succeeded, moves each into place with ``os.replace``.
+
+Layout: ``OUT/<part>/<part>-<body>.stl``, ``<part>.3mf``, ``<part>.step``, ``<part>.glb``,
+``<part>.png``.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterable, Mapping
+
+import trimesh
+
+from designlab.errors import ParameterError
+from designlab.geometry.body import Body
+from designlab.geometry.printability import BodyReport, PrintabilityError, check_part
+from designlab.geometry.tessellate import tessellate  # noqa: F401  (re-exported)
+from designlab.geometry.threemf import Volume3MF, threemf_bytes
+
+FORMATS = ("stl", "3mf", "step", "gltf")
+#: print tessellation: chordal 0.01 mm (a tenth of a 0.1 mm layer), 0.2 rad
+PRINT_TOLERANCE = 0.01
+PRINT_ANGULAR_TOLERANCE = 0.2
+
+
+def parse_formats(text: str | Iterable[str]) -> tuple[str, ...]:
+    """``"stl,3mf"`` -> ``("stl", "3mf")``; unknown names raise ParameterError."""
+    items = text.split(",") if isinstance(text, str) else list(text)
+    out = []
+    for f in (x.strip().lower() for x in items):
+        f = {"stp": "step", "glb": "gltf"}.get(f, f)
+        if f not in FORMATS:
+            raise ParameterError("--format", f, "comma-separated names from " + ",".join(FORMATS))
+        if f not in out:
+            out.append(f)
+    if not out:
+        raise ParameterError("--format", text, "at least one of " + ",".join(FORMATS))
+    return tuple(out)
+
+
+@dataclass(frozen=True, eq=False)
+class Prepared:
+    """A part ready to be written: bodies, print meshes of the printed ones, reports."""
+
+    name: str
+    bodies: dict[str, Body]
+    meshes: dict[str, trimesh.Trimesh]
+    reports: list[BodyReport]
+    assembly: Callable[[], Any] | None = None  # -> cadquery.Assembly (coloured)
+    params: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return all(r.ok for r in self.reports)
+
+
+def prepare(name: str, bodies: Mapping[str, Body], nozzle: float = 0.4, layer: float = 0.1,
+            assembly: Callable[[], Any] | None = None, tolerance: float = PRINT_TOLERANCE,
+            angular_tolerance: float = PRINT_ANGULAR_TOLERANCE) -> Prepared:
+    """Tessellate the printed bodies and check them (nothing is written)."""
+    if not any(b.printed for b in bodies.values()):
+        raise ParameterError(name, "bodies", "a part with at least one printed body")
+    meshes = {k: tessellate(b.shape, tolerance, angular_tolerance, check=False)
+              for k, b in bodies.items() if b.printed}
+    reports = check_part(name, bodies, nozzle, layer, meshes)
+    return Prepared(name, dict(bodies), meshes, reports, assembly)
+
+
+def prepare_part(part: Any, name: str | None = None, nozzle: float = 0.4,
+                 layer: float = 0.1) -> Prepared:
+    """:func:`prepare` for a parametric part object (``part.build() -> {name: Body}``); STEP and
+    glTF come from :func:`designlab.geometry.assembly.assembly`."""
+    from designlab.geometry import assembly as asm
+
+    name = name or type(part).__name__.lower()
+    prepared = prepare(name, part.build(), nozzle, layer, assembly=lambda: asm.assembly(part))
+    return prepared
+
+
+def require_printable(prepared: Iterable[Prepared]) -> None:
+    """Raise :class:`PrintabilityError` with all reports if any body of any part fails."""
+    prepared = list(prepared)
+    if not all(p.ok for p in prepared):
+        raise PrintabilityError([r for p in prepared for r in p.reports])
+
+
+def bodies_assembly(bodies: Mapping[str, Body]):
+    """A coloured ``cadquery.Assembly`` of bodies (for parts without their own assembly)."""
+    import cadquery as cq
+
+    assy = cq.Assembly(name="part")
+    for name, b in bodies.items():
+        assy.add(cq.Shape.cast(getattr(b.shape, "wrapped", b.shape)), name=name,
+                 color=cq.Color(*b.color))
+    return assy
+
+
+def threemf_of(prepared: Prepared) -> bytes:
+    """The part's printed bodies as one 3MF object with one volume per body, host body first."""
+    order = sorted(prepared.meshes, key=lambda k: (prepared.bodies[k].extruder, k))
+    vols = [Volume3MF(k, prepared.meshes[k].vertices, prepared.meshes[k].faces,
+                      prepared.bodies[k].extruder, prepared.bodies[k].material,
+                      prepared.bodies[k].color) for k in order]
+    return threemf_bytes(prepared.name, vols)
+
+
+def _save_step(assy, path: Path) -> None:
+    try:
+        from designlab.geometry.assembly import save_assembly_step
+    except ImportError:
+        assy.export(str(path), exportType="STEP")
+    else:
+        save_assembly_step(assy, path)
+
+
+def _save_gltf(assy, path: Path) -> None:
+    try:
+        from designlab.geometry.assembly import save_assembly_gltf
+    except ImportError:
+        from cadquery.occ_impl.exporters.assembly import exportGLTF
+
+        exportGLTF(assy, str(path), binary=True)
+    else:
+        save_assembly_gltf(assy, path)
+
+
+def write(prepared: Prepared, out_dir: str | Path, formats: Iterable[str] = FORMATS,
+          png: bool = True) -> list[Path]:
+    """Write a checked part under ``out_dir/<part>/``; all-or-nothing. Returns the paths."""
+    require_printable([prepared])
+    formats = parse_formats(formats)
+    target = Path(out_dir) / prepared.name
+    stem = prepared.name
+    jobs: list[tuple[str, Callable[[Path], None]]] = []
+    if "stl" in formats:
+        for k, mesh in prepared.meshes.items():
+            jobs.append((f"{stem}-{k}.stl",
+                         lambda p, m=mesh: p.write_bytes(m.export(file_type="stl"))))
+    if "3mf" in formats:
+        jobs.append((f"{stem}.3mf", lambda p: p.write_bytes(threemf_of(prepared))))
+    if "step" in formats or "gltf" in formats:
+        assy_cache: list = []
+
+        def assy():
+            if not assy_cache:
+                assy_cache.append(prepared.assembly() if prepared.assembly
+                                  else bodies_assembly(prepared.bodies))
+            return assy_cache[0]
+        if "step" in formats:
+            jobs.append((f"{stem}.step", lambda p: _save_step(assy(), p)))
+        if "gltf" in formats:
+            jobs.append((f"{stem}.glb", lambda p: _save_gltf(assy(), p)))
+    if png:
+        from designlab.geometry.render import render_bodies
+
+        jobs.append((f"{stem}.png", lambda p: render_bodies(prepared.bodies, p, title=stem)))
+    return _write_all(target, jobs)
+
+
+def _write_all(target: Path, jobs: list[tuple[str, Callable[[Path], None]]]) -> list[Path]:
+    """Run each writer on a temp file in ``target``; on success ``os.replace`` all, else delete
+    the temp files (and ``target`` if this call created it)."""
+    created = not target.exists()
+    target.mkdir(parents=True, exist_ok=True)
+    temps: list[tuple[Path, Path]] = []
+    try:
+        for fname, writer in jobs:
+            fd, tmp = tempfile.mkstemp(prefix=f".{fname}.", suffix=".tmp" + Path(fname).suffix,
+                                       dir=target)
+            os.close(fd)
+            temps.append((Path(tmp), target / fname))
+            writer(Path(tmp))
+            if Path(tmp).stat().st_size == 0:
+                raise OSError(f"writing {fname} produced an empty file")
+    except BaseException:
+        for tmp, _ in temps:
+            tmp.unlink(missing_ok=True)
+        if created:
+            try:
+                target.rmdir()
+            except OSError:
+                pass
+        raise
+    umask = os.umask(0)
+    os.umask(umask)
+    for tmp, final in temps:
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual file mode
+        os.replace(tmp, final)
+    return [final for _, final in temps]
+
+
+def export_bodies(name: str, bodies: Mapping[str, Body], out_dir: str | Path,
+                  formats: Iterable[str] = FORMATS, png: bool = True, nozzle: float = 0.4,
+                  layer: float = 0.1) -> list[Path]:
+    """Check and write one part given as bodies (convenience for :func:`prepare` + :func:`write`)."""
+    return write(prepare(name, bodies, nozzle, layer), out_dir, formats, png)
+
+
+@dataclass(frozen=True)
+class ExportResult:
+    """Files written and the printability report of every body."""
+
+    files: list[Path]
+    reports: list[BodyReport]
+
+
+def resolve_parts(target: str, overrides: Mapping[str, str] | None = None,
+                  config: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """Part objects for ``target`` (a part name or ``"all"``) with ``--set`` overrides.
+
+    For ``all``, overrides must name their part: ``strap.width=12``; for one part a bare
+    ``width=12`` is allowed too. Unknown parts or parameters raise ParameterError.
+    """
+    from designlab.geometry.parts import PARTS, make_part
+
+    names = list(PARTS) if target == "all" else [target]
+    if target != "all" and target not in PARTS:
+        raise ParameterError("part", target, "one of " + ", ".join([*PARTS, "all"]))
+    per_part: dict[str, dict[str, str]] = {n: {} for n in names}
+    for key, value in (overrides or {}).items():
+        part, dot, pname = key.partition(".")
+        if dot and part in PARTS:
+            if part not in per_part:
+                raise ParameterError("--set", f"{key}={value}", f"a parameter of {target}")
+            per_part[part][pname] = value
+        elif target != "all":
+            per_part[target][key] = value
+        else:
+            raise ParameterError("--set", f"{key}={value}",
+                                 "PART.NAME=VALUE with PART one of " + ", ".join(PARTS)
+                                 + " when exporting all parts")
+    return {n: make_part(n, per_part[n] or None, dict(config) if config else None)
+            for n in names}
+
+
+def export_parts(parts: Mapping[str, Any], out_dir: str | Path, formats: Iterable[str] = FORMATS,
+                 png: bool = True, nozzle: float = 0.4, layer: float = 0.1,
+                 progress: Callable[[str, int, int], None] | None = None) -> "ExportResult":
+    """Check every part, then (only if all are printable) write them all. ``progress(text, done,
+    total)`` is called per step (build/check of each part, then writing of each part).
+    Raises :class:`PrintabilityError` (nothing written) when a body fails its checks."""
+    formats = parse_formats(formats)
+    total, done = 2 * len(parts), 0
+    prepared = []
+    for name, part in parts.items():
+        if progress:
+            progress(f"build + check {name}", done, total)
+        prepared.append(prepare_part(part, name, nozzle, layer))
+        done += 1
+    require_printable(prepared)
+    files: list[Path] = []
+    for p in prepared:
+        if progress:
+            progress(f"write {p.name}", done, total)
+        files += write(p, out_dir, formats, png)
+        done += 1
+    if progress:
+        progress("done", done, total)
+    return ExportResult(files, [r for p in prepared for r in p.reports])
+
+
+def write_png(bodies: Mapping[str, Body], path: str | Path, title: str = "",
+              size: tuple[int, int] = (1200, 900)) -> Path:
+    """Render bodies to ``path`` (PNG) atomically."""
+    from designlab.geometry.render import render_bodies
+
+    path = Path(path)
+    if path.suffix.lower() != ".png":
+        raise ParameterError("--out", str(path), "a file name ending in .png")
+    return _write_all(path.parent, [(path.name, lambda p: render_bodies(
+        bodies, p, size=size, title=title))])[0]
