@@ -21,7 +21,7 @@ from designlab.errors import ModelError
 from designlab.fem.elements import Element, Quadrature, tet_element, tet_quadrature
 from designlab.geometry.mesh import TetMesh
 
-_CHUNK = 8192          # cells per batch: bounds memory of the (chunk, 3nn, 3nn) element matrices
+_CHUNK = 32768         # cells per batch: bounds memory of the (chunk, 3nn, 3nn) element matrices
 
 
 @dataclass(frozen=True, eq=False)
@@ -121,31 +121,38 @@ def per_cell(values, mesh: TetMesh) -> np.ndarray:
 
 def stiffness(basis: CellBasis, lam, mu) -> sp.csr_matrix:
     """Isotropic elastic stiffness (N/mm) for Lame parameters ``lam``, ``mu`` (MPa): scalars
-    or (m,) per cell. Symmetric CSR of size 3 n_points."""
+    or (m,) per cell. Symmetric CSR of size 3 n_points.
+
+    With A_ij[e, a, b] = sum_q w G[e,q,a,i] G[e,q,b,j] (six batched matmuls, i <= j), the
+    (i, j) block is K_ij = lam A_ij + mu A_ji + mu delta_ij (A_00 + A_11 + A_22), and
+    A_ji = A_ij^T (a <-> b): every block is scattered by ``bincount`` into the cached pattern."""
     mesh = basis.mesh
     pat = block_pattern(mesh)
     m, nq, nn, _ = basis.dNdx.shape
     lam = np.broadcast_to(np.asarray(lam, float), (m,))
     mu = np.broadcast_to(np.asarray(mu, float), (m,))
     nnzb = len(pat.indices)
-    data = np.zeros((nnzb, 9))
+    data = np.zeros((9, nnzb))
     for s in range(0, m, _CHUNK):
         e = slice(s, min(s + _CHUNK, m))
-        G = basis.dNdx[e].reshape(-1, nq, nn * 3)                    # (c, nq, 3nn)
-        Gw = G * basis.dx[e][:, :, None]
-        A = np.matmul(Gw.transpose(0, 2, 1), G).reshape(-1, nn, 3, nn, 3)   # a i b j
-        tr = A[:, :, 0, :, 0] + A[:, :, 1, :, 1] + A[:, :, 2, :, 2]     # (c, nn, nn)
-        # K[a i b j] = lam A[a i b j] + mu A[a j b i] + mu delta_ij tr[a b]; stored as (a b i j)
-        Kb = (lam[e, None, None, None, None] * A.transpose(0, 1, 3, 2, 4)
-              + mu[e, None, None, None, None] * A.transpose(0, 1, 3, 4, 2))
-        d = mu[e, None, None] * tr
-        for i in range(3):
-            Kb[:, :, :, i, i] += d
-        Kb = Kb.reshape(-1, 9)
+        G = np.ascontiguousarray(basis.dNdx[e].transpose(3, 0, 2, 1))     # (3, c, nn, nq)
+        Gw = G * basis.dx[e][None, :, None, :]
+        A = {(i, j): np.matmul(Gw[i], G[j].transpose(0, 2, 1))
+             for i in range(3) for j in range(i, 3)}
+        la, mu_ = lam[e, None, None], mu[e, None, None]
+        tr = mu_ * (A[0, 0] + A[1, 1] + A[2, 2])
         idx = pat.scatter[e].ravel()
-        for k in range(9):
-            data[:, k] += np.bincount(idx, weights=Kb[:, k], minlength=nnzb)
-    return _bsr_to_csr(pat, data)
+        idxT = pat.scatter[e].transpose(0, 2, 1).ravel()
+        for (i, j), a in A.items():
+            if i == j:
+                blk = (la + mu_) * a + tr
+                data[4 * i] += np.bincount(idx, weights=blk.ravel(), minlength=nnzb)
+            else:
+                blk = la * a + mu_ * a.transpose(0, 2, 1)                     # K_ij
+                w = blk.ravel()
+                data[3 * i + j] += np.bincount(idx, weights=w, minlength=nnzb)
+                data[3 * j + i] += np.bincount(idxT, weights=w, minlength=nnzb)   # K_ji = K_ij^T
+    return _bsr_to_csr(pat, np.ascontiguousarray(data.T))
 
 
 def mass(basis: CellBasis, density) -> sp.csr_matrix:

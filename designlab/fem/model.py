@@ -254,7 +254,14 @@ class Model:
                   case: str = "default") -> None:
         """Prescribed displacement (mm; None = free) of a node set or rigid reference point,
         and rotation (rad) of a rigid reference point, in load case ``case``. The dofs are
-        constrained in every case (value 0 in the other cases)."""
+        constrained in every case (value 0 in the other cases). ``displacement`` may also be a
+        callable ``f(x) -> (k, 3)`` of the set's node coordinates (all components fixed)."""
+        if callable(displacement):
+            ids = self.nodes(where)
+            v = np.asarray(displacement(self.mesh.points[ids]), float).reshape(len(ids), 3)
+            self._constraints.append(((3 * ids[:, None] + np.arange(3)).ravel(), v.ravel(),
+                                      self._case(case)))
+            return
         vals = list(displacement) + list(rotation)
         if len(vals) != 6:
             raise ParameterError("displacement", displacement, "three values (None = free)")
