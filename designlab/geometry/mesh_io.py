@@ -1,0 +1,105 @@
+"""TetMesh <-> VTU (ParaView), written atomically.
+
+The file holds the tetrahedra (VTK_TETRA or VTK_QUADRATIC_TETRA, whose node order is the C3D10
+order of :class:`TetMesh`) with cell data ``region``, followed by the facet-set triangles
+(VTK_TRIANGLE / VTK_QUADRATIC_TRIANGLE) with cell data ``facet_set``; ``-1`` marks "not
+applicable". Region names, materials and facet/point set names live in a JSON string in the
+field data ``designlab`` (UTF-8 bytes), so :func:`read_vtu` gives back the same mesh.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from designlab.errors import DataError
+from designlab.geometry.mesh import TetMesh
+
+_META = "designlab"
+
+
+def to_pyvista(mesh: TetMesh, facets: bool = True):
+    """A ``pyvista.UnstructuredGrid`` of the mesh (and its facet sets, unless ``facets=False``)."""
+    import pyvista as pv
+
+    tet_type = pv.CellType.TETRA if mesh.order == 1 else pv.CellType.QUADRATIC_TETRA
+    tri_type = pv.CellType.TRIANGLE if mesh.order == 1 else pv.CellType.QUADRATIC_TRIANGLE
+    blocks = [(tet_type, np.asarray(mesh.cells, np.int64))]
+    region = [np.asarray(mesh.region, np.int64)]
+    fset = [np.full(mesh.n_cells, -1, np.int64)]
+    names = list(mesh.facet_sets)
+    if facets:
+        for k, name in enumerate(names):
+            tri = np.asarray(mesh.facet_sets[name], np.int64).reshape(-1, 3 * mesh.order)
+            blocks.append((tri_type, tri))
+            region.append(np.full(len(tri), -1, np.int64))
+            fset.append(np.full(len(tri), k, np.int64))
+    cells = np.concatenate([np.column_stack([np.full(len(c), c.shape[1]), c]).ravel()
+                            for _, c in blocks])
+    types = np.concatenate([np.full(len(c), t, np.uint8) for t, c in blocks])
+    grid = pv.UnstructuredGrid(cells, types, np.asarray(mesh.points, float))
+    grid.cell_data["region"] = np.concatenate(region)
+    grid.cell_data["facet_set"] = np.concatenate(fset)
+    meta = {"region_names": {str(k): v for k, v in mesh.region_names.items()},
+            "materials": dict(mesh.materials), "facet_sets": names,
+            "point_sets": {k: np.asarray(v).tolist() for k, v in mesh.point_sets.items()},
+            "order": mesh.order}
+    # JSON as UTF-8 bytes: readable by VTK/ParaView and by meshio (which rejects string arrays)
+    grid.field_data[_META] = np.frombuffer(json.dumps(meta).encode(), np.uint8)
+    return grid
+
+
+def write_vtu(mesh: TetMesh, path: str | os.PathLike) -> Path:
+    """Write ``mesh`` to a binary, compressed ``.vtu`` file atomically; returns the path."""
+    path = Path(path)
+    if path.suffix != ".vtu":
+        raise DataError(f"mesh file {path} must end in .vtu")
+    grid = to_pyvista(mesh)
+    fd, tmp = tempfile.mkstemp(suffix=".vtu", prefix=f".{path.stem}.", dir=path.parent)
+    os.close(fd)
+    try:
+        grid.save(tmp, binary=True)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def read_vtu(path: str | os.PathLike) -> TetMesh:
+    """Read a mesh written by :func:`write_vtu`."""
+    import pyvista as pv
+
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(f"mesh file {path} does not exist")
+    grid = pv.read(path)
+    if _META not in grid.field_data:
+        raise DataError(f"mesh file {path} has no '{_META}' field data (not written by designlab)")
+    meta = json.loads(np.asarray(grid.field_data[_META], np.uint8).tobytes().decode())
+    types = np.asarray(grid.celltypes)
+    conn = np.asarray(grid.cell_connectivity, np.int64)
+    offsets = np.asarray(grid.cell_offsets, np.int64)
+    tet_type = pv.CellType.TETRA if meta["order"] == 1 else pv.CellType.QUADRATIC_TETRA
+    npc = 4 if meta["order"] == 1 else 10
+    npf = 3 if meta["order"] == 1 else 6
+
+    def block(mask, width):
+        starts = offsets[:-1][mask]
+        return conn[starts[:, None] + np.arange(width)]
+
+    is_tet = types == tet_type
+    region = np.asarray(grid.cell_data["region"], np.int64)[is_tet]
+    fset_id = np.asarray(grid.cell_data["facet_set"], np.int64)
+    tri_all = block(~is_tet, npf) if (~is_tet).any() else np.zeros((0, npf), np.int64)
+    fset_of_tri = fset_id[~is_tet]
+    facet_sets = {name: tri_all[fset_of_tri == k] for k, name in enumerate(meta["facet_sets"])}
+    return TetMesh(np.asarray(grid.points, float), block(is_tet, npc), region,
+                   {int(k): v for k, v in meta["region_names"].items()}, dict(meta["materials"]),
+                   facet_sets,
+                   {k: np.asarray(v, np.int64) for k, v in meta["point_sets"].items()})
