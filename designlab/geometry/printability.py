@@ -9,8 +9,11 @@ Per printed body:
 * smallest features, measured by casting a ray from surface samples along the inward normal to the
   opposite wall (VTK cell locator): *walls* (samples whose normal is mostly horizontal) must be at
   least the nozzle diameter wide, *skins* (normal mostly vertical) at least one layer thick.
-  A conductive trace 0.2 mm thick and 0.6 mm wide is thus fine with 0.1 mm layers and a 0.4 mm
-  nozzle: its thickness is governed by the layer height, its width by the nozzle.
+  A conductive trace's thickness is thus governed by the layer height (0.2 mm = two 0.1 mm
+  layers is fine) and its width by the nozzle. Bodies printed by another extruder inside a host
+  body (the traces) need ``MM_WALL_FACTOR`` nozzle widths: PrusaSlicer 2.5 (default Arachne
+  perimeters, 0.4 mm nozzle, 0.1 mm layers) silently drops an embedded second-extruder line
+  0.6 mm wide and prints one 0.7 mm wide (measured with ``tests/test_export.py``'s fixture).
 
 Per part: printed bodies must not overlap each other (manifold3d intersection volume), otherwise
 the slicer would print the shared volume with one material only.
@@ -32,6 +35,8 @@ from designlab.geometry.tessellate import tessellate, topods
 
 #: a sample's normal with |n_z| above this measures a skin (vertical thickness), else a wall
 SKIN_NZ = 0.7
+#: embedded bodies of a second extruder need this many nozzle widths (see module docstring)
+MM_WALL_FACTOR = 2.0
 #: overlaps smaller than this fraction of the smaller body (or 1e-3 mm^3) are tessellation noise
 OVERLAP_REL = 1e-4
 
@@ -52,6 +57,7 @@ class BodyReport:
     min_skin_mm: float = float("nan")
     nozzle_mm: float = 0.4
     layer_mm: float = 0.1
+    wall_required_mm: float = 0.4
     problems: tuple[str, ...] = field(default_factory=tuple)
 
     @property
@@ -156,10 +162,12 @@ def feature_sizes(mesh: trimesh.Trimesh, max_faces: int = 20000, n_area: int = 4
 
 def check_body(part: str, body: Body, nozzle: float = 0.4, layer: float = 0.1,
                mesh: trimesh.Trimesh | None = None, tolerance: float = 0.01,
-               angular_tolerance: float = 0.2) -> BodyReport:
-    """Report on one body; ``mesh`` is its tessellation if already computed."""
+               angular_tolerance: float = 0.2, min_wall: float | None = None) -> BodyReport:
+    """Report on one body; ``mesh`` is its tessellation if already computed; walls must be at
+    least ``min_wall`` (default: the nozzle diameter) wide, skins one ``layer`` thick."""
+    min_wall = nozzle if min_wall is None else min_wall
     base = dict(part=part, body=body.name, printed=body.printed, extruder=body.extruder,
-                nozzle_mm=nozzle, layer_mm=layer)
+                nozzle_mm=nozzle, layer_mm=layer, wall_required_mm=min_wall)
     if not body.printed:
         return BodyReport(**base)
     problems = brep_problems(body.shape)
@@ -184,8 +192,11 @@ def check_body(part: str, body: Body, nozzle: float = 0.4, layer: float = 0.1,
     if watertight and volume > 0:
         wall, skin = feature_sizes(mesh)
         # 1% slack: tessellation chords and ray round-off on exact-size features
-        if wall < 0.99 * nozzle:
-            problems.append(f"wall {wall:.3g} mm thinner than the {nozzle:g} mm nozzle")
+        if wall < 0.99 * min_wall:
+            what = (f"the {nozzle:g} mm nozzle" if min_wall == nozzle else
+                    f"{min_wall:g} mm ({min_wall / nozzle:g} nozzle widths, embedded extruder "
+                    f"{body.extruder} body)")
+            problems.append(f"wall {wall:.3g} mm thinner than {what}")
         if skin < 0.99 * layer:
             problems.append(f"skin {skin:.3g} mm thinner than a {layer:g} mm layer")
     return BodyReport(**base, volume_mm3=volume, watertight=watertight, manifold=is_manifold,
@@ -213,7 +224,15 @@ def check_part(part: str, bodies: Mapping[str, Body], nozzle: float = 0.4, layer
     """Reports for every body of a part (bought bodies included, unchecked), with overlaps of
     printed bodies added to both bodies' problems."""
     meshes = dict(meshes or {})
-    reports = {name: check_body(part, b, nozzle, layer, meshes.get(name))
+    for name, b in bodies.items():
+        if b.printed and name not in meshes:
+            try:
+                meshes[name] = tessellate(b.shape, check=False)
+            except MeshingError:
+                pass  # check_body reports it
+    host = min((b.extruder for b in bodies.values() if b.printed), default=1)
+    reports = {name: check_body(part, b, nozzle, layer, meshes.get(name),
+                                min_wall=nozzle * (MM_WALL_FACTOR if b.extruder != host else 1.0))
                for name, b in bodies.items()}
     printed = {n: meshes[n] for n, r in reports.items()
                if r.printed and r.watertight and r.manifold and n in meshes}
@@ -244,6 +263,6 @@ def reports_table(reports: list[BodyReport]):
         status = "[green]ok[/]" if r.ok else "[red]" + "; ".join(r.problems) + "[/]"
         t.add_row(r.part, r.body, str(r.extruder), f"{r.volume_mm3:.4g}",
                   "yes" if r.watertight else "no", "yes" if r.manifold else "no",
-                  f"{mm(r.min_wall_mm)} (>= {r.nozzle_mm:g})",
+                  f"{mm(r.min_wall_mm)} (>= {r.wall_required_mm:g})",
                   f"{mm(r.min_skin_mm)} (>= {r.layer_mm:g})", status)
     return t
