@@ -291,6 +291,150 @@ def show(part: str = typer.Argument(..., help="strap | fingertip | flexure"),
     console.print(f"wrote {path}", highlight=False)
 
 
+def _names(values: Optional[List[str]]) -> list[str]:
+    """Repeated and/or comma-separated option values -> a flat list of names."""
+    return [v.strip() for item in values or [] for v in item.split(",") if v.strip()]
+
+
+@app.command()
+def compensate(model: Optional[List[str]] = typer.Option(
+                   None, "--model", help="linear, mpl, narx (repeat or comma-separate; default: all)."),
+               data: Optional[Path] = typer.Option(None, "--data", help="Dataset card (TOML); its "
+                                                   "file roles/split give train and validation."),
+               train: Optional[List[Path]] = typer.Option(None, "--train", help="Training CSV/Parquet "
+                                                          "with a header (repeat for several)."),
+               validate: Optional[List[Path]] = typer.Option(None, "--validate",
+                                                             help="Validation CSV/Parquet (repeatable)."),
+               input_: List[str] = typer.Option(..., "--input", help="Sensor signal column(s)/channel(s), "
+                                                "e.g. Ch1,Ch2 or resistance."),
+               output: List[str] = typer.Option(..., "--output", help="Reference column(s)/channel(s), "
+                                                "e.g. Fn,Fx or force."),
+               time_col: Optional[str] = typer.Option(None, "--time", help="Time column (s) of the "
+                                                      "CSV/Parquet files."),
+               dt: Optional[float] = typer.Option(None, "--dt", help="Sample period (s) of the files."),
+               out: Path = typer.Option(..., "--out", help="Output directory (compensation.json, .png)."),
+               cells: int = typer.Option(0, "--cells", help="mPL cells (0: add while held-out error improves)."),
+               order: int = typer.Option(5, "--order", help="mPL output polynomial degree."),
+               update: str = typer.Option("exact", "--update", help="mPL time update: exact or euler."),
+               narx_delays: int = typer.Option(50, "--narx-delays", help="NARX input delays."),
+               narx_output_delays: int = typer.Option(0, "--narx-output-delays", help="NARX fed-back "
+                                                      "output delays (0: seed 000 input-output net)."),
+               mix: str = typer.Option("auto", "--mix", help="Channel per output: auto (sum/diff for 2->2), "
+                                       "full, identity, sum-diff."),
+               segments: int = typer.Option(10, "--segments", help="Segments per record for Wilcoxon pairs."),
+               seed: int = typer.Option(0, "--seed")):
+    """Seed 000 compensation: fit linear / mPL / NARX on the training task(s), validate on the others
+    (RMSE in the reference unit, NCC at zero lag, Wilcoxon between models and tasks)."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.table import Table
+
+    from designlab.calibration import compensation as comp
+    from designlab.errors import ParameterError
+
+    models = _names(model) or list(comp.MODELS)
+    inputs, outputs = _names(input_), _names(output)
+    opts = comp.CompensationOptions(mix=mix, mpl_cells=cells, mpl_order=order, mpl_update=update,
+                                    narx_input_delays=narx_delays,
+                                    narx_output_delays=narx_output_delays, n_segments=segments,
+                                    seed=seed)
+    if data is not None:
+        if train or validate:
+            raise ParameterError("--data", str(data), "either a dataset card or --train/--validate files")
+        train_recs, val_recs = comp.records_from_card(data, inputs, outputs)
+    else:
+        if not train:
+            raise ParameterError("--train", None, "at least one training file (or --data CARD)")
+        train_recs = [comp.load_record(f, inputs, outputs, time=time_col, dt=dt) for f in train]
+        val_recs = [comp.load_record(f, inputs, outputs, time=time_col, dt=dt) for f in validate or []]
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TimeElapsedColumn(),
+                  console=console, transient=True) as prog:
+        task = prog.add_task("compensate", total=len(models) + 1)
+
+        def step(text: str) -> None:
+            prog.update(task, description=text, advance=0 if text.startswith("fitting " + models[0])
+                        else 1)
+
+        result = comp.compare(train_recs, val_recs, models, opts, progress=step)
+        prog.update(task, completed=len(models) + 1)
+    table = Table(title="compensation (RMSE in the reference unit)")
+    for col in ("model", "task", "role", "output", "RMSE", "NCC"):
+        table.add_column(col, justify="right" if col in ("RMSE", "NCC") else "left")
+    for m, t, role, o, r, c in result.table():
+        table.add_row(m, t, role, o, f"{r:.4g}", f"{c:.4f}")
+    console.print(table)
+    for m, f in result.fits.items():
+        console.print(f"{m}: fitted in {f['time_s']:.2f} s", highlight=False)
+    for path in comp.write_outputs(result, train_recs + val_recs, out):
+        console.print(f"wrote {path}")
+
+
+@app.command("loop")
+def loop_cmd(
+    data: Path = typer.Option(..., "--data", help="Dataset card (TOML) naming the measured files."),
+    base: str = typer.Option("linear", "--base",
+                             help="linear | linear:IN1,IN2 | stretch-fem | specimen | "
+                                  "stretch-closed | a model .json from predict/loop."),
+    out: Path = typer.Option(..., "--out", help="Directory for loop.json, model.json and plots."),
+    output: Optional[List[str]] = typer.Option(None, "--output",
+                                               help="Output channel(s) to analyse (default: all)."),
+    folds: int = typer.Option(10, "--folds", min=3, help="Blocks of the time-series CV."),
+    max_effects: int = typer.Option(8, "--max-effects", min=0, help="Stop after this many."),
+    n_se: float = typer.Option(2.0, "--n-se", help="Required improvement in standard errors."),
+    min_relative: float = typer.Option(0.01, "--min-relative",
+                                       help="Required relative improvement (0.01 = 1 %)."),
+):
+    """Residual -> effect -> better model: add library effects to BASE while they lower the
+    cross-validated error; report errors on the validation data."""
+    from rich.markup import escape
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.table import Table
+
+    from designlab.calibration.dataset import load_card
+    from designlab.calibration.loop import load_model, run_loop, write_outputs
+
+    ds = load_card(data)
+    start = load_model(base) if base.endswith(".json") else base
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TimeElapsedColumn(),
+                  console=console, transient=True) as prog:
+        task = prog.add_task("loop", total=1)
+
+        def step(o: str, done: int, total: int, what: str) -> None:
+            prog.update(task, description=escape(f"{o}: {what}"), completed=done,
+                        total=max(total, 1))
+
+        result = run_loop(ds, start, outputs=output or None, folds=folds,
+                          max_effects=max_effects, n_se=n_se, min_relative=min_relative,
+                          progress=step)
+    table = Table(title=f"loop on {data.name}: validation RMSE (base {result.report['base']})")
+    for col in ("output", "effect", "parameters", "before", "after"):
+        table.add_column(col, justify="right" if col in ("before", "after") else "left")
+    for o, rep in result.report["outputs"].items():
+        table.add_row(o, "(base)", "", f"{rep['error_before']:.4g}", "", end_section=False)
+        for e in rep["effects"]:
+            par = ", ".join(f"{k}={_short(v)}" for k, v in e["parameters"].items()
+                            if k not in ("base_adjust", "form", "g_unit"))
+            table.add_row("", escape(e["key"]), escape(par), f"{e['error_before']:.4g}",
+                          f"{e['error_after']:.4g}")
+        table.add_row("", "[bold]total", f"unexplained {100 * rep['unexplained_fraction']:.1f} %",
+                      f"{rep['error_before']:.4g}", f"{rep['error_after']:.4g} {rep['unit']}",
+                      end_section=True)
+    console.print(table)
+    for o, rep in result.report["outputs"].items():
+        console.print(f"{o}: {rep['verdict']}", highlight=False, markup=False)
+    for path in write_outputs(result, out):
+        console.print(f"wrote {path}", highlight=False)
+
+
+def _short(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.3g}"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_short(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k}: {_short(x)}" for k, x in v.items()) + "}"
+    return str(v)
+
+
 # --- commands (each helper inserts its command above this line) ---
 
 

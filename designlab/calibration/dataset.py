@@ -24,6 +24,7 @@ The card says what each file holds::
     max_run = 3
     [preprocess]                   # seed 000: bias over the first second, 10 Hz low-pass, resample
     rate = 10.0                    # Hz, the common clock (default: median rate of the data)
+    skip_s = 0.0                   # drop each run's first N s (e.g. a first-loading ramp; counted)
     bias_seconds = 1.0             # subtract the mean over the first N s of each run
     bias_channels = ["force"]      # default: every output
     lowpass_hz = 10.0              # 4th-order Butterworth, zero phase (sosfiltfilt)
@@ -446,6 +447,12 @@ def load_card(path: str | Path) -> Dataset:
     seg_info, file_reports = [], []
     for k, r in enumerate(raw):
         t0, t1 = r["t_start"], r["t_end"]
+        skip = float(pre.get("skip_s", 0.0))
+        if skip:
+            for name, (tt, _) in r["series"].items():
+                r["report"]["trimmed"][name]["skipped_start"] = int(np.sum(
+                    (tt >= t0) & (tt < t0 + skip)))
+            t0 = t0 + skip
         n = int(math.floor((t1 - t0) * rate + 1e-9)) + 1
         if n < 4:
             raise DataError(f"{r['path']}: the channels' clocks overlap for only "

@@ -1,0 +1,148 @@
+"""BASE models of the loop: what a sensor is believed to do before the residual is analysed.
+
+- ``linear``: a static affine map from the inputs to each output (least squares on training
+  data); ``linear:a,b`` restricts it to the inputs ``a`` and ``b``.
+- ``stretch-fem`` (alias ``specimen``): the 40 x 10 x 4 mm stretch specimen of
+  ../shared/data/stretch (Dragon Skin + 7.5 wt% carbon black), linear-elastic silicone clamped
+  at both grips. Force ``F = F0 + k(E) d`` with the axial stiffness ``k`` from a static TET10 FEM
+  solution of the box (designlab.fem; linear in E, so solved once at E = 1 MPa) and E fitted on
+  the training data; resistance ``R = R0 (1 + GF d / L)`` with R0 and GF fitted.
+  ``stretch-closed`` uses the closed form ``k = E A / L`` instead of the FEM.
+
+A base is a :class:`Base`: ``kind``, the ``inputs`` it uses per output and fitted
+``parameters`` per output; :func:`predict` evaluates it. Units: mm, N, MPa, ohm, s.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from designlab.calibration.dataset import Dataset
+from designlab.errors import DataError, ModelError, ParameterError
+
+SPECIMEN = {"length": 40.0, "width": 10.0, "thickness": 4.0, "nu": 0.49}
+BASE_KINDS = ("linear", "stretch-fem", "specimen", "stretch-closed")
+
+
+@dataclass(frozen=True)
+class Base:
+    """A fitted base model: ``parameters[output]`` holds what :func:`predict` needs."""
+
+    kind: str
+    inputs: dict[str, tuple[str, ...]]
+    parameters: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        return {"kind": self.kind, "inputs": {k: list(v) for k, v in self.inputs.items()},
+                "parameters": self.parameters}
+
+    @staticmethod
+    def from_json(d: dict) -> "Base":
+        kind = d.get("kind")
+        if kind not in BASE_KINDS:
+            raise ModelError(f"model base kind={kind!r} is not known; allowed: "
+                             f"{', '.join(BASE_KINDS)}")
+        return Base(kind, {k: tuple(v) for k, v in d["inputs"].items()}, d["parameters"])
+
+
+@lru_cache(maxsize=8)
+def specimen_stiffness_factor(length: float = 40.0, width: float = 10.0, thickness: float = 4.0,
+                              nu: float = 0.49, divisions: tuple[int, int, int] = (16, 4, 2)
+                              ) -> float:
+    """Axial stiffness of the box clamped at both ends (one end pulled by 1 mm, lateral motion
+    of both grip faces held) over the closed form E A / L: > 1 because the grips stop the
+    lateral contraction. Static TET10 FEM at E = 1 MPa (designlab.fem)."""
+    from designlab.fem import Material, Model, solve_static
+    from designlab.geometry.mesh import box_tet_mesh
+
+    mesh = box_tet_mesh(length, width, thickness, *divisions).quadratic()
+    model = Model(mesh, materials={"block": Material("specimen", E=1.0, nu=nu)})
+    model.fix("xmin")
+    model.prescribe("xmax", displacement=(1.0, 0.0, 0.0))
+    res = solve_static(model)
+    k = float(res.wrench("xmax")[3])
+    return k / (width * thickness / length)
+
+
+def _choose_input(data: Dataset, kind: str) -> str:
+    for name in data.inputs:
+        if data.quantities.get(name) == "length" and data.kinds.get(name, "drive") == "drive":
+            return name
+    raise DataError(f"base {kind} needs a displacement input (a length in [inputs]); the data "
+                    f"has {', '.join(data.inputs) or 'none'}")
+
+
+def fit_base(kind: str, train: Dataset, outputs: list[str]) -> Base:
+    """Fit the base ``kind`` (``linear``, ``linear:a,b``, ``stretch-fem``, ``specimen``,
+    ``stretch-closed``) to every output of ``train``."""
+    name, _, arg = kind.partition(":")
+    if name not in BASE_KINDS:
+        raise ParameterError("--base", kind, "linear, linear:INPUT[,INPUT..], stretch-fem, "
+                             "specimen, stretch-closed or a model .json file")
+    if name == "linear":
+        use = tuple(a.strip() for a in arg.split(",") if a.strip()) or tuple(train.inputs)
+        for u in use:
+            if u not in train.inputs:
+                raise ParameterError("--base", kind, f"inputs among {', '.join(train.inputs)}")
+        base = Base("linear", {o: use for o in outputs})
+        X = np.column_stack([np.ones(len(train))] + [train.inputs[u] for u in use])
+        for o in outputs:
+            coef, *_ = np.linalg.lstsq(X, train.outputs[o], rcond=None)
+            base.parameters[o] = {"intercept": float(coef[0]),
+                                  "gains": {u: float(c) for u, c in zip(use, coef[1:])}}
+        return base
+    d_name = _choose_input(train, name)
+    d = train.inputs[d_name]
+    L, W, T = SPECIMEN["length"], SPECIMEN["width"], SPECIMEN["thickness"]
+    A = W * T
+    factor = 1.0 if name == "stretch-closed" else specimen_stiffness_factor(L, W, T,
+                                                                              SPECIMEN["nu"])
+    base = Base("stretch-closed" if name == "stretch-closed" else "stretch-fem",
+                {o: (d_name,) for o in outputs})
+    X = np.column_stack([np.ones(d.size), d])
+    for o in outputs:
+        q = train.quantities.get(o)
+        a, b = np.linalg.lstsq(X, train.outputs[o], rcond=None)[0]
+        if q == "force":
+            E = float(b) / (factor * A / L)
+            base.parameters[o] = {
+                "law": "F = F0 + k d, k = factor * E * A / L", "E_MPa": E, "F0_N": float(a),
+                "k_N_per_mm": float(b), "stiffness_factor": factor,
+                "stiffness_from": ("closed form E A / L" if name == "stretch-closed" else
+                                   "static TET10 FEM of the clamped 40x10x4 mm box, nu = 0.49"),
+                "length_mm": L, "area_mm2": A}
+        elif q == "resistance":
+            if a == 0:
+                raise ModelError(f"output '{o}': fitted R0 = 0 ohm; the resistance base needs "
+                                 "an absolute resistance (no bias removal on it)")
+            base.parameters[o] = {"law": "R = R0 (1 + GF d / L)", "R0_ohm": float(a),
+                                  "GF": float(b) * L / float(a), "length_mm": L}
+        else:
+            raise ModelError(f"base {name} models force and resistance outputs; '{o}' is a "
+                             f"{q or 'unknown quantity'}; use --base linear")
+    return base
+
+
+def predict(base: Base, data: Dataset, output: str) -> np.ndarray:
+    """The base prediction of ``output`` on ``data`` (output units)."""
+    if output not in base.parameters:
+        raise ModelError(f"the model has no output '{output}'; it has "
+                         f"{', '.join(base.parameters)}")
+    p = base.parameters[output]
+    for n in base.inputs[output]:
+        if n not in data.inputs:
+            raise DataError(f"the model needs input '{n}', the data has "
+                            f"{', '.join(data.inputs) or 'none'}")
+    if base.kind == "linear":
+        y = np.full(len(data), p["intercept"])
+        for n, g in p["gains"].items():
+            y = y + g * data.inputs[n]
+        return y
+    d = data.inputs[base.inputs[output][0]]
+    if "E_MPa" in p:
+        return p["F0_N"] + p["stiffness_factor"] * p["E_MPa"] * p["area_mm2"] / p["length_mm"] * d
+    return p["R0_ohm"] * (1.0 + p["GF"] * d / p["length_mm"])

@@ -1,0 +1,487 @@
+"""Closing the loop: residual -> effect -> better model.
+
+:func:`run_loop` starts from a BASE model (:mod:`designlab.calibration.base_models`, or a saved
+model), computes the residual ``measured - predicted`` on the training data and tries every
+applicable mechanism of the effect library (:mod:`designlab.calibration.effects`). A candidate
+is accepted only when blocked time-series cross-validation on the training data (``folds``
+contiguous blocks, a guard gap around the held-out block) shows that it lowers the held-out RMSE
+by more than noise: the mean over the blocks of the relative improvement of the held-out RMSE
+must exceed ``n_se`` standard errors of its block-to-block spread and ``min_relative``. The best such candidate is fitted on all the training data
+and added; repeat until nothing helps. Errors are then reported on the validation data, with
+how much of the residual remains unexplained and what it still correlates with.
+
+Model file (JSON, written by :meth:`SensorModel.save`, read by :func:`load_model`)::
+
+    {"format": "designlab-model", "version": 1,
+     "model": {"base": {"kind": "stretch-fem", "inputs": {"force": ["displacement"]},
+                        "parameters": {"force": {"E_MPa": 0.25, ...}}},
+               "outputs": {"force": {"unit": "N", "effects": [
+                   {"name": "relaxation", "channel": "displacement", "theta": {"tau": [8.1]},
+                    "beta": [0.03], "alpha": [0.01, -0.002], "nuisance": ["displacement"],
+                    "parameters": {...}}]}},
+               "inputs": {"displacement": {"unit": "mm", "quantity": "length", "kind": "drive"}}},
+     "provenance": {...}}
+
+Effects are applied in order: each adds ``F(data, yhat) @ beta + [1, base inputs] @ alpha`` to
+the prediction made before it.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from designlab.calibration import effects as fx
+from designlab.calibration.base_models import Base, fit_base
+from designlab.calibration.base_models import predict as base_predict
+from designlab.calibration.dataset import Dataset
+from designlab.calibration.metrics import rmse
+from designlab.errors import DataError, ModelError
+
+FORMAT = "designlab-model"
+
+
+# --------------------------------------------------------------------------- the model
+
+
+@dataclass
+class SensorModel:
+    """A base plus, per output, an ordered list of fitted effects."""
+
+    base: Base
+    effects: dict[str, list[fx.Fitted]] = field(default_factory=dict)
+    units: dict[str, str] = field(default_factory=dict)
+    inputs: dict[str, dict] = field(default_factory=dict)
+    provenance: dict = field(default_factory=dict)
+
+    @property
+    def outputs(self) -> list[str]:
+        return list(self.base.parameters)
+
+    def predict(self, data: Dataset, output: str, measured: np.ndarray | None = None,
+                upto: int | None = None) -> np.ndarray:
+        """Prediction of ``output`` on ``data`` (output units) after the first ``upto``
+        effects (all by default). ``measured`` lets run offsets tare runs never seen."""
+        y = base_predict(self.base, data, output)
+        for f in self.effects.get(output, [])[:upto]:
+            ctx = fx.Context(data, output, y, f.nuisance, measured)
+            y = y + fx.contribution(f, ctx)
+        return y
+
+    def predict_all(self, data: Dataset, use_measured: bool = True) -> dict[str, np.ndarray]:
+        """Every output the model knows, on ``data``."""
+        return {o: self.predict(data, o, data.outputs.get(o) if use_measured else None)
+                for o in self.outputs}
+
+    def to_json(self) -> dict:
+        return {"format": FORMAT, "version": 1,
+                "model": {"base": self.base.to_json(),
+                          "outputs": {o: {"unit": self.units.get(o, ""),
+                                          "effects": [f.to_json() for f in
+                                                      self.effects.get(o, [])]}
+                                      for o in self.outputs},
+                          "inputs": self.inputs},
+                "provenance": self.provenance}
+
+    def save(self, path: str | Path) -> None:
+        """Write the model as JSON, atomically."""
+        atomic_write(Path(path), json.dumps(self.to_json(), indent=1, default=_json_default)
+                     .encode())
+
+
+def load_model(path: str | Path) -> SensorModel:
+    """Read a model JSON written by :meth:`SensorModel.save` (``loop`` or ``predict``)."""
+    p = Path(path)
+    try:
+        doc = json.loads(p.read_text())
+    except FileNotFoundError:
+        raise ModelError(f"{p}: model file not found") from None
+    except json.JSONDecodeError as exc:
+        raise ModelError(f"{p}: not valid JSON ({exc})") from None
+    m = doc.get("model") if isinstance(doc, dict) else None
+    if not isinstance(m, dict) or "base" not in m:
+        raise ModelError(f"{p}: no 'model' section with a 'base'; expected a {FORMAT} file")
+    try:
+        base = Base.from_json(m["base"])
+        outs = m.get("outputs", {})
+        eff = {o: [fx.Fitted.from_json(e) for e in v.get("effects", [])] for o, v in outs.items()}
+    except (KeyError, TypeError) as exc:
+        raise ModelError(f"{p}: malformed model section ({exc!r})") from None
+    return SensorModel(base, eff, {o: v.get("unit", "") for o, v in outs.items()},
+                       m.get("inputs", {}), doc.get("provenance", {}))
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def atomic_write(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file and ``os.replace``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(type(o).__name__)
+
+
+def cv_blocks(n: int, folds: int, gap: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(fit rows, held-out rows) masks of blocked time-series CV: ``folds`` contiguous blocks,
+    ``gap`` samples on either side of the held-out block left out of the fit."""
+    edges = np.linspace(0, n, folds + 1).astype(int)
+    out = []
+    for k in range(folds):
+        held = np.zeros(n, bool)
+        held[edges[k]:edges[k + 1]] = True
+        rows = ~held
+        rows[max(0, edges[k] - gap):min(n, edges[k + 1] + gap)] = False
+        out.append((rows, held))
+    return out
+
+
+def cross_validate(effect: fx.Effect, ctx: fx.Context, y: np.ndarray,
+                   blocks: list[tuple[np.ndarray, np.ndarray]]) -> dict:
+    """Held-out RMSE of the current prediction without and with ``effect`` (fitted on the other
+    blocks), per block. The improvement is taken relative to each block's error (blocks of a
+    real record differ a lot in how hard they are): its mean, standard error (block-to-block
+    spread / sqrt(blocks)) and the mean absolute improvement in output units."""
+    e0, e1 = [], []
+    for rows, held in blocks:
+        f = fx.fit(effect, ctx, y - ctx.yhat, rows)
+        c = fx.contribution(f, ctx)
+        e0.append(rmse(y[held], ctx.yhat[held]))
+        e1.append(rmse(y[held], (ctx.yhat + c)[held]))
+    e0, e1 = np.array(e0), np.array(e1)
+    rel = (e0 - e1) / np.maximum(e0, 1e-300)
+    se = float(np.std(rel, ddof=1) / math.sqrt(rel.size)) if rel.size > 1 else float("inf")
+    return {"relative": float(rel.mean()), "standard_error": se,
+            "z": float(rel.mean() / se) if se > 0 else float("inf"),
+            "improvement": float((e0 - e1).mean()),
+            "error_without": float(e0.mean()), "error_with": float(e1.mean()),
+            "per_block_relative": rel.tolist(), "per_block_without": e0.tolist()}
+
+
+def residual_correlations(data: Dataset, residual: np.ndarray, yhat: np.ndarray,
+                          lags_s: tuple[float, ...] = (0.5, 1.0, 2.0, 5.0, 10.0)) -> list[dict]:
+    """Pearson correlation of a residual with the inputs, their rates, lagged inputs, time in
+    the run and the prediction, strongest first."""
+    cands: dict[str, np.ndarray] = {}
+    for n, x in data.inputs.items():
+        cands[n] = x
+        cands[f"d{n}/dt"] = fx.rate(x, data.dt, data.segment)
+        for L in lags_s:
+            cands[f"{n}(t-{L:g}s)"] = fx.shift(x, L, data.t, data.segment)
+    cands["time in run"] = data.time_in_run()
+    cands["prediction"] = yhat
+    out = []
+    for name, v in cands.items():
+        if np.std(v) > 0 and np.std(residual) > 0:
+            out.append({"variable": name, "correlation": float(np.corrcoef(residual, v)[0, 1])})
+    return sorted(out, key=lambda r: -abs(r["correlation"]))
+
+
+# --------------------------------------------------------------------------- the loop
+
+
+@dataclass
+class LoopResult:
+    """The improved model, the loop.json report and the series behind the plots."""
+
+    model: SensorModel
+    report: dict
+    series: dict = field(default_factory=dict)
+
+
+Progress = Callable[[str, int, int, str], None]   # (output, done, total, what)
+
+
+def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[str] | None = None,
+             folds: int = 10, max_effects: int = 8, n_se: float = 2.0,
+             min_relative: float = 0.01, gap_s: float = 2.0,
+             progress: Progress | None = None) -> LoopResult:
+    """Greedy forward selection of effects on top of ``base`` (see the module docstring).
+
+    ``data`` must have training and validation samples (card roles or split). ``base`` is a
+    base kind (``linear``, ``stretch-fem``, ...) fitted on the training data, or a loaded
+    :class:`SensorModel` to continue from (its parameters are kept)."""
+    train, val = data.train(), data.validate()
+    if len(train) < 10 * folds:
+        raise DataError(f"{len(train)} training samples are too few for {folds}-fold "
+                        "cross-validation; give more data or a larger [split] train")
+    if len(val) == 0:
+        raise DataError("no validation samples: give a file role = \"validate\" or a "
+                        "[split] train fraction")
+    outs = list(outputs or data.outputs)
+    for o in outs:
+        if o not in data.outputs:
+            raise DataError(f"output '{o}' is not in the data; it has {', '.join(data.outputs)}")
+    if isinstance(base, SensorModel):
+        model = base
+        missing = [o for o in outs if o not in model.outputs]
+        if missing:
+            raise ModelError(f"the model has no output {missing[0]!r}; it has "
+                             f"{', '.join(model.outputs)}")
+        model.effects = {o: list(model.effects.get(o, [])) for o in model.outputs}
+        base_name = f"model ({model.base.kind})"
+    else:
+        model = SensorModel(fit_base(base, train, outs), {o: [] for o in outs})
+        base_name = base
+    model.units.update({o: data.units.get(o, "") for o in outs})
+    model.inputs = {n: {"unit": data.units.get(n, ""), "quantity": data.quantities.get(n, ""),
+                        "kind": data.kinds.get(n, "drive")} for n in data.inputs}
+    gap = int(round(gap_s / train.dt))
+    blocks = cv_blocks(len(train), folds, gap)
+    report: dict[str, Any] = {"metric": "rmse", "base": base_name, "outputs": {},
+                              "selection": {"folds": folds, "gap_s": gap_s, "n_se": n_se,
+                                            "min_relative": min_relative,
+                                            "rule": "mean relative held-out RMSE improvement "
+                                                    "over the blocks > n_se standard errors "
+                                                    "and > min_relative"},
+                              "data": _data_summary(data)}
+    series: dict[str, Any] = {}
+    cache_tr: dict = {}
+    for o in outs:
+        rep, ser = _loop_output(model, o, train, val, blocks, max_effects, n_se, min_relative,
+                                cache_tr, progress)
+        report["outputs"][o] = rep
+        series[o] = ser
+    first = report["outputs"][outs[0]]
+    report = {"output": outs[0], **{k: first[k] for k in (
+        "effects", "error_before", "error_after", "validation", "unexplained_fraction")},
+        **report}
+    model.provenance = {"loop": {"base": base_name, "card": data.report.get("card"),
+                                 "errors": {o: {"before": r["error_before"],
+                                                "after": r["error_after"]}
+                                            for o, r in report["outputs"].items()}}}
+    return LoopResult(model, report, series)
+
+
+def _loop_output(model: SensorModel, o: str, train: Dataset, val: Dataset, blocks, max_effects,
+                 n_se, min_relative, cache_tr, progress) -> tuple[dict, dict]:
+    y, yv = train.outputs[o], val.outputs[o]
+    base_inputs = tuple(model.base.inputs[o])
+    yhat = model.predict(train, o, y)
+    yhat_v = model.predict(val, o, yv)
+    y0_val = yhat_v.copy()
+    start_tr = model.predict(train, o, y, upto=0)
+    cands, skipped = fx.library(train, o, base_inputs)
+    have = {f.effect.key for f in model.effects[o]}
+    cands = [c for c in cands if c.key not in have]
+    err_before = rmse(yv, yhat_v)
+    accepted, rounds, stages = [], [], []
+    while len(accepted) < max_effects and cands:
+        ctx = fx.Context(train, o, yhat, base_inputs, y, cache_tr)
+        results = {}
+        for i, c in enumerate(cands):
+            if progress:
+                progress(o, i, len(cands), f"round {len(rounds) + 1}: {c.key}")
+            cv = cross_validate(c, ctx, y, blocks)
+            cv["accepted_rule"] = bool(cv["relative"] > n_se * cv["standard_error"]
+                                       and cv["relative"] > min_relative)
+            results[c.key] = cv
+        if progress:
+            progress(o, len(cands), len(cands), f"round {len(rounds) + 1} done")
+        passing = [c for c in cands if results[c.key]["accepted_rule"]]
+        best = max(cands, key=lambda c: results[c.key]["relative"])
+        chosen = max(passing, key=lambda c: results[c.key]["relative"]) if passing else None
+        rounds.append({"candidates": results, "best": best.key,
+                       "accepted": chosen.key if chosen else None})
+        if chosen is None:
+            break
+        rows = np.ones(len(train), bool)
+        f = fx.fit(chosen, ctx, y - yhat, rows)
+        c_tr = fx.contribution(f, ctx)
+        ctx_v = fx.Context(val, o, yhat_v, base_inputs, yv)
+        c_v = fx.contribution(f, ctx_v)
+        r_before = y - yhat
+        corr = float(np.corrcoef(r_before, c_tr)[0, 1]) if np.std(c_tr) > 0 else 0.0
+        e_b, e_a = rmse(yv, yhat_v), rmse(yv, yhat_v + c_v)
+        reg, reg_name = fx.regressor(f, ctx)
+        stages.append({"key": chosen.key, "residual": r_before, "contribution": c_tr,
+                       "regressor": reg, "regressor_name": reg_name})
+        accepted.append({
+            "name": chosen.name, "channel": chosen.channel, "key": chosen.key,
+            "parameters": fx.describe(f), "doc": _EFFECT_DOC.get(chosen.name, ""),
+            "evidence": {"cv": results[chosen.key], "correlation_with_residual": corr,
+                         "train_error_before": rmse(y, yhat),
+                         "train_error_after": rmse(y, yhat + c_tr)},
+            "error_before": e_b, "error_after": e_a})
+        model.effects[o].append(f)
+        yhat, yhat_v = yhat + c_tr, yhat_v + c_v
+        cands = [c for c in cands if c.key != chosen.key]
+    r_v = yv - yhat_v
+    var_y = float(np.var(yv))
+    unexplained = float(np.var(r_v) / var_y) if var_y > 0 else float("nan")
+    corrs = residual_correlations(val, r_v, yhat_v)
+    last = rounds[-1] if rounds else None
+    if last is not None and last["accepted"] is None:
+        b = last["candidates"][last["best"]]
+        stop = (f"no candidate lowers the held-out error by more than noise (best: "
+                f"{last['best']}, {100 * b['relative']:+.2f} %, {b['z']:.1f} standard errors)")
+    elif not cands:
+        stop = "every applicable effect of the library is in the model"
+    else:
+        stop = f"max_effects = {max_effects} reached"
+    verdict = (f"{len(accepted)} effect(s) accepted; " + stop + "; the remaining residual is "
+               f"{100 * unexplained:.1f} % of the validation variance and correlates most with "
+               + (f"{corrs[0]['variable']} (r = {corrs[0]['correlation']:+.2f})" if corrs
+                  else "nothing"))
+    rep = {
+        "unit": val.units.get(o, ""), "effects": accepted,
+        "error_before": err_before, "error_after": rmse(yv, yhat_v),
+        "train_error_before": rmse(y, start_tr), "train_error_after": rmse(y, yhat),
+        "validation": {"samples": len(val), "runs": sorted({val.segments[s]["path"]
+                                                            for s in np.unique(val.segment)}),
+                       "rmse_before": err_before, "rmse_after": rmse(yv, yhat_v),
+                       "ncc_after": _ncc(yv, yhat_v),
+                       "range": float(np.ptp(yv)),
+                       "nrmse_after_percent": 100 * rmse(yv, yhat_v) / max(np.ptp(yv), 1e-300)},
+        "unexplained_fraction": unexplained, "residual_correlations": corrs[:8],
+        "stopped": stop, "verdict": verdict, "rounds": rounds, "not_applicable": skipped,
+        "base": model.base.parameters.get(o, {}),
+    }
+    ser = {"t_val": val.t, "seg_val": val.segment, "y_val": yv, "base_val": y0_val,
+           "final_val": yhat_v, "stages": stages, "residual_val": r_v,
+           "top_var": corrs[0]["variable"] if corrs else None,
+           "top_values": _variable(val, corrs[0]["variable"], yhat_v) if corrs else None}
+    return rep, ser
+
+
+def _variable(data: Dataset, name: str, yhat: np.ndarray) -> np.ndarray:
+    if name == "time in run":
+        return data.time_in_run()
+    if name == "prediction":
+        return yhat
+    if name.startswith("d") and name.endswith("/dt"):
+        n = name[1:-3]
+        return fx.rate(data.inputs[n], data.dt, data.segment)
+    if "(t-" in name:
+        n, lag = name.split("(t-")
+        return fx.shift(data.inputs[n], float(lag.rstrip("s)")), data.t, data.segment)
+    return data.inputs[name]
+
+
+def _ncc(a: np.ndarray, b: np.ndarray) -> float:
+    from designlab.calibration.metrics import ncc
+    return ncc(a, b)
+
+
+def _data_summary(data: Dataset) -> dict:
+    return {"samples": len(data), "rate_hz": 1.0 / data.dt,
+            "runs": [dict(s) for s in data.segments],
+            "train_samples": int(np.sum(data.role == "train")),
+            "validate_samples": int(np.sum(data.role == "validate")),
+            "repaired": data.report.get("repaired_total", {})}
+
+
+_EFFECT_DOC = {
+    "relaxation": "viscoelastic relaxation/creep: Prony terms on the input history",
+    "piezo_relaxation": "piezoresistive relaxation: Prony terms on the predicted output",
+    "drift": "baseline drift in time since the run started",
+    "thermal": "temperature through a TCR",
+    "hysteresis": "direction-dependent friction hysteresis",
+    "nonlinearity": "load nonlinearity (polynomial in the input)",
+    "moment_arm": "output scales with the load location",
+    "parallel_path": "parallel load path stealing sensitivity above an engagement level",
+    "run_offset": "one offset per run (re-donning, preload)",
+    "lag": "channel lag (clock synchronisation)",
+    "cross_axis": "cross-axis coupling to an input the base does not use",
+}
+
+
+# --------------------------------------------------------------------------- outputs
+
+
+def write_outputs(result: LoopResult, out: str | Path) -> list[Path]:
+    """loop.json, model.json and PNG plots into ``out`` (each written atomically)."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    for o, ser in result.series.items():
+        written += _plots(o, ser, result.report["outputs"][o], out)
+    p = out / "model.json"
+    result.model.save(p)
+    written.append(p)
+    p = out / "loop.json"
+    atomic_write(p, json.dumps(result.report, indent=1, default=_json_default).encode())
+    written.append(p)
+    return written
+
+
+def _savefig(fig, path: Path) -> Path:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    atomic_write(path, buf.getvalue())
+    return path
+
+
+def _plots(o: str, ser: dict, rep: dict, out: Path) -> list[Path]:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    unit = rep["unit"]
+    files = []
+    fig, ax = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+    x = np.arange(ser["t_val"].size) * (np.median(np.diff(ser["t_val"])) if ser["t_val"].size
+                                        > 1 else 1.0)
+    ax[0].plot(x, ser["y_val"], "k", lw=0.8, label="measured")
+    ax[0].plot(x, ser["base_val"], "C0", lw=0.8,
+               label=f"before (RMSE {rep['error_before']:.4g} {unit})")
+    ax[0].plot(x, ser["final_val"], "C3", lw=0.8,
+               label=f"after (RMSE {rep['error_after']:.4g} {unit})")
+    ax[0].set_ylabel(f"{o} ({unit})")
+    ax[0].legend(loc="upper right", fontsize=8)
+    ax[0].set_title(f"{o}: validation data")
+    ax[1].plot(x, ser["y_val"] - ser["base_val"], "C0", lw=0.6, label="residual before")
+    ax[1].plot(x, ser["residual_val"], "C3", lw=0.6, label="residual after")
+    ax[1].set_ylabel(f"residual ({unit})")
+    ax[1].set_xlabel("validation time (s)")
+    ax[1].legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    files.append(_savefig(fig, out / f"timeseries_{o}.png"))
+    plt.close(fig)
+    for k, st in enumerate(ser["stages"], 1):
+        fig, ax = plt.subplots(figsize=(6, 4.5))
+        idx = np.linspace(0, st["regressor"].size - 1, min(st["regressor"].size, 4000)).astype(int)
+        ax.plot(st["regressor"][idx], st["residual"][idx], ".", ms=2, color="0.6",
+                label="residual before (train)")
+        ax.plot(st["regressor"][idx], st["contribution"][idx], ".", ms=2, color="C3",
+                label=f"{st['key']} fit")
+        ax.set_xlabel(st["regressor_name"])
+        ax.set_ylabel(f"{o} residual ({unit})")
+        ax.set_title(f"{o} effect {k}: {st['key']}")
+        ax.legend(fontsize=8, markerscale=4)
+        fig.tight_layout()
+        safe = st["key"].replace("[", "_").replace("]", "")
+        files.append(_savefig(fig, out / f"effect_{o}_{k}_{safe}.png"))
+        plt.close(fig)
+    if ser["top_var"] is not None:
+        fig, ax = plt.subplots(figsize=(6, 4.5))
+        ax.plot(ser["top_values"], ser["residual_val"], ".", ms=2, color="C0")
+        ax.set_xlabel(ser["top_var"])
+        ax.set_ylabel(f"{o} final residual ({unit})")
+        ax.set_title(f"{o}: unexplained {100 * rep['unexplained_fraction']:.1f} % of variance")
+        fig.tight_layout()
+        files.append(_savefig(fig, out / f"unexplained_{o}.png"))
+        plt.close(fig)
+    return files
