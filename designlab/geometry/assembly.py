@@ -1,0 +1,66 @@
+"""Coloured cadquery assemblies of a part's bodies, saved as STEP and glTF (atomically).
+
+build123d and cadquery share the OCP kernel: each body's ``shape.wrapped`` (a ``TopoDS_Shape``)
+is cast to a ``cadquery.Shape`` and added under the body's name with its colour. All bodies are
+included, bought parts (ball, bolt, sensors) too.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import cadquery as cq
+
+from designlab.geometry.body import Body
+
+
+def assembly(part, name: str | None = None) -> cq.Assembly:
+    """A ``cadquery.Assembly`` with one named, coloured child per body of ``part.build()``."""
+    bodies: dict[str, Body] = part.build()
+    assy = cq.Assembly(name=name or type(part).__name__)
+    for body in bodies.values():
+        shape = cq.Shape.cast(body.shape.wrapped)
+        assy.add(shape, name=body.name, color=cq.Color(*body.color, 1.0))
+    return assy
+
+
+def _atomic(path: str | Path, write) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        if os.path.getsize(tmp) == 0:
+            raise OSError(f"writing {path} produced an empty file")
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
+def save_assembly_step(assy: cq.Assembly, path: str | Path) -> Path:
+    """Coloured, named STEP (AP214 via XCAF) of ``assy``; written atomically."""
+    from cadquery.occ_impl.exporters.assembly import exportAssembly
+
+    def write(tmp):
+        if not exportAssembly(assy, tmp):
+            raise OSError(f"STEP export of {path} failed")
+    return _atomic(path, write)
+
+
+def save_assembly_gltf(assy: cq.Assembly, path: str | Path, tolerance: float = 0.01,
+                       angular_tolerance: float = 0.1) -> Path:
+    """Coloured glTF of ``assy`` (binary for ``.glb``, text for ``.gltf``), mm; atomic."""
+    from cadquery.occ_impl.exporters.assembly import exportGLTF
+
+    binary = Path(path).suffix.lower() == ".glb"
+
+    def write(tmp):
+        if not exportGLTF(assy, tmp, binary=binary, tolerance=tolerance,
+                          angularTolerance=angular_tolerance):
+            raise OSError(f"glTF export of {path} failed")
+    return _atomic(path, write)

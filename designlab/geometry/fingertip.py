@@ -1,0 +1,389 @@
+"""Seed 001: the 3D-printed cantilever fingertip on a steel ball and three FSS force sensors.
+
+Frame (mm): origin at the centre of the 9.4 mm steel ball, z up the fingertip axis. The printed
+fingertip's flat bottom is the plane ``z = 0``; it holds the upper half of the ball in a spherical
+seat and is detachable. Its outline (Fig. 1 of the paper: "height h and radius r") is a cylinder
+of radius ``fingertip_radius`` (9, total diameter 18 mm) that rises ``h`` mm, then rounds over
+with an edge radius ``r``: ``r = fingertip_radius`` gives the hemispherical dome of the optimised
+sensor (h = 0, r = 9, total height 20 mm, Table III), ``r = 0`` a flat top. Its top is at
+``z = h + r``. Below a ``gap`` (so forces reach the sensors only through the ball) the printed base
+holds three Honeywell FSS015 sensors in wells whose axes point at the ball centre 45 deg from
+the vertical, at azimuths 270/30/150 deg (eqs. 4-6 of the paper: sensors r, g, b). The bottom
+cap carries an M2.5 cantilever bolt that runs up through the base and is screwed into a tapped
+blind hole in the ball, pulling it onto the sensors (preload). The tested sensor of Table II
+(total height 48.5 mm) is :meth:`CantileverFingertip.tested`.
+
+Load points follow the hanging-weight tests: ``h1..`` are lateral loads on the fingertip's side at
+heights ``z = h_i`` above the fingertip bottom (Table III heights, or Table II with
+``load_table="II"``), ``r1..`` axial loads (-z) on the top at radii ``r_i``. With the default
+dome the Table III heights and radii are a mirrored set of points on the dome, which is how we
+read the paper's datum: heights are measured from the dome's base plane (the ball centre).
+
+Bodies: ``fingertip``, ``base``, ``cap`` (ABS, printed, meshed); ``ball`` and ``bolt`` (steel) and
+``sensor_1..3`` (FSS015 body + steel button, approximate 5 x 5 x 2.3 mm outline): bought, coupled
+in FEM rather than meshed.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from build123d import (Axis, Box, CenterArc, Cylinder, Line, Plane, Pos, Sphere, Wire, Face,
+                       revolve)
+
+from designlab.errors import ParameterError
+from designlab.geometry.body import Body, FacetSelector
+from designlab.geometry.solids import single_solid
+from designlab.params import rng, validate
+
+#: seed 001 Table II: heights of the lateral (G1) loads and radii of the axial (G2) loads, mm
+TABLE_II_HEIGHTS = (22.76, 21.92, 20.52, 18.72, 16.76, 14.76, 12.76, 10.76, 8.76)
+TABLE_II_RADII = (0.0, 1.90, 3.69, 5.12, 6.03)
+#: seed 001 Table III (optimised sensor)
+TABLE_III_HEIGHTS = (8.41, 7.71, 6.62, 5.19, 3.51, 1.65)
+TABLE_III_RADII = (1.65, 3.51, 5.19, 6.62, 7.71, 8.41)
+#: sensor azimuths (deg) of eqs. 4-6 (sensors r, g, b) and their elevation from the horizontal
+SENSOR_AZIMUTHS_DEG = (270.0, 30.0, 150.0)
+SENSOR_ELEVATION_DEG = 45.0
+#: minimum printed wall (mm)
+MIN_WALL = 1.0
+
+
+@dataclass(frozen=True)
+class CantileverFingertip:
+    """Parameters of the cantilever fingertip sensor (mm). Defaults: the optimised sensor of
+    seed 001 Table III (h = 0, r = 9, diameter 18, total height 20)."""
+
+    h: float = field(default=0.0, metadata=rng(0, 40, unit="mm",
+                                               doc="straight height of the fingertip"))
+    r: float = field(default=9.0, metadata=rng(0, 9, unit="mm",
+                                               doc="top rounding radius (<= fingertip_radius)"))
+    fingertip_radius: float = field(default=9.0, metadata=rng(5.5, 15, unit="mm",
+                                                              doc="seed 001: diameter 18"))
+    ball_diameter: float = field(default=9.4, metadata=rng(4, 12, unit="mm",
+                                                           doc="seed 001: 9.4"))
+    gap: float = field(default=0.5, metadata=rng(0.2, 3, unit="mm",
+                                                 doc="fingertip-to-base clearance"))
+    base_height: float = field(default=8.0, metadata=rng(4, 30, unit="mm"))
+    base_radius: float = field(default=9.0, metadata=rng(6, 20, unit="mm"))
+    cap_thickness: float = field(default=2.5, metadata=rng(1.5, 8, unit="mm"))
+    sensor_size: float = field(default=5.0, metadata=rng(2, 10, unit="mm",
+                                                         doc="FSS015 body, approx."))
+    sensor_thickness: float = field(default=2.3, metadata=rng(1, 6, unit="mm"))
+    button_radius: float = field(default=0.8, metadata=rng(0.3, 2, unit="mm"))
+    well_clearance: float = field(default=0.1, metadata=rng(0.02, 0.5, unit="mm"))
+    bolt_diameter: float = field(default=2.5, metadata=rng(1.6, 4, unit="mm", doc="M2.5"))
+    bolt_length: float = field(default=10.0, metadata=rng(3, 40, unit="mm",
+                                                          doc="under-head length (M2.5x10)"))
+    head_diameter: float = field(default=4.5, metadata=rng(2, 8, unit="mm"))
+    head_height: float = field(default=1.75, metadata=rng(0.8, 4, unit="mm"))
+    load_table: str = field(default="III", metadata=rng(choices=("II", "III"),
+                                                        doc="seed 001 table of load points"))
+    load_patch_radius: float = field(default=1.0, metadata=rng(0.2, 3, unit="mm"))
+
+    def __post_init__(self):
+        validate(self)
+        self._check()
+
+    @classmethod
+    def tested(cls) -> "CantileverFingertip":
+        """The sensor of seed 001 Table II: total height 48.5 mm, diameter 18 mm."""
+        return cls(h=28.5, r=9.0, load_table="II")
+
+    # ------------------------------------------------------------------ derived geometry (mm)
+    @property
+    def ball_radius(self) -> float:
+        return self.ball_diameter / 2
+
+    @property
+    def top_z(self) -> float:
+        return self.h + self.r
+
+    @property
+    def base_z(self) -> tuple[float, float]:
+        """Bottom and top of the base."""
+        return -self.gap - self.base_height, -self.gap
+
+    @property
+    def cap_z(self) -> tuple[float, float]:
+        lo = self.base_z[0]
+        return lo - self.cap_thickness, lo
+
+    @property
+    def total_height(self) -> float:
+        return self.top_z - self.cap_z[0]
+
+    @property
+    def well_depth(self) -> float:
+        """Distance from the ball centre to a well floor along the sensor axis."""
+        return self.ball_radius + self.button_radius + self.sensor_thickness
+
+    @property
+    def bolt_top_z(self) -> float:
+        """Upper end of the bolt (inside the ball's tapped hole); its head bears on the cap's
+        bottom face and stands below it (the robot mount has a recess for it)."""
+        return self.cap_z[0] + self.bolt_length
+
+    def sensor_axes(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(axes, contacts)``: (3, 3) unit vectors along which the sensors push the ball
+        (eqs. 4-6: azimuths 270/30/150 deg, 45 deg from the vertical) and the (3, 3) contact
+        points on the ball (``-ball_radius * axis``)."""
+        el = math.radians(SENSOR_ELEVATION_DEG)
+        az = np.radians(SENSOR_AZIMUTHS_DEG)
+        axes = np.stack([math.cos(el) * np.cos(az), math.cos(el) * np.sin(az),
+                         np.full(3, math.sin(el))], axis=1)
+        return axes, -self.ball_radius * axes
+
+    def surface_radius(self, z: float) -> float:
+        """Radius of the fingertip's outer surface at height ``z`` (0 <= z <= top_z)."""
+        R = self.fingertip_radius
+        if z <= self.h:
+            return R
+        return (R - self.r) + math.sqrt(max(self.r ** 2 - (z - self.h) ** 2, 0.0))
+
+    def surface_height(self, rho: float) -> float:
+        """Height of the fingertip's top surface at radius ``rho`` (0 <= rho <= radius)."""
+        R = self.fingertip_radius
+        if rho <= R - self.r:
+            return self.top_z
+        return self.h + math.sqrt(max(self.r ** 2 - (rho - (R - self.r)) ** 2, 0.0))
+
+    def load_table_values(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """(heights, radii) of the selected seed 001 table (mm)."""
+        if self.load_table == "II":
+            return TABLE_II_HEIGHTS, TABLE_II_RADII
+        return TABLE_III_HEIGHTS, TABLE_III_RADII
+
+    def load_points(self, azimuth_deg: float = 0.0) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """``{"h1": (point, direction), ..., "r1": ...}``: lateral loads at the table heights on
+        the side (direction horizontal, towards the axis, from ``azimuth_deg``) and axial loads
+        (direction -z) at the table radii on the top. Points on the surface, mm."""
+        heights, radii = self.load_table_values()
+        a = math.radians(azimuth_deg)
+        e = np.array([math.cos(a), math.sin(a), 0.0])
+        out = {}
+        for i, z in enumerate(heights, 1):
+            out[f"h{i}"] = (np.array([*(self.surface_radius(z) * e[:2]), z]), -e.copy())
+        for i, rho in enumerate(radii, 1):
+            out[f"r{i}"] = (np.array([*(rho * e[:2]), self.surface_height(rho)]),
+                            np.array([0.0, 0.0, -1.0]))
+        return out
+
+    def load_locations(self, azimuth_deg: float = 0.0) -> dict:
+        """The load points as build123d ``Location``s whose z axis is the load direction."""
+        from build123d import Location
+
+        return {k: Location(Plane(origin=tuple(p), z_dir=tuple(d)))
+                for k, (p, d) in self.load_points(azimuth_deg).items()}
+
+    def _check(self) -> None:
+        R, rb = self.fingertip_radius, self.ball_radius
+        if self.r > R:
+            raise ParameterError("r", self.r, f"<= fingertip_radius = {R:g} mm")
+        need = rb + MIN_WALL
+        if self.h + self.r < need - 1e-9:
+            raise ParameterError("r", self.r, f">= {need - self.h:.3g} mm with h={self.h:g} "
+                                 f"(h + r >= ball radius + {MIN_WALL:g} mm wall covers the seat)")
+        if R < rb + MIN_WALL:
+            raise ParameterError("fingertip_radius", R, f">= {rb + MIN_WALL:.3g} mm "
+                                 "(ball radius + wall)")
+        # base: the well floors must stay inside the base (wall MIN_WALL)
+        s2 = (self.sensor_size + 2 * self.well_clearance) / 2
+        c = math.cos(math.radians(SENSOR_ELEVATION_DEG))
+        z_low = -(self.well_depth * c + s2 * c)
+        need_h = -z_low + MIN_WALL - self.gap
+        if self.base_height < need_h - 1e-9:
+            raise ParameterError("base_height", self.base_height,
+                                 f">= {need_h:.3g} mm (sensor wells + {MIN_WALL:g} mm floor)")
+        rho = math.hypot(self.well_depth * c + s2 * c, s2)
+        if self.base_radius < rho + MIN_WALL - 1e-9:
+            raise ParameterError("base_radius", self.base_radius,
+                                 f">= {rho + MIN_WALL:.3g} mm (sensor wells + wall)")
+        if self.head_diameter < self.bolt_diameter + 0.8:
+            raise ParameterError("head_diameter", self.head_diameter,
+                                 f">= {self.bolt_diameter + 0.8:g} mm (bolt diameter + 0.8)")
+        lo, hi = -rb + 2.0, -0.5  # thread engagement >= 2 mm, blind hole below the ball centre
+        top = self.bolt_top_z
+        if not lo <= top <= hi:
+            base = self.bolt_length - top
+            raise ParameterError("bolt_length", self.bolt_length,
+                                 f"{base + lo:.3g} <= value <= {base + hi:.3g} mm (>= 2 mm thread "
+                                 "in the ball, blind hole below its centre)")
+        if self.bolt_diameter / 2 + 0.2 > rb / 2:
+            raise ParameterError("bolt_diameter", self.bolt_diameter,
+                                 f"<= {rb - 0.4:.3g} mm (half the ball diameter - 0.4)")
+        heights, radii = self.load_table_values()
+        if max(heights) > self.top_z + 1e-9:
+            raise ParameterError("load_table", self.load_table,
+                                 f"a table whose heights fit the fingertip: Table {self.load_table}"
+                                 f" needs h + r >= {max(heights):g} mm, here {self.top_z:g}")
+        if max(radii) > R + 1e-9:
+            raise ParameterError("load_table", self.load_table,
+                                 f"a table whose radii fit: needs fingertip_radius >= "
+                                 f"{max(radii):g} mm")
+
+    # ------------------------------------------------------------------------------ API
+    def build(self) -> dict[str, Body]:
+        """Bodies fingertip, base, cap (ABS), ball, bolt (steel), sensor_1..3 (cached)."""
+        return dict(_build(self))
+
+    def mesh_bodies(self) -> tuple[str, ...]:
+        return ("fingertip", "base", "cap")
+
+    def well_floor_centers(self) -> np.ndarray:
+        """(3, 3) centres of the well floors (where each sensor's back rests on the base)."""
+        axes, _ = self.sensor_axes()
+        return -self.well_depth * axes
+
+    def facet_sets(self) -> dict[str, FacetSelector]:
+        """``ball_seat`` (fingertip's spherical seat), ``sensor_well_1..3`` (well floors: the
+        sensors' reaction on the base, outward normal along the sensor axis), ``bolt_head``
+        (annulus of the cap bottom under the bolt head), ``cap_mount`` (rest of the cap bottom,
+        fixed to the robot), ``base_cap`` (base bottom and cap top, to tie them), ``load_h*``/``load_r*``
+        (fingertip surface within ``load_patch_radius`` of each load point)."""
+        rb, tol = self.ball_radius, 0.05
+        axes, _ = self.sensor_axes()
+        floors = self.well_floor_centers()
+        half = self.sensor_size / 2 + self.well_clearance + tol
+        z_cb = self.cap_z[0]
+        r_hole, r_cb = self.bolt_diameter / 2 + 0.2, self.head_diameter / 2
+
+        def ball_seat(c, n):
+            d = np.linalg.norm(c, axis=1)
+            inward = -np.einsum("ij,ij->i", n, c) / np.maximum(d, 1e-12)
+            return (np.abs(d - rb) < 0.15) & (c[:, 2] > -tol) & (inward > 0.7)
+
+        def well(k):
+            a, f = axes[k], floors[k]
+
+            def sel(c, n):
+                rel = c - f
+                along = rel @ a
+                lateral = np.linalg.norm(rel - np.outer(along, a), axis=1)
+                return (n @ a > 0.95) & (np.abs(along) < tol) & (lateral < half * math.sqrt(2))
+            return sel
+
+        def bolt_head(c, n):
+            rho = np.hypot(c[:, 0], c[:, 1])
+            return (n[:, 2] < -0.95) & (np.abs(c[:, 2] - z_cb) < tol) & (rho > r_hole - tol) \
+                & (rho < r_cb + tol)
+
+        def cap_mount(c, n):
+            rho = np.hypot(c[:, 0], c[:, 1])
+            return (n[:, 2] < -0.95) & (np.abs(c[:, 2] - z_cb) < tol) & (rho > r_cb + 0.5)
+
+        def base_cap(c, n):
+            return (np.abs(n[:, 2]) > 0.95) & (np.abs(c[:, 2] - self.base_z[0]) < tol)
+
+        out = {"ball_seat": ball_seat, "bolt_head": bolt_head, "cap_mount": cap_mount,
+               "base_cap": base_cap}
+        for k in range(3):
+            out[f"sensor_well_{k + 1}"] = well(k)
+        for name, (p, d) in self.load_points().items():
+            out[f"load_{name}"] = _patch(p, d, self.load_patch_radius)
+        return out
+
+    def refinement(self) -> list[tuple[np.ndarray, float, float]]:
+        """Ball seat, well floors, bolt-head seat and load patches."""
+        out = [(np.zeros(3), self.ball_radius + 1.0, 0.6)]
+        out += [(f, self.sensor_size / 2 + 1.0, 0.5) for f in self.well_floor_centers()]
+        z_cb = self.cap_z[0]
+        out.append((np.array([0.0, 0.0, z_cb]), self.head_diameter / 2 + 1.0, 0.5))
+        out += [(p, self.load_patch_radius + 0.5, min(0.6, self.load_patch_radius / 2))
+                for p, _ in self.load_points().values()]
+        return out
+
+
+def _patch(point: np.ndarray, direction: np.ndarray, radius: float) -> FacetSelector:
+    def sel(c, n):
+        return (np.linalg.norm(c - point, axis=1) <= radius) & (n @ direction < -0.3)
+    return sel
+
+
+def _fingertip_solid(p: CantileverFingertip):
+    R, h, r = p.fingertip_radius, p.h, p.r
+    top = p.top_z
+    edges = [Line((0, 0, 0), (R, 0, 0))]
+    if h > 0:
+        edges.append(Line((R, 0, 0), (R, 0, h)))
+    if r > 0:  # quarter arc (R, h) -> (R - r, h + r), centre (R - r, h), in the XZ plane
+        arc = CenterArc((0, 0, 0), r, 0, 90).rotate(Axis.X, 90).translate((R - r, 0, h))
+        edges.append(arc)
+    if R - r > 0:
+        edges.append(Line((R - r, 0, top), (0, 0, top)))
+    edges.append(Line((0, 0, top), (0, 0, 0)))
+    face = Face(Wire(edges))
+    solid = revolve(face, Axis.Z, 360)
+    return solid - Sphere(p.ball_radius)
+
+
+def _well_plane(p: CantileverFingertip, axis: np.ndarray) -> Plane:
+    """Plane at the ball centre whose z points from the ball to the sensor (-axis) and whose x is
+    horizontal."""
+    z = -axis
+    x = np.cross([0.0, 0.0, 1.0], z)
+    return Plane(origin=(0, 0, 0), x_dir=tuple(x / np.linalg.norm(x)), z_dir=tuple(z))
+
+
+@functools.lru_cache(maxsize=8)
+def _build(p: CantileverFingertip) -> dict[str, Body]:
+    rb = p.ball_radius
+    axes, _ = p.sensor_axes()
+    fingertip = single_solid(_fingertip_solid(p).clean(), "fingertip")
+
+    # ball with the tapped blind hole (modelled at the bolt's nominal diameter)
+    rbolt = p.bolt_diameter / 2
+    hole_len = p.bolt_top_z + rb
+    ball_hole = Pos(0, 0, -rb + hole_len / 2 - 0.5) * Cylinder(rbolt, hole_len + 1.0)
+    ball = single_solid((Sphere(rb) - ball_hole).clean(), "ball")
+
+    # base: cylinder minus ball cavity, sensor wells, wire channels, bolt clearance hole
+    z0, z1 = p.base_z
+    base = Pos(0, 0, (z0 + z1) / 2) * Cylinder(p.base_radius, z1 - z0)
+    rc = rb + 0.5
+    base -= Pos(0, 0, (-rc + z1 + 1) / 2) * Cylinder(rc, z1 + 1 + rc)
+    side = p.sensor_size + 2 * p.well_clearance
+    front = rb - 0.7
+    sensors = []
+    for k, a in enumerate(axes):
+        pl = _well_plane(p, a)
+        depth = p.well_depth - front
+        base -= pl * Pos(0, 0, front + depth / 2) * Box(side, side, depth)
+        # wire channel: horizontal, radial, from the well floor out through the wall
+        f = -p.well_depth * a
+        radial = np.array([f[0], f[1], 0.0]) / math.hypot(f[0], f[1])
+        start = math.hypot(f[0], f[1]) - 0.5
+        length = p.base_radius + 1.0 - start
+        ch = Plane(origin=tuple(np.array([0, 0, f[2]]) + radial * (start + length / 2)),
+                   z_dir=tuple(radial)) * Cylinder(0.6, length)
+        base -= ch
+        body = pl * Pos(0, 0, rb + p.button_radius + p.sensor_thickness / 2) * Box(
+            p.sensor_size, p.sensor_size, p.sensor_thickness)
+        button = pl * Pos(0, 0, rb + p.button_radius) * Sphere(p.button_radius)
+        sensors.append(single_solid((body + button).clean(), f"sensor_{k + 1}"))
+    zc0, zc1 = p.cap_z
+    hole = Pos(0, 0, (zc0 - 1 + 0) / 2) * Cylinder(rbolt + 0.2, -zc0 + 1)
+    base = single_solid((base - hole).clean(), "base")
+
+    cap = Pos(0, 0, (zc0 + zc1) / 2) * Cylinder(p.base_radius, zc1 - zc0)
+    cap = single_solid((cap - hole).clean(), "cap")
+
+    z_head_top = zc0
+    head = Pos(0, 0, z_head_top - p.head_height / 2) * Cylinder(p.head_diameter / 2, p.head_height)
+    shank = Pos(0, 0, z_head_top + p.bolt_length / 2) * Cylinder(rbolt, p.bolt_length)
+    bolt = single_solid((head + shank).clean(), "bolt")
+
+    abs_c, steel, dark = (0.92, 0.9, 0.85), (0.75, 0.76, 0.78), (0.15, 0.15, 0.18)
+    out = {
+        "fingertip": Body("fingertip", fingertip, "ABS", (0.95, 0.6, 0.2)),
+        "base": Body("base", base, "ABS", abs_c),
+        "cap": Body("cap", cap, "ABS", (0.6, 0.6, 0.62)),
+        "ball": Body("ball", ball, "steel", steel, printed=False),
+        "bolt": Body("bolt", bolt, "steel", (0.5, 0.5, 0.55), printed=False),
+    }
+    for k, s in enumerate(sensors):
+        out[f"sensor_{k + 1}"] = Body(f"sensor_{k + 1}", s, "steel", dark, printed=False)
+    return out

@@ -1,0 +1,44 @@
+"""Registry of the parametric parts: ``PARTS[name]`` and :func:`make_part`."""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+from designlab.errors import ParameterError
+from designlab.geometry.fingertip import CantileverFingertip
+from designlab.geometry.flexure import SpringFlexure
+from designlab.geometry.strap import ArchStrap
+from designlab.params import with_overrides
+
+PARTS: dict[str, type] = {"strap": ArchStrap, "fingertip": CantileverFingertip,
+                          "flexure": SpringFlexure}
+
+
+def make_part(name: str, overrides: Mapping[str, str | float] | None = None,
+              config: Mapping[str, Any] | None = None):
+    """A validated part ``name`` from defaults, then ``config``, then ``overrides``.
+
+    ``config`` is either the part's own table (``{"h": 3}``) or a whole TOML document with a
+    table named after the part (``{"fingertip": {"h": 3}, ...}``); ``overrides`` are
+    ``--set NAME=VALUE`` pairs (strings are coerced to the field's type). Unknown part names and
+    bad values raise a one-line :class:`ParameterError`.
+    """
+    if name not in PARTS:
+        raise ParameterError("part", name, "one of " + ", ".join(PARTS))
+    values: dict[str, Any] = {}
+    if config:
+        table = config.get(name, config)
+        if not isinstance(table, Mapping):
+            raise ParameterError(name, table, "a table of parameters")
+        # parameters are scalars: nested tables belong to other parts or sections
+        values.update({k: v for k, v in table.items() if not isinstance(v, Mapping)})
+    values.update(overrides or {})
+    return with_overrides(PARTS[name], values)
+
+
+def part_name(part) -> str:
+    """Registry name of a part instance (``"strap"``, ``"fingertip"``, ``"flexure"``)."""
+    for k, cls in PARTS.items():
+        if isinstance(part, cls):
+            return k
+    raise ParameterError("part", type(part).__name__, "one of " + ", ".join(PARTS))

@@ -1,0 +1,367 @@
+"""Seed 000: the TPU arch strap with two embedded conductive-TPU strain-gauge meanders.
+
+The strap is printed flat (layer height 0.1 mm: the 0.2 mm gauge is "two layers" thick, which only
+makes sense for a flat print), so the *arch* is its planform: a circular-arc band of width
+``strap_width`` whose centreline runs through the two arch feet ``(+-arch_width/2, 0)`` and the apex
+``(0, arch_height)``, continued by straight end tabs with ``slot_count`` length-adjustment slots
+each. Worn, the bottom face (``z = 0``) lies on the finger pad and the tabs hook onto the nail
+plate; the gauges sit left and right of the apex and read normal (sum) and shear (difference).
+
+Frame: print bed ``z = 0``, strap top ``z = thickness``; x across the arch, apex on +y; mm.
+
+Bodies: ``strap`` (NinjaFlex, extruder 1) = outline minus slots minus the trace volume,
+``trace_left`` / ``trace_right`` (PI-ETPU, extruder 2): meanders of ``legs`` legs running along the
+strap (they see its longitudinal strain), ``trace_thickness`` thick, ``trace_cover`` above the
+bed, each ending in two connection pads that rise to the top surface (wires are melted into them),
+and ``nail_plate`` (NinjaFlex, not meshed) with two lugs that fit the slots, placed beside the strap
+on the bed. Strap and traces do not overlap and together fill the slotted outline.
+
+The paper gives only width 15 mm, thickness 0.6 mm, gauge 0.2 mm, layer 0.1 mm and three slots;
+the planform, meander and pad sizes are our estimates (meander line 0.8 mm = two 0.4 mm nozzle
+lines, far above the 0.4 mm minimum).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from build123d import Plane, Pos, RectangleRounded, Sketch, SlotOverall, extrude, mirror
+
+from designlab.errors import ParameterError
+from designlab.geometry.body import Body, FacetSelector
+from designlab.geometry.solids import annular_sector, polygon_face, single_solid
+from designlab.params import rng, validate
+
+#: conductive traces never come closer than this to the strap's side edges (mm)
+NOZZLE = 0.4
+
+
+@dataclass(frozen=True)
+class ArchStrap:
+    """Parameters of the arch strap (mm, counts). Defaults: seed 000 where stated, else estimates."""
+
+    strap_width: float = field(default=15.0, metadata=rng(8, 30, unit="mm", doc="seed 000: 15"))
+    thickness: float = field(default=0.6, metadata=rng(0.3, 3, unit="mm", doc="seed 000: 0.6"))
+    layer_height: float = field(default=0.1, metadata=rng(0.05, 0.4, unit="mm",
+                                                          doc="seed 000: 0.1"))
+    trace_thickness: float = field(default=0.2, metadata=rng(0.05, 1.0, unit="mm",
+                                                             doc="seed 000: 0.2 (two layers)"))
+    trace_cover: float = field(default=0.2, metadata=rng(0.05, 1.5, unit="mm",
+                                                         doc="TPU under the trace (finger side)"))
+    arch_width: float = field(default=40.0, metadata=rng(16, 100, unit="mm",
+                                                         doc="chord between the arch feet"))
+    arch_height: float = field(default=8.0, metadata=rng(1, 50, unit="mm",
+                                                         doc="rise of the arch centreline"))
+    tab_length: float = field(default=14.0, metadata=rng(4, 40, unit="mm"))
+    slot_count: int = field(default=3, metadata=rng(1, 6, doc="seed 000: 3 per end"))
+    slot_length: float = field(default=9.0, metadata=rng(1, 25, unit="mm", doc="across strap"))
+    slot_width: float = field(default=1.6, metadata=rng(0.6, 5, unit="mm", doc="along strap"))
+    slot_pitch: float = field(default=3.5, metadata=rng(1, 10, unit="mm"))
+    slot_end_margin: float = field(default=2.0, metadata=rng(0.8, 10, unit="mm",
+                                                             doc="strap end to last slot"))
+    legs: int = field(default=4, metadata=rng(2, 16, doc="meander legs (even)"))
+    trace_width: float = field(default=0.8, metadata=rng(NOZZLE, 4, unit="mm",
+                                                         doc=">= one 0.4 mm nozzle line"))
+    trace_gap: float = field(default=0.8, metadata=rng(NOZZLE, 4, unit="mm"))
+    gauge_length: float = field(default=8.0, metadata=rng(1, 40, unit="mm",
+                                                          doc="leg length along the strap"))
+    gauge_offset: float = field(default=7.0, metadata=rng(0.5, 60, unit="mm",
+                                                          doc="apex to gauge centre, arc length"))
+    lead_length: float = field(default=1.6, metadata=rng(0, 15, unit="mm"))
+    pad_width: float = field(default=2.0, metadata=rng(0.8, 8, unit="mm"))
+    pad_length: float = field(default=3.0, metadata=rng(0.8, 10, unit="mm"))
+    edge_margin: float = field(default=1.0, metadata=rng(0.4, 6, unit="mm",
+                                                         doc="TPU beside the traces"))
+    contact_length: float = field(default=16.0, metadata=rng(1, 100, unit="mm",
+                                                             doc="finger pad contact, arc length"))
+    nail_plate_length: float = field(default=16.0, metadata=rng(6, 40, unit="mm"))
+    nail_plate_width: float = field(default=12.0, metadata=rng(6, 40, unit="mm"))
+    nail_plate_thickness: float = field(default=1.2, metadata=rng(0.4, 5, unit="mm"))
+
+    def __post_init__(self):
+        validate(self)
+        self._check()
+
+    # ----------------------------------------------------------------- derived geometry (mm, rad)
+    @property
+    def radius(self) -> float:
+        """Radius of the arch centreline."""
+        w, h = self.arch_width, self.arch_height
+        return (w * w / 4 + h * h) / (2 * h)
+
+    @property
+    def center(self) -> tuple[float, float]:
+        """Centre of the arch circle in the bed plane."""
+        return (0.0, self.arch_height - self.radius)
+
+    @property
+    def half_angle(self) -> float:
+        """Half the angle the arch spans (rad)."""
+        return math.atan2(self.arch_width / 2, self.radius - self.arch_height)
+
+    @property
+    def arc_length(self) -> float:
+        """Centreline length of the arch (without tabs)."""
+        return 2 * self.half_angle * self.radius
+
+    @property
+    def leg_offsets(self) -> np.ndarray:
+        """Radial offsets of the meander legs from the centreline (mm, inner to outer)."""
+        n, p = self.legs, self.trace_width + self.trace_gap
+        return (np.arange(n) - (n - 1) / 2) * p
+
+    @property
+    def trace_z(self) -> tuple[float, float]:
+        """Bottom and top of the embedded trace layer."""
+        return self.trace_cover, self.trace_cover + self.trace_thickness
+
+    def gauge_angles(self) -> dict[str, float]:
+        """Angles (rad, right gauge) of the leg ends ``a``/``b``, the turn width ``turn``, and the
+        pad ``p0``/``p1`` (left gauge: mirrored)."""
+        R = self.radius
+        r_min = R + self.leg_offsets[0] - self.trace_width / 2
+        a = (self.gauge_offset - self.gauge_length / 2) / R
+        b = (self.gauge_offset + self.gauge_length / 2) / R
+        turn = self.trace_width / r_min
+        p0 = b + self.lead_length / R
+        p1 = p0 + self.pad_length / R
+        return {"a": a, "b": b, "turn": turn, "p0": p0, "p1": p1}
+
+    def _check(self) -> None:
+        w, n, g = self.trace_width, self.legs, self.trace_gap
+        if self.arch_height > self.arch_width / 2:
+            raise ParameterError("arch_height", self.arch_height,
+                                 f"<= {self.arch_width / 2:g} mm (arch_width / 2: at most a "
+                                 "semicircle)")
+        if self.strap_width > 2 * (self.radius - 2):
+            raise ParameterError("strap_width", self.strap_width,
+                                 f"<= {2 * (self.radius - 2):.3g} mm (2 x (arch radius - 2 mm))")
+        top = self.thickness - self.trace_cover - self.trace_thickness
+        if self.trace_cover < self.layer_height:
+            raise ParameterError("trace_cover", self.trace_cover,
+                                 f">= {self.layer_height:g} mm (one layer)")
+        if top < self.layer_height - 1e-9:
+            raise ParameterError("trace_thickness", self.trace_thickness,
+                                 f"<= {self.thickness - self.trace_cover - self.layer_height:.3g}"
+                                 " mm (thickness - trace_cover - one layer of cover)")
+        if self.trace_thickness < self.layer_height - 1e-9:
+            raise ParameterError("trace_thickness", self.trace_thickness,
+                                 f">= {self.layer_height:g} mm (one layer)")
+        if n % 2:
+            raise ParameterError("legs", n, "an even number (both pads at the outer end)")
+        avail = self.strap_width - 2 * self.edge_margin
+        w_max = min((avail - (n - 1) * g) / n, (avail - self.pad_width) / (n - 1) - g)
+        if w > w_max + 1e-9:
+            raise ParameterError("trace_width", w,
+                                 f"<= {w_max:.3g} mm (strap width - 2 edge margins, {n} legs, "
+                                 f"gap {g:g}, pad {self.pad_width:g})")
+        pw_max = (n - 1) * (w + g) - g
+        if self.pad_width > pw_max + 1e-9:
+            raise ParameterError("pad_width", self.pad_width,
+                                 f"<= {pw_max:.3g} mm (outer leg spacing - trace_gap)")
+        if self.pad_width < w:
+            raise ParameterError("pad_width", self.pad_width, f">= trace_width = {w:g} mm")
+        if n > 2 and self.lead_length < w + g - 1e-9:
+            raise ParameterError("lead_length", self.lead_length,
+                                 f">= {w + g:g} mm (trace_width + trace_gap: pads clear the "
+                                 "outer turns)")
+        R = self.radius
+        ang = self.gauge_angles()
+        lo = (self.gauge_length / 2 + g / 2) + ang["turn"] * R
+        hi = self.half_angle * R - self.edge_margin - self.gauge_length / 2 \
+            - self.lead_length - self.pad_length
+        if not lo <= self.gauge_offset <= hi:
+            raise ParameterError("gauge_offset", self.gauge_offset,
+                                 f"{lo:.3g} <= value <= {hi:.3g} mm (gauges apart at the apex and "
+                                 "pads on the arch)")
+        if self.slot_length > avail + 1e-9:
+            raise ParameterError("slot_length", self.slot_length,
+                                 f"<= {avail:.3g} mm (strap width - 2 edge margins)")
+        if self.slot_pitch < self.slot_width + 0.8:
+            raise ParameterError("slot_pitch", self.slot_pitch,
+                                 f">= {self.slot_width + 0.8:.3g} mm (slot_width + 0.8 mm web)")
+        tab_min = self.slot_end_margin + (self.slot_count - 1) * self.slot_pitch \
+            + self.slot_width + 1.0
+        if self.tab_length < tab_min - 1e-9:
+            raise ParameterError("tab_length", self.tab_length,
+                                 f">= {tab_min:.3g} mm (room for {self.slot_count} slots)")
+        if self.contact_length > self.arc_length:
+            raise ParameterError("contact_length", self.contact_length,
+                                 f"<= {self.arc_length:.3g} mm (arch length)")
+        if self.nail_plate_length < 2 * self.slot_width + 4:
+            raise ParameterError("nail_plate_length", self.nail_plate_length,
+                                 f">= {2 * self.slot_width + 4:.3g} mm (two lugs)")
+        if self.nail_plate_width < self.slot_length:
+            raise ParameterError("nail_plate_width", self.nail_plate_width,
+                                 f">= slot_length = {self.slot_length:g} mm")
+
+    # ------------------------------------------------------------------------------ geometry
+    def tab_frames(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """``(foot, tangent, normal)`` in the bed plane for the right and left tab: the arch foot
+        point, the outward unit direction along the tab and the in-plane unit normal."""
+        phi = self.half_angle
+        out = []
+        for s in (1.0, -1.0):
+            foot = np.array([s * self.arch_width / 2, 0.0])
+            t = np.array([s * math.cos(phi), -math.sin(phi)])
+            nrm = np.array([s * math.sin(phi), math.cos(phi)])
+            out.append((foot, t, nrm))
+        return out
+
+    def slot_centers(self) -> np.ndarray:
+        """(2 * slot_count, 2) slot centres in the bed plane (right tab first)."""
+        pts = []
+        for foot, t, _ in self.tab_frames():
+            for k in range(self.slot_count):
+                d = self.tab_length - self.slot_end_margin - self.slot_width / 2 \
+                    - k * self.slot_pitch
+                pts.append(foot + d * t)
+        return np.array(pts)
+
+    def outline_area(self) -> float:
+        """Closed-form area of the slotted outline (arch sector + tabs - slots), mm^2."""
+        sw = self.strap_width
+        area = 2 * self.half_angle * self.radius * sw + 2 * self.tab_length * sw
+        slot = math.pi * (self.slot_width / 2) ** 2 + (self.slot_length - self.slot_width) \
+            * self.slot_width
+        return area - 2 * self.slot_count * slot
+
+    def build(self) -> dict[str, Body]:
+        """Bodies ``strap``, ``trace_left``, ``trace_right``, ``nail_plate`` (cached)."""
+        return dict(_build(self))
+
+    def mesh_bodies(self) -> tuple[str, ...]:
+        return ("strap", "trace_left", "trace_right")
+
+    def facet_sets(self) -> dict[str, FacetSelector]:
+        """``nail_plate``: strap boundary in the end tabs (fixed on the nail plate);
+        ``finger_contact``: bottom face within ``contact_length/2`` of the apex (arc length);
+        ``pad_left`` / ``pad_right``: the top faces of the connection pads (electrodes)."""
+        R, (cx, cy), t = self.radius, self.center, self.thickness
+        ztol = self.layer_height / 2
+        frames = self.tab_frames()
+        half_sw = self.strap_width / 2 + 1e-3
+
+        def polar(c):
+            x, y = c[:, 0] - cx, c[:, 1] - cy
+            return np.hypot(x, y), np.arctan2(x, y)
+
+        def nail_plate(c, n):
+            m = np.zeros(len(c), bool)
+            for foot, tan, _ in frames:
+                m |= (c[:, :2] - foot) @ tan >= -1e-6
+            return m
+
+        def finger_contact(c, n):
+            rho, phi = polar(c)
+            return (n[:, 2] < -0.9) & (np.abs(c[:, 2]) < ztol) \
+                & (np.abs(phi) * R <= self.contact_length / 2) & (np.abs(rho - R) <= half_sw)
+
+        ang = self.gauge_angles()
+        y = self.leg_offsets
+        pw = self.pad_width / 2 + 1e-3
+
+        def pad(sign):
+            def sel(c, n):
+                rho, phi = polar(c)
+                s = sign * phi
+                on_pad = (s >= ang["p0"] - 1e-4) & (s <= ang["p1"] + 1e-4) & (
+                    (np.abs(rho - R - y[0]) <= pw) | (np.abs(rho - R - y[-1]) <= pw))
+                return (n[:, 2] > 0.9) & (np.abs(c[:, 2] - t) < ztol) & on_pad
+            return sel
+
+        return {"nail_plate": nail_plate, "finger_contact": finger_contact,
+                "pad_left": pad(-1.0), "pad_right": pad(1.0)}
+
+    def refinement(self) -> list[tuple[np.ndarray, float, float]]:
+        """Gauges (edge = trace thickness, so the 2-layer trace is resolved) and pads."""
+        R, (cx, cy) = self.radius, self.center
+        ang = self.gauge_angles()
+        z = sum(self.trace_z) / 2
+        span = (self.legs - 1) * (self.trace_width + self.trace_gap) + self.trace_width
+        half = math.hypot(self.gauge_length / 2 + self.trace_width, span / 2) + 0.5
+        out = []
+        for s in (1.0, -1.0):
+            phi = s * self.gauge_offset / R
+            out.append((np.array([cx + R * math.sin(phi), cy + R * math.cos(phi), z]), half,
+                        self.trace_thickness))
+            phi = s * (ang["p0"] + ang["p1"]) / 2
+            for yo in (self.leg_offsets[0], self.leg_offsets[-1]):
+                r = R + yo
+                out.append((np.array([cx + r * math.sin(phi), cy + r * math.cos(phi), z]),
+                            math.hypot(self.pad_width, self.pad_length) / 2 + 0.5,
+                            1.5 * self.trace_thickness))
+        return out
+
+
+def _trace_right(p: ArchStrap):
+    """Right meander (x > 0) as one solid: legs, turns, leads, and pads up to the top face."""
+    R, c = p.radius, p.center
+    ang = p.gauge_angles()
+    y = p.leg_offsets
+    hw = p.trace_width / 2
+    z0, z1 = p.trace_z
+    faces = []
+    for yi in y:  # legs (the two outer legs run on as leads to their pads)
+        faces.append(annular_sector(c, R + yi - hw, R + yi + hw, ang["a"], ang["b"]))
+    for i in range(len(y) - 1):  # turns: (0,1), (2,3).. at the apex end, (1,2).. at the outer end
+        r0, r1 = R + y[i] - hw, R + y[i + 1] + hw
+        if i % 2 == 0:
+            faces.append(annular_sector(c, r0, r1, ang["a"] - ang["turn"], ang["a"]))
+        else:
+            faces.append(annular_sector(c, r0, r1, ang["b"], ang["b"] + ang["turn"]))
+    for yi in (y[0], y[-1]):
+        if p.lead_length > 0:
+            faces.append(annular_sector(c, R + yi - hw, R + yi + hw, ang["b"], ang["p0"]))
+    layer = extrude(Pos(0, 0, z0) * _fuse_faces(faces), amount=z1 - z0)
+    pads = [annular_sector(c, R + yi - p.pad_width / 2, R + yi + p.pad_width / 2,
+                           ang["p0"], ang["p1"]) for yi in (y[0], y[-1])]
+    pad_solid = extrude(Pos(0, 0, z0) * _fuse_faces(pads), amount=p.thickness - z0)
+    return single_solid((layer + pad_solid).clean(), "trace_right")
+
+
+def _fuse_faces(faces):
+    """Union of planar faces as one Sketch (so Locations and ``extrude`` apply)."""
+    return Sketch() + faces
+
+
+@functools.lru_cache(maxsize=8)
+def _build(p: ArchStrap) -> dict[str, Body]:
+    R, c, sw = p.radius, p.center, p.strap_width
+    outline = [annular_sector(c, R - sw / 2, R + sw / 2, -p.half_angle, p.half_angle)]
+    for foot, t, nrm in p.tab_frames():
+        a, b = foot + nrm * sw / 2, foot - nrm * sw / 2
+        pts = [a, b, b + t * p.tab_length, a + t * p.tab_length]
+        outline.append(polygon_face(pts))
+    plate = extrude(_fuse_faces(outline), amount=p.thickness)
+    slots = []
+    for (foot, t, nrm), centers in zip(p.tab_frames(), np.split(p.slot_centers(), 2)):
+        rot = math.degrees(math.atan2(nrm[1], nrm[0]))
+        for q in centers:
+            slots.append(Pos(q[0], q[1], 0) * SlotOverall(p.slot_length, p.slot_width,
+                                                          rotation=rot))
+    plate = plate - extrude(_fuse_faces(slots), amount=p.thickness)
+    right = _trace_right(p)
+    left = single_solid(mirror(right, about=Plane.YZ), "trace_left")
+    strap = single_solid((plate - right - left).clean(), "strap")
+
+    # nail plate beside the strap on the bed: a rounded plate with two lugs that fit the slots
+    ymin = strap.bounding_box().min.Y
+    yc = ymin - 5.0 - p.nail_plate_width / 2
+    L, W, T = p.nail_plate_length, p.nail_plate_width, p.nail_plate_thickness
+    base = Pos(0, yc, 0) * extrude(RectangleRounded(L, W, min(2.0, W / 4)), amount=T)
+    lug_x = L / 2 - p.slot_width / 2 - 1.5
+    lugs = [Pos(s * lug_x, yc, T) * SlotOverall(p.slot_length - 0.4, p.slot_width - 0.3,
+                                                  rotation=90) for s in (1, -1)]
+    nail = single_solid((base + extrude(_fuse_faces(lugs), amount=p.thickness + 0.6)).clean(),
+                        "nail_plate")
+    blue, black = (0.25, 0.45, 0.85), (0.12, 0.12, 0.12)
+    return {
+        "strap": Body("strap", strap, "NinjaFlex", blue, extruder=1),
+        "trace_left": Body("trace_left", left, "PI-ETPU", black, extruder=2),
+        "trace_right": Body("trace_right", right, "PI-ETPU", black, extruder=2),
+        "nail_plate": Body("nail_plate", nail, "NinjaFlex", (0.35, 0.55, 0.9), extruder=1),
+    }
