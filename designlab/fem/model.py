@@ -420,7 +420,9 @@ class Model:
             if ax.shape != (3,) or not np.linalg.norm(ax) > 0:
                 raise ParameterError("axis", axis, "a non-zero 3-vector")
             ax = ax / np.linalg.norm(ax)
-        s = Spring(name, a, b, float(k), ax, float(preload), self._case(case))
+        s = Spring(name, a, b, float(k), ax, float(preload), self._case(case) if preload
+                   else case)
+        self._system = None
         self.springs[name] = s
         return s
 

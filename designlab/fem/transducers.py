@@ -1,0 +1,183 @@
+"""Virtual transducers: what the sensors of the three seeds would read from an FEM solution.
+
+Each transducer has ``read(result)`` for a :class:`~designlab.fem.static.StaticResult`
+(one row per load case) or a :class:`~designlab.fem.viscoelastic.HistoryResult` (one row per
+time step). Linear ones are also linear maps of the displacement columns: ``from_u(U)``.
+
+- :class:`StrainGauge` (seed 000): volume-weighted mean strain along the trace direction over a
+  region, dR/R = GF eps + c2 eps^2, optional TCR, and the voltage-divider readout.
+- :class:`ForceButton` (seed 001): force of a spring along its axis (compression positive when
+  the spring's axis points into the sensor).
+- :class:`RigidPose` (seed 002): twist (w_x, w_y, w_z, v_x, v_y, v_z) of a rigid reference point.
+- :class:`ReactionWrench`: (m_x, m_y, m_z, f_x, f_y, f_z) of the reactions on a set.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from designlab.errors import ModelError, ParameterError
+from designlab.fem.model import Model, RefPoint
+
+#: seed 000 readout (../shared/data/papers/fingertip_strap_tpu.json: "readout", "strap")
+DIVIDER_OHM = 2200.0
+SUPPLY_V = 5.0
+GAUGE_OHM = 1800.0
+
+
+def _columns(result) -> np.ndarray:
+    """(n_dofs, k) displacement columns of a static (cases) or history (steps) result."""
+    return np.asarray(result.U)
+
+
+def divider_voltage(R, R_fixed: float = DIVIDER_OHM, V_s: float = SUPPLY_V,
+                    across: str = "gauge"):
+    """Output of a voltage divider gauge + fixed resistor on supply ``V_s`` (V): the voltage
+    across the gauge, V_s R / (R + R_fixed), or across the fixed resistor (``across=
+    "resistor"``), V_s R_fixed / (R + R_fixed). Seed 000 (Fig. 3) reads one channel per gauge
+    with 2.2 kOhm at 5 V; it does not say which node is sampled, we default to the gauge."""
+    R = np.asarray(R, float)
+    if across == "gauge":
+        return V_s * R / (R + R_fixed)
+    if across == "resistor":
+        return V_s * R_fixed / (R + R_fixed)
+    raise ParameterError("across", across, "'gauge' or 'resistor'")
+
+
+@dataclass(frozen=True, eq=False)
+class StrainGauge:
+    """Strain gauge on the cells of ``region`` (a body name, or a boolean/int cell selection).
+
+    ``direction``: constant (3,) axis or callable ``d(x) -> (..., 3)`` of the quadrature point
+    coordinates (normalised here), e.g. the tangent of a curved trace. ``gauge_factor``,
+    ``gauge_quadratic`` and ``tcr`` default to the region's material. ``R0`` in ohm (1.8 kOhm,
+    seed 000), ``T0`` reference temperature (deg C)."""
+
+    model: Model
+    region: object
+    direction: object = (1.0, 0.0, 0.0)
+    gauge_factor: float | None = None
+    gauge_quadratic: float | None = None
+    tcr: float | None = None
+    R0: float = GAUGE_OHM
+    T0: float = 20.0
+    name: str = "gauge"
+
+    def __post_init__(self):
+        mesh = self.model.mesh
+        if isinstance(self.region, str):
+            try:
+                rid = mesh.region_id(self.region)
+            except KeyError:
+                raise ModelError(f"region '{self.region}' does not exist; available: "
+                                 f"{', '.join(mesh.region_names.values())}") from None
+            cells = np.nonzero(mesh.region == rid)[0]
+            mat = self.model.region_materials[rid]
+        else:
+            sel = np.asarray(self.region)
+            cells = np.nonzero(sel)[0] if sel.dtype == bool else np.unique(sel)
+            mats = {self.model.region_materials[int(r)].name: self.model.region_materials[int(r)]
+                    for r in np.unique(mesh.region[cells])} if len(cells) else {}
+            mat = next(iter(mats.values())) if len(mats) == 1 else None
+        if len(cells) == 0:
+            raise ModelError(f"strain gauge '{self.name}' covers no cells")
+        gf = self.gauge_factor if self.gauge_factor is not None else (
+            mat.gauge_factor if mat is not None else None)
+        if gf is None:
+            raise ParameterError("gauge_factor", None, "a number: the gauge material "
+                                 f"{mat.name if mat else '(mixed)'} has no gauge factor")
+        object.__setattr__(self, "gauge_factor", float(gf))
+        if self.gauge_quadratic is None:
+            object.__setattr__(self, "gauge_quadratic", mat.gauge_quadratic if mat else 0.0)
+        if self.tcr is None:
+            object.__setattr__(self, "tcr", mat.tcr if mat else 0.0)
+        basis = self.model.basis
+        x = basis.x[cells]                                            # (k, nq, 3)
+        d = self.direction(x) if callable(self.direction) else np.broadcast_to(
+            np.asarray(self.direction, float), x.shape)
+        nrm = np.linalg.norm(d, axis=-1, keepdims=True)
+        if not np.all(nrm > 0):
+            raise ParameterError("direction", self.direction, "non-zero vectors")
+        d = d / nrm
+        # e.eps.e with engineering shears: xx yy zz + xy, xz, yz products
+        proj = np.stack([d[..., 0] ** 2, d[..., 1] ** 2, d[..., 2] ** 2, d[..., 0] * d[..., 1],
+                         d[..., 0] * d[..., 2], d[..., 1] * d[..., 2]], axis=-1)
+        w = basis.dx[cells] / basis.dx[cells].sum()
+        nq = basis.dx.shape[1]
+        rows = (6 * (cells[:, None, None] * nq + np.arange(nq)[None, :, None])
+                + np.arange(6)).ravel()
+        vec = sp.csr_matrix(((w[..., None] * proj).ravel(), (np.zeros(rows.size, int), rows)),
+                            shape=(1, self.model.B.shape[0]))
+        op = (vec @ self.model.B).tocsr()
+        object.__setattr__(self, "_op", op)
+        object.__setattr__(self, "cells", cells)
+
+    def strain(self, U) -> np.ndarray:
+        """Mean strain along the direction for each displacement column of U (n_dofs, k)."""
+        U = np.asarray(U)
+        n3 = 3 * self.model.n_points
+        return np.asarray(self._op @ (U[:n3] if U.ndim == 1 else U[:n3, :])).ravel()
+
+    def dR_R(self, strain, temperature=None) -> np.ndarray:
+        """Relative resistance change: (1 + GF eps + c2 eps^2)(1 + tcr (T - T0)) - 1."""
+        eps = np.asarray(strain, float)
+        r = 1.0 + self.gauge_factor * eps + self.gauge_quadratic * eps**2
+        if temperature is not None:
+            r = r * (1.0 + self.tcr * (np.asarray(temperature, float) - self.T0))
+        return r - 1.0
+
+    def resistance(self, strain, temperature=None) -> np.ndarray:
+        """Gauge resistance, ohm."""
+        return self.R0 * (1.0 + self.dR_R(strain, temperature))
+
+    def voltage(self, strain, temperature=None, across: str = "gauge") -> np.ndarray:
+        """Seed-000 divider output (V), see :func:`divider_voltage`."""
+        return divider_voltage(self.resistance(strain, temperature), across=across)
+
+    def read(self, result, temperature=None) -> dict[str, np.ndarray]:
+        """{"strain", "dR_R", "resistance_ohm", "voltage_V"} per case/step."""
+        eps = self.strain(_columns(result))
+        return {"strain": eps, "dR_R": self.dR_R(eps, temperature),
+                "resistance_ohm": self.resistance(eps, temperature),
+                "voltage_V": self.voltage(eps, temperature)}
+
+
+@dataclass(frozen=True)
+class ForceButton:
+    """Force sensor modelled as a stiff spring of the model (see Model.spring)."""
+
+    spring: str
+
+    def read(self, result) -> np.ndarray:
+        """Force (N) per case/step."""
+        f = result.spring_force(self.spring) if hasattr(result, "history") else np.array(
+            [result.spring_force(self.spring, c) for c in result.cases])
+        return np.asarray(f, float)
+
+
+@dataclass(frozen=True)
+class RigidPose:
+    """Twist (w_x, w_y, w_z, v_x, v_y, v_z) of a reference point (rad, mm)."""
+
+    ref: str | RefPoint
+
+    def read(self, result) -> np.ndarray:
+        if hasattr(result, "history"):
+            return result.twist(self.ref)
+        return np.array([result.twist(self.ref, c) for c in result.cases])
+
+
+@dataclass(frozen=True)
+class ReactionWrench:
+    """Reaction resultant (m_x, m_y, m_z, f_x, f_y, f_z) on a set about ``about`` (N mm, N)."""
+
+    where: object
+    about: tuple = (0.0, 0.0, 0.0)
+
+    def read(self, result) -> np.ndarray:
+        if hasattr(result, "history"):
+            return result.wrench(self.where, about=self.about)
+        return np.array([result.wrench(self.where, c, about=self.about) for c in result.cases])

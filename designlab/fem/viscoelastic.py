@@ -1,0 +1,256 @@
+"""Linear viscoelasticity (generalized Maxwell / Prony series) under load histories.
+
+Each region whose :class:`~designlab.fem.materials.Material` has a ``prony`` relaxes as
+
+    s(t) = 2 G0 [g_inf e(t) + sum_i g_i h_i(t)],  h_i(t) = int_0^t exp(-(t-s)/tau_i) de/ds ds
+    p(t) =   K0 [k_inf th(t) + sum_j k_j m_j(t)]   (bulk terms only if ``prony.k`` is given)
+
+(e: deviatoric strain, th: volumetric strain, G0/K0 instantaneous moduli from E, nu).
+Update (Taylor-Pister-Goudreau / Simo-Hughes recursion with the strain *linear in time over each
+step*): h_i^{n+1} = a_i h_i^n + gamma_i (e^{n+1} - e^n), a_i = exp(-dt/tau_i),
+gamma_i = (1 - a_i) tau_i / dt (-> 1 for dt = 0: a jump, the glassy response). It is exact
+whenever the strain history is piecewise linear on the time grid (e.g. relaxation after a step
+or a ramp), unconditionally stable, and second-order accurate otherwise (creep under constant
+load: error O(dt^2)). With a constant dt the algorithmic moduli G_eff = G0 (g_inf + sum g_i
+gamma_i), K_eff likewise, are constant: the system is factored once per distinct step size
+(a jump, dt = 0, needs the glassy matrix once more).
+
+Internal variables live at the quadrature points; strains come from one sparse product with
+the strain operator B and stresses return as forces through B^T.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import numpy as np
+
+from designlab.errors import ParameterError
+from designlab.fem.assembly import stiffness
+from designlab.fem.model import Model, RefPoint, Spring, System
+from designlab.fem.solvers import LinearSolver, factorize
+from designlab.fem.static import check_constrained, elastic_stress, near_null_space
+
+_VOIGT_C = np.array([2.0, 2.0, 2.0, 1.0, 1.0, 1.0])     # tensor -> engineering Voigt stress
+_ONE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
+
+
+@dataclass(frozen=True)
+class History:
+    """Load history: times ``t`` (s, non-decreasing; a repeated time is a jump) and the
+    amplitude of each load case (array like ``t`` or callable ``a(t)``); cases not named have
+    amplitude 0. The state before ``t[0]`` is undeformed and relaxed."""
+
+    t: np.ndarray
+    amplitudes: dict[str, object] = field(default_factory=dict)
+
+    def __post_init__(self):
+        t = np.asarray(self.t, float)
+        if t.ndim != 1 or len(t) < 1 or np.any(np.diff(t) < 0) or not np.all(np.isfinite(t)):
+            raise ParameterError("t", self.t, "a non-empty, non-decreasing 1-D time array (s)")
+        object.__setattr__(self, "t", t)
+
+    def amplitude(self, case: str) -> np.ndarray:
+        a = self.amplitudes.get(case)
+        if a is None:
+            return np.zeros(len(self.t))
+        v = np.asarray(a(self.t) if callable(a) else a, float)
+        if v.shape != self.t.shape:
+            raise ParameterError(f"amplitude of {case}", v.shape, f"shape {self.t.shape}")
+        return v
+
+    @staticmethod
+    def step_hold(t_end: float, n_steps: int, cases: dict[str, float] | None = None
+                  ) -> "History":
+        """Jump to ``cases`` amplitudes (default {"default": 1}) at t = 0, hold until t_end."""
+        t = np.linspace(0.0, t_end, n_steps + 1)
+        cases = cases or {"default": 1.0}
+        return History(t, {c: np.full(len(t), v) for c, v in cases.items()})
+
+    @staticmethod
+    def piecewise(times, values, case: str = "default", dt: float | None = None) -> "History":
+        """Piecewise-linear amplitude through the breakpoints ``(times, values)`` (a repeated
+        time is a jump), sampled at every breakpoint and at most ``dt`` apart in between, so
+        ramps and holds are exactly linear per step."""
+        times, values = np.asarray(times, float), np.asarray(values, float)
+        if times.shape != values.shape or times.ndim != 1 or len(times) < 1:
+            raise ParameterError("times", times, "a 1-D array as long as values")
+        ts, vs = [times[0]], [values[0]]
+        for a, b, va, vb in zip(times[:-1], times[1:], values[:-1], values[1:]):
+            n = 1 if dt is None or b <= a else max(int(np.ceil((b - a) / dt - 1e-9)), 1)
+            s = np.linspace(0.0, 1.0, n + 1)[1:]
+            ts += list(a + (b - a) * s)
+            vs += list(va + (vb - va) * s)
+        return History(np.array(ts), {case: np.array(vs)})
+
+
+class _Prony:
+    """Per-quadrature-point Prony tables of the whole mesh (elastic cells: no branches)."""
+
+    def __init__(self, model: Model):
+        nq = model.basis.dx.shape[1]
+        rep = lambda v: np.repeat(v, nq)  # noqa: E731
+        self.G0 = rep(model.cell_values("G"))
+        self.K0 = rep(model.cell_values("K"))
+        self.ginf = np.ones_like(self.G0)
+        self.kinf = np.ones_like(self.K0)
+        qp_region = rep(model.mesh.region)
+        self.dev: list[tuple[np.ndarray, float, float]] = []      # (qp ids, g_i, tau_i)
+        self.vol: list[tuple[np.ndarray, float, float]] = []
+        for rid, mat in model.region_materials.items():
+            if mat.prony is None:
+                continue
+            q = np.nonzero(qp_region == rid)[0]
+            self.ginf[q] = mat.prony.g_inf
+            self.kinf[q] = mat.prony.k_inf
+            self.dev += [(q, g, tau) for g, tau in zip(mat.prony.g, mat.prony.tau)]
+            self.vol += [(q, k, tau) for k, tau in zip(mat.prony.k, mat.prony.k_tau)]
+
+    def effective(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Per-qp algorithmic (G_eff, K_eff) for step ``dt``."""
+        G, K = self.G0 * self.ginf, self.K0 * self.kinf
+        for (q, g, tau), out, base in [(b, G, self.G0) for b in self.dev] + \
+                                      [(b, K, self.K0) for b in self.vol]:
+            out[q] += base[q] * g * _gamma(dt, tau)
+        return G, K
+
+
+def _gamma(dt: float, tau: float) -> float:
+    return 1.0 if dt <= 0 else -np.expm1(-dt / tau) * tau / dt
+
+
+@dataclass(frozen=True, eq=False)
+class HistoryResult:
+    """Response to a :class:`History`: ``U`` (n_dofs, n_steps) displacements, ``F_int``
+    (3 n_points, n_steps) internal nodal forces. Methods mirror StaticResult with a time axis."""
+
+    system: System
+    history: History
+    U: np.ndarray
+    F_int: np.ndarray
+    F_ext: np.ndarray
+    factorizations: int
+    solvers: tuple[LinearSolver, ...]
+
+    @property
+    def model(self) -> Model:
+        return self.system.model
+
+    @property
+    def t(self) -> np.ndarray:
+        return self.history.t
+
+    def displacement(self, step: int = -1) -> np.ndarray:
+        """(n_points, 3) displacements at ``step``, mm."""
+        return self.U[: 3 * self.model.n_points, step].reshape(-1, 3)
+
+    def reactions(self, step: int = -1) -> np.ndarray:
+        """(n_points, 3) forces of supports/couplings/springs on the body at ``step``, N."""
+        return (self.F_int[:, step] - self.F_ext[:, step]).reshape(-1, 3)
+
+    def wrench(self, where, about=(0.0, 0.0, 0.0)) -> np.ndarray:
+        """(n_steps, 6) reaction resultant (m_x, m_y, m_z, f_x, f_y, f_z) on a set."""
+        ids = self.model.nodes(where)
+        d = 3 * ids[:, None] + np.arange(3)
+        r = (self.F_int[d] - self.F_ext[d]).transpose(2, 0, 1)        # (steps, k, 3)
+        arm = self.model.mesh.points[ids] - np.asarray(about, float)
+        return np.concatenate([np.cross(arm[None], r).sum(1), r.sum(1)], axis=1)
+
+    def twist(self, ref: RefPoint | str) -> np.ndarray:
+        """(n_steps, 6) (w, v) of a reference point."""
+        ref = self.model.refs[ref] if isinstance(ref, str) else ref
+        vw = (self.model.twist_map(ref) @ self.U).T
+        return np.concatenate([vw[:, 3:], vw[:, :3]], axis=1)
+
+    def spring_force(self, spring: Spring | str) -> np.ndarray:
+        """(n_steps,) spring reading k * elongation + preload(t), N."""
+        s = self.model.springs[spring] if isinstance(spring, str) else spring
+        e = (self.model.spring_map(s) @ self.U)
+        f = s.k * e + s.preload * self.history.amplitude(s.case)[None]
+        return f[0] if s.axis is not None else f.T
+
+    def dofs(self, dofs) -> np.ndarray:
+        """(n_steps, k) history of selected dofs."""
+        return self.U[np.asarray(dofs)].T
+
+
+def solve_history(model: Model, history: History, solver: str = "auto",
+                  check: bool = True) -> HistoryResult:
+    """March ``history`` with the exact exponential update (see module docstring)."""
+    system = model.build()
+    if check:
+        check_constrained(system)
+    unknown = set(history.amplitudes) - set(system.cases)
+    if unknown:
+        raise ParameterError("history case", sorted(unknown)[0],
+                             "one of the model's load cases: " + ", ".join(system.cases))
+    t = history.t
+    A = np.stack([history.amplitude(c) for c in system.cases], axis=1)   # (steps, cases)
+    F_all = (system.F + system.F_preload) @ A.T                          # (n_dofs, steps)
+    G_all = system.G @ A.T
+    n3 = 3 * model.n_points
+    B, dx = model.B, model.basis.dx.ravel()
+    pr = _Prony(model)
+    nqp = len(dx)
+    h = [np.zeros((len(q), 6)) for q, _, _ in pr.dev]
+    m = [np.zeros(len(q)) for q, _, _ in pr.vol]
+    e_old = np.zeros((nqp, 6))                  # deviatoric (engineering) strain
+    th_old = np.zeros(nqp)
+    cache: dict[float, tuple[LinearSolver, object]] = {}
+    nsteps = len(t)
+    U = np.zeros((system.n_dofs, nsteps), order="F")
+    F_int = np.zeros((n3, nsteps), order="F")
+    nq = model.basis.dx.shape[1]
+    T = system.T
+    Tt = T.T.tocsr()
+    t_prev = t[0]
+    for n in range(nsteps):
+        dt = 0.0 if n == 0 else float(t[n] - t_prev)
+        t_prev = t[n]
+        if n == 0 and not (np.any(F_all[:, 0]) or np.any(G_all[:, 0])):
+            continue                                    # at rest
+        key = round(dt, 12)
+        if key not in cache:
+            Ge, Ke = pr.effective(dt)
+            Gc, Kc = Ge.reshape(-1, nq)[:, 0], Ke.reshape(-1, nq)[:, 0]
+            K = system.K(stiffness(model.basis, Kc - 2.0 * Gc / 3.0, Gc))
+            lin = factorize(system.reduce(K), solver, near_null=lambda: near_null_space(system))
+            cache[key] = (lin, K)
+        lin, K = cache[key]
+        # history stress sigma_h (per qp, engineering Voigt)
+        s_h = np.zeros((nqp, 6))
+        p_h = np.zeros(nqp)
+        for (q, g, tau), hi in zip(pr.dev, h):
+            a, gam = np.exp(-dt / tau), _gamma(dt, tau)
+            s_h[q] += (pr.G0[q] * g)[:, None] * (a * hi - gam * e_old[q])
+        for (q, k, tau), mi in zip(pr.vol, m):
+            a, gam = np.exp(-dt / tau), _gamma(dt, tau)
+            p_h[q] += pr.K0[q] * k * (a * mi - gam * th_old[q])
+        sig_h = s_h * _VOIGT_C + p_h[:, None] * _ONE
+        f_h = np.zeros(system.n_dofs)
+        f_h[:n3] = B.T @ (dx[:, None] * sig_h).ravel()
+        rhs = Tt @ (F_all[:, n] - f_h - K @ G_all[:, n])
+        u = T @ lin.solve(rhs) + G_all[:, n]
+        U[:, n] = u
+        eps = (B @ u[:n3]).reshape(nqp, 6)
+        th = eps[:, :3].sum(1)
+        e = eps - (th / 3.0)[:, None] * _ONE
+        for i, (q, g, tau) in enumerate(pr.dev):
+            a, gam = np.exp(-dt / tau), _gamma(dt, tau)
+            h[i] = a * h[i] + gam * (e[q] - e_old[q])
+        for i, (q, k, tau) in enumerate(pr.vol):
+            a, gam = np.exp(-dt / tau), _gamma(dt, tau)
+            m[i] = a * m[i] + gam * (th[q] - th_old[q])
+        e_old, th_old = e, th
+        # full stress -> internal forces
+        s = (pr.G0 * pr.ginf)[:, None] * e
+        p = pr.K0 * pr.kinf * th
+        for (q, g, tau), hi in zip(pr.dev, h):
+            s[q] += (pr.G0[q] * g)[:, None] * hi
+        for (q, k, tau), mi in zip(pr.vol, m):
+            p[q] += pr.K0[q] * k * mi
+        sig = s * _VOIGT_C + p[:, None] * _ONE
+        F_int[:, n] = B.T @ (dx[:, None] * sig).ravel()
+    F_ext = np.asarray(system.F[:n3] @ A.T, order="F")
+    return HistoryResult(system, history, U, F_int, F_ext, len(cache),
+                         tuple(v[0] for v in cache.values()))
+
