@@ -210,8 +210,52 @@ def _euler_states(u, pt, ps, dt, s0, starts):
     return out
 
 
+def _moebius_scan(m11, m12, m21, m22, r0):
+    """Orbit r_{k+1} = (m11_k r_k + m12_k) / (m21_k r_k + m22_k) for k = 0..n-1, from r0 (B,).
+
+    Blocked scan: the n maps (B, n) are cut into chunks of L ~ sqrt(n); the prefix products
+    of 2x2 matrices inside every chunk are built by a loop over L (vectorised over all
+    chunks and rows), the chunk-start values by a loop over the chunks (vectorised over rows),
+    and every value is then one vectorised Moebius evaluation: O(n) work, ~2 sqrt(n) numpy
+    steps instead of n. Returns r_1..r_n as (B, n).
+    """
+    B, n = m11.shape
+    L = max(8, int(np.sqrt(n)) + 1)
+    C = -(-n // L)
+    pad = C * L - n
+
+    def block(m, fill):
+        if pad:
+            m = np.concatenate([m, np.full((B, pad), fill)], axis=1)
+        return np.ascontiguousarray(m.reshape(B, C, L).transpose(2, 0, 1))   # (L, B, C)
+
+    p11, p12, p21, p22 = block(m11, 1.0), block(m12, 0.0), block(m21, 0.0), block(m22, 1.0)
+    for l in range(1, L):       # P_l = M_l P_{l-1} inside every chunk
+        a11, a12, a21, a22 = p11[l], p12[l], p21[l], p22[l]
+        b11, b12, b21, b22 = p11[l - 1], p12[l - 1], p21[l - 1], p22[l - 1]
+        n11 = a11 * b11 + a12 * b21
+        n12 = a11 * b12 + a12 * b22
+        n21 = a21 * b11 + a22 * b21
+        n22 = a21 * b12 + a22 * b22
+        if l % 16 == 0:         # keep the (projective) products well scaled
+            nrm = np.abs(n11) + np.abs(n12) + np.abs(n21) + np.abs(n22)
+            n11 /= nrm
+            n12 /= nrm
+            n21 /= nrm
+            n22 /= nrm
+        p11[l], p12[l], p21[l], p22[l] = n11, n12, n21, n22
+    start = np.empty((B, C))    # r at the start of every chunk
+    start[:, 0] = r0
+    e11, e12, e21, e22 = p11[-1], p12[-1], p21[-1], p22[-1]
+    for c in range(C - 1):
+        x = start[:, c]
+        start[:, c + 1] = (e11[:, c] * x + e12[:, c]) / (e21[:, c] * x + e22[:, c])
+    r = (p11 * start + p12) / (p21 * start + p22)                    # (L, B, C)
+    return r.transpose(1, 2, 0).reshape(B, C * L)[:, :n]
+
+
 def _exact_states(u, pt, ps, dt, s0, starts):
-    """Exact zero-order-hold update via a parallel prefix product of Moebius matrices."""
+    """Exact zero-order-hold update as a scan of Moebius maps (see :func:`_moebius_scan`)."""
     T = u.size
     B = pt.shape[0]
     out = np.empty((B, T))
@@ -233,27 +277,10 @@ def _exact_states(u, pt, ps, dt, s0, starts):
             m11[:, rs] = 0.0
             m12[:, rs] = 0.0
             m21[:, rs] = 0.0
-    # inclusive prefix product P_k = M_k ... M_0 (Hillis-Steele), normalised each pass
-    shift = 1
-    n = T - 1
-    while shift < n:
-        A11, A12, A21, A22 = m11[:, shift:], m12[:, shift:], m21[:, shift:], m22[:, shift:]
-        B11, B12, B21, B22 = m11[:, :-shift], m12[:, :-shift], m21[:, :-shift], m22[:, :-shift]
-        n11 = A11 * B11 + A12 * B21
-        n12 = A11 * B12 + A12 * B22
-        n21 = A21 * B11 + A22 * B21
-        n22 = A21 * B12 + A22 * B22
-        nrm = np.abs(n11) + np.abs(n12) + np.abs(n21) + np.abs(n22)
-        m11[:, shift:] = n11 / nrm
-        m12[:, shift:] = n12 / nrm
-        m21[:, shift:] = n21 / nrm
-        m22[:, shift:] = n22 / nrm
-        shift *= 2
     r0 = a[:, :1] * np.tanh((u[0] - s0) / (2.0 * pt))             # (B, 1)
     r = np.empty((B, T - 1))
     r[:, :1] = r0
-    # r_{k} for k = 1..T-2 from P_{k-1}
-    r[:, 1:] = (m11[:, :-1] * r0 + m12[:, :-1]) / (m21[:, :-1] * r0 + m22[:, :-1])
+    r[:, 1:] = _moebius_scan(m11, m12, m21, m22, r0[:, 0])[:, :-1]   # r_1 .. r_{T-2}
     np.clip(r, -1.0 + 1e-16, 1.0 - 1e-16, out=r)
     out[:, 1:] = u[None, :-1] - 2.0 * pt * np.arctanh(r)
     if starts is not None:
@@ -303,17 +330,27 @@ class _Problem:
         ps = pt / (2.0 * tau)
         s = cell_states(self.u, pt, ps, self.dt, self.update, starts=self.starts)  # (B, N, T)
         mask = self.fit_mask if mask is None else mask
-        z = self.u[mask][None, :] + np.einsum("bn,bnt->bt", w, s[:, :, mask])
-        y = self.y[mask]
-        with np.errstate(invalid="ignore", over="ignore"):
-            zc = z - z.mean(1, keepdims=True)
-            zc /= np.maximum(zc.std(1, keepdims=True), 1e-12)
-            phi = zc[..., None] ** np.arange(self.order + 1)               # (B, n, m+1)
-            ok = np.all(np.isfinite(phi), axis=(1, 2))
+        if mask.all():
+            z = self.u[None, :] + np.matmul(w[:, None, :], s)[:, 0]
+            y = self.y
+        else:
+            z = self.u[mask][None, :] + np.matmul(w[:, None, :], s[:, :, mask])[:, 0]
+            y = self.y[mask]
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            # Legendre basis on z mapped to [-1, 1]: spans the same polynomials as the
+            # monomials, but the normal equations stay well conditioned
+            lo, hi = z.min(1, keepdims=True), z.max(1, keepdims=True)
+            x = (2.0 * z - (lo + hi)) / np.maximum(hi - lo, 1e-300)
+            phi = np.polynomial.legendre.legvander(x, self.order)      # (B, n, m+1)
+            gram = np.matmul(phi.transpose(0, 2, 1), phi)
+            rhs = np.matmul(phi.transpose(0, 2, 1), y[None, :, None])
+            ok = np.all(np.isfinite(gram), axis=(1, 2)) & np.all(np.isfinite(rhs), axis=(1, 2))
             res = np.full((B, y.size), self.bad)
             if ok.any():
-                q, _ = np.linalg.qr(phi[ok])
-                res[ok] = np.einsum("bnk,bk->bn", q, np.einsum("bnk,n->bk", q, y)) - y
+                g = gram[ok] + 1e-13 * np.trace(gram[ok], axis1=1, axis2=2)[:, None, None] \
+                    * np.eye(self.order + 1)
+                coef = np.linalg.solve(g, rhs[ok])
+                res[ok] = np.matmul(phi[ok], coef)[..., 0] - y
         res[~np.isfinite(res)] = self.bad
         return res
 
@@ -359,7 +396,7 @@ def _concat(records):
 def fit(u, y, dt: float, *, cells: int | None = None, max_cells: int = 3, order: int = 5,
         update: str = "exact", u_val=None, y_val=None, holdout: float = 0.2,
         n_starts: int = 3, n_screen: int = 48, max_nfev: int = 60,
-        seed: int = 0) -> tuple[MPLParams, MPLFitReport]:
+        jacobian: str = "batched", seed: int = 0) -> tuple[MPLParams, MPLFitReport]:
     """Fit an mPL model y ~ mPL(u) by least squares; returns the model and a report.
 
     ``u``, ``y``: signals (T,) or lists of records (each simulated from rest); ``dt`` in s.
@@ -371,12 +408,15 @@ def fit(u, y, dt: float, *, cells: int | None = None, max_cells: int = 3, order:
     inside the residual (variable projection), scipy ``least_squares(method="trf")`` with a
     finite-difference Jacobian from one batched simulation of all perturbed parameter sets, started
     from the best ``n_starts`` of ``n_screen`` Latin-hypercube candidates (the Table II values
-    among them), all screened in one batched simulation.
+    among them), all screened in one batched simulation. ``jacobian="2-point"`` lets scipy
+    difference one parameter at a time instead (slower; kept as a benchmark peer).
     To fit a compensator, pass the sensor signal as ``u`` and the reference force as ``y``.
     """
     t0 = time.perf_counter()
     if update not in UPDATES:
         raise ParameterError("update", update, "one of " + ", ".join(UPDATES))
+    if jacobian not in ("batched", "2-point"):
+        raise ParameterError("jacobian", jacobian, "batched or 2-point")
     if not (isinstance(order, (int, np.integer)) and 0 <= order <= 9):
         raise ParameterError("order", order, "an integer 0..9")
     if cells is not None and not (isinstance(cells, (int, np.integer)) and 1 <= cells <= 8):
@@ -451,13 +491,15 @@ def fit(u, y, dt: float, *, cells: int | None = None, max_cells: int = 3, order:
             step = np.where(th + h <= ub, h, -h)
             pert = th[None, :] + np.diag(step)
             fp = prob.residuals(pert)
-            counters["njev"] += 1
             return ((fp - f0[None, :]) / step[:, None]).T
 
-        res = optimize.least_squares(fun, np.clip(theta0, lb, ub), jac=jac, bounds=(lb, ub),
+        res = optimize.least_squares(fun, np.clip(theta0, lb, ub),
+                                     jac=jac if jacobian == "batched" else "2-point",
+                                     bounds=(lb, ub),
                                      method="trf", x_scale="jac", max_nfev=max_nfev,
                                      ftol=1e-10, xtol=1e-10, gtol=1e-10)
         counters["nfev"] += res.nfev
+        counters["njev"] += int(res.njev or 0)
         counters["starts"] += 1
         return res
 
@@ -506,7 +548,7 @@ def fit(u, y, dt: float, *, cells: int | None = None, max_cells: int = 3, order:
         theta = res.x
         train = float(np.sqrt(2 * res.cost / max(1, prob.fit_mask.sum()))) * sy
         val = val_rmse_of(theta) * sy if (cells is None or val_records is not None) else None
-        history.append((N, train, val if val is not None else float("nan")))
+        history.append((int(N), float(train), float(val) if val is not None else float("nan")))
         message = res.message
         if cells is not None:
             best_theta, best_val = theta, val
