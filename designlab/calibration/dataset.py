@@ -328,11 +328,12 @@ class Dataset:
         return float(np.median(d)) if d.size else 1.0
 
     def time_in_run(self) -> np.ndarray:
-        """Time since the start of each sample's run (s)."""
+        """Time since the start of each sample's run (s), also in a subset of the run."""
         out = np.empty_like(self.t)
         for s in np.unique(self.segment):
             m = self.segment == s
-            out[m] = self.t[m] - self.t[m][0]
+            info = self.segments[s] if s < len(self.segments) else {}
+            out[m] = self.t[m] - info.get("t_start", self.t[m][0])
         return out
 
     def select(self, mask: np.ndarray) -> "Dataset":
@@ -473,7 +474,8 @@ def load_card(path: str | Path) -> Dataset:
         roles.append(rr)
         for name in channels:
             chans[name].append(filt[name])
-        seg_info.append({"path": str(r["path"]), "role": role or f"split {frac}"})
+        seg_info.append({"path": str(r["path"]), "role": role or f"split {frac}",
+                         "t_start": float(grid[0])})
         r["report"]["resampled"] = {"rate_hz": rate, "samples": n, "t_start": float(t0),
                                     "t_end": float(grid[-1])}
         file_reports.append(r["report"])
@@ -613,7 +615,8 @@ def from_arrays(t: np.ndarray, inputs: Mapping[str, np.ndarray],
             q.setdefault(name, qq)
             k.setdefault(name, kk)
     u = {n: (units or {}).get(n, CANONICAL[q[n]]) for n in q}
-    segs = tuple({"path": f"segment {s}", "role": str(rl[seg == s][0])} for s in np.unique(seg))
+    segs = tuple({"path": f"segment {s}", "role": str(rl[seg == s][0]),
+                  "t_start": float(t[seg == s][0])} for s in range(int(seg.max()) + 1))
     return Dataset(t=t, inputs={n: np.asarray(v, float) for n, v in inputs.items()},
                    outputs={n: np.asarray(v, float) for n, v in outputs.items()},
                    segment=seg, role=rl, segments=segs, units=u, quantities=q, kinds=k,

@@ -260,8 +260,8 @@ def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[st
     series: dict[str, Any] = {}
     cache_tr: dict = {}
     for o in outs:
-        rep, ser = _loop_output(model, o, train, val, blocks, max_effects, n_se, min_relative,
-                                cache_tr, progress)
+        rep, ser = _loop_output(model, o, data, train, val, blocks, max_effects, n_se,
+                                min_relative, cache_tr, progress)
         report["outputs"][o] = rep
         series[o] = ser
     first = report["outputs"][outs[0]]
@@ -275,12 +275,17 @@ def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[st
     return LoopResult(model, report, series)
 
 
-def _loop_output(model: SensorModel, o: str, train: Dataset, val: Dataset, blocks, max_effects,
-                 n_se, min_relative, cache_tr, progress) -> tuple[dict, dict]:
-    y, yv = train.outputs[o], val.outputs[o]
+def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val: Dataset,
+                 blocks, max_effects, n_se, min_relative, cache_tr, progress
+                 ) -> tuple[dict, dict]:
+    """Greedy selection for one output. Validation predictions are made on the whole record
+    (then masked), so filters and run offsets carry over from a run's training part."""
+    y, yv, y_all = train.outputs[o], val.outputs[o], data.outputs[o]
+    vmask = data.role == "validate"
     base_inputs = tuple(model.base.inputs[o])
     yhat = model.predict(train, o, y)
-    yhat_v = model.predict(val, o, yv)
+    yhat_all = model.predict(data, o, y_all)
+    yhat_v = yhat_all[vmask]
     y0_val = yhat_v.copy()
     start_tr = model.predict(train, o, y, upto=0)
     cands, skipped = fx.library(train, o, base_inputs)
@@ -310,8 +315,8 @@ def _loop_output(model: SensorModel, o: str, train: Dataset, val: Dataset, block
         rows = np.ones(len(train), bool)
         f = fx.fit(chosen, ctx, y - yhat, rows)
         c_tr = fx.contribution(f, ctx)
-        ctx_v = fx.Context(val, o, yhat_v, base_inputs, yv)
-        c_v = fx.contribution(f, ctx_v)
+        c_all = fx.contribution(f, fx.Context(data, o, yhat_all, base_inputs, y_all))
+        c_v = c_all[vmask]
         r_before = y - yhat
         corr = float(np.corrcoef(r_before, c_tr)[0, 1]) if np.std(c_tr) > 0 else 0.0
         e_b, e_a = rmse(yv, yhat_v), rmse(yv, yhat_v + c_v)
@@ -326,7 +331,8 @@ def _loop_output(model: SensorModel, o: str, train: Dataset, val: Dataset, block
                          "train_error_after": rmse(y, yhat + c_tr)},
             "error_before": e_b, "error_after": e_a})
         model.effects[o].append(f)
-        yhat, yhat_v = yhat + c_tr, yhat_v + c_v
+        yhat, yhat_all = yhat + c_tr, yhat_all + c_all
+        yhat_v = yhat_all[vmask]
         cands = [c for c in cands if c.key != chosen.key]
     r_v = yv - yhat_v
     var_y = float(np.var(yv))
