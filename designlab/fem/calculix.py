@@ -88,7 +88,7 @@ def write_inp(path: str | Path, mesh: TetMesh, materials: dict[int, tuple[float,
     ids = np.arange(1, mesh.n_points + 1)
     with open(path, "w") as fh:
         fh.write("** designlab reference deck (mm, N, MPa)\n*NODE, NSET=NALL\n")
-        np.savetxt(fh, np.column_stack([ids, mesh.points]), fmt=["%d", "%.17g", "%.17g", "%.17g"],
+        np.savetxt(fh, np.column_stack([ids, mesh.points]), fmt=["%d", "%.13g", "%.13g", "%.13g"],
                    delimiter=", ")
         eid = 1
         for r in regions:
@@ -104,18 +104,18 @@ def write_inp(path: str | Path, mesh: TetMesh, materials: dict[int, tuple[float,
                 np.savetxt(fh, data, fmt="%d", delimiter=", ")
         for r in regions:
             E, nu = materials[int(r)]
-            fh.write(f"*MATERIAL, NAME=M{int(r)}\n*ELASTIC\n{E:.17g}, {nu:.17g}\n"
+            fh.write(f"*MATERIAL, NAME=M{int(r)}\n*ELASTIC\n{E:.13g}, {nu:.13g}\n"
                      f"*SOLID SECTION, ELSET=R{int(r)}, MATERIAL=M{int(r)}\n")
         fh.write("*STEP\n*STATIC\n")
         if len(pres):
             fh.write("*BOUNDARY\n")
             for n, d, v in pres:
-                fh.write(f"{int(n) + 1}, {int(d) + 1}, {int(d) + 1}, {v:.17g}\n")
+                fh.write(f"{int(n) + 1}, {int(d) + 1}, {int(d) + 1}, {v:.13g}\n")
         nz = np.argwhere(forces != 0)
         if len(nz):
             fh.write("*CLOAD\n")
             np.savetxt(fh, np.column_stack([nz[:, 0] + 1, nz[:, 1] + 1, forces[nz[:, 0], nz[:, 1]]]),
-                       fmt=["%d", "%d", "%.17g"], delimiter=", ")
+                       fmt=["%d", "%d", "%.13g"], delimiter=", ")
         fh.write("*NODE PRINT, NSET=NALL\nU\n*END STEP\n")
 
 
