@@ -25,6 +25,7 @@ import itertools
 import json
 import os
 import tempfile
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Protocol, Sequence
@@ -154,7 +155,6 @@ def fit_compensator(model: str, train: Sequence[Record],
     _check_shapes(train, train[0])
     dt = _common_dt(train)
     U, Y = np.vstack([r.u for r in train]), np.vstack([r.y for r in train])
-    import time
     t0 = time.perf_counter()
     lin = linear_fit.fit_linear(U, Y, options.mix)
     if model == "linear":

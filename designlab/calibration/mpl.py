@@ -40,7 +40,6 @@ from __future__ import annotations
 import dataclasses
 import time
 from dataclasses import dataclass, field
-from typing import Sequence
 
 import numpy as np
 from scipy import optimize, stats
@@ -163,7 +162,8 @@ def _check_input(u, dt) -> tuple[np.ndarray, float | np.ndarray]:
             raise ParameterError("dt", dt, "a time step > 0 s")
         return u, float(dt_arr)
     if dt_arr.shape != (u.size - 1,) or not np.all(dt_arr > 0):
-        raise ParameterError("dt", f"array of shape {dt_arr.shape}", f"a step > 0 s or {u.size - 1} steps > 0 s")
+        raise ParameterError("dt", f"array of shape {dt_arr.shape}",
+                             f"a step > 0 s or {u.size - 1} steps > 0 s")
     return u, dt_arr
 
 

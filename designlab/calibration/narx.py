@@ -32,11 +32,12 @@ from designlab.params import rng, validate
 
 @dataclass(frozen=True)
 class NARXParams:
-    """Network size and training settings (defaults: seed 000, 10 neurons, 50 delays)."""
+    """Network size and training settings (defaults: seed 000's input-output network, 10
+    neurons, 50 input delays, no output feedback)."""
 
     hidden: int = field(default=10, metadata=rng(1, 1000, doc="hidden tanh neurons"))
     input_delays: int = field(default=50, metadata=rng(0, 5000, doc="past input samples"))
-    output_delays: int = field(default=50, metadata=rng(
+    output_delays: int = field(default=0, metadata=rng(
         0, 5000, doc="past output samples fed back (0: input-output network of seed 000)"))
     alpha: float = field(default=1e-3, metadata=rng(0, 100, doc="L2 penalty"))
     max_iter: int = field(default=400, metadata=rng(1, 100000, doc="L-BFGS iterations"))
