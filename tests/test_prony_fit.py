@@ -131,3 +131,28 @@ def test_bad_material_and_history():
         pf.creep_compliance(E0, TRUE, T, nu=0.5)
     with pytest.raises(DataError):
         pf.stress_response(E0, TRUE, [0.0, 2.0, 1.0], [0.0, 1.0, 1.0])
+
+
+@pytest.mark.parametrize("nu_fit", [None, 0.4])
+def test_fitted_material_reproduces_creep_data_in_the_fem(nu_fit):
+    """Creep data -> fit -> Material -> FEM bar in uniaxial stress (history solver) -> the data."""
+    from dataclasses import replace
+
+    from designlab.fem.materials import Material
+    from designlab.fem.model import Model
+    from designlab.fem.viscoelastic import History, solve_history
+    from designlab.geometry.mesh import box_tet_mesh
+
+    rng = np.random.default_rng(6)
+    t = np.linspace(0.0, 60.0, 121)
+    J = pf.creep_compliance(E0, TRUE, t, nu=0.4) * (1 + 0.003 * rng.standard_normal(len(t)))
+    E0_fit, prony, _ = pf.fit_prony_creep(t, J, 2, nu=nu_fit)
+    mat = replace(Material("tpu", E=1.0, nu=0.4), E=E0_fit, prony=prony)
+    model = Model(box_tet_mesh(10.0, 2.0, 2.0, 4, 1, 1), materials={"block": mat})
+    model.fix("xmin", "x")
+    model.fix("ymin", "y")
+    model.fix("zmin", "z")
+    model.traction("xmax", (0.3, 0.0, 0.0), case="load")
+    res = solve_history(model, History(t, {"load": np.ones_like(t)}))
+    eps = res.U[3 * model.nodes("xmax")].mean(axis=0) / 10.0
+    assert np.max(np.abs(eps / (0.3 * J) - 1)) < 0.015

@@ -231,7 +231,10 @@ def _finish(E_inf, E_i, tau, t, y, model_fn, res, n_terms, kind, nu):
     E0 = float(E_inf + E_i.sum())
     g, tau = E_i[keep] / E0, tau[keep]
     o = np.argsort(tau)
-    prony = Prony(g=tuple(float(x) for x in g[o]), tau=tuple(float(x) for x in tau[o]))
+    g, tau = tuple(float(x) for x in g[o]), tuple(float(x) for x in tau[o])
+    # without nu the data says nothing about the shear/bulk split: constant Poisson ratio, the
+    # bulk modulus relaxes like the shear modulus, so a 3-D FEM bar reproduces E(t) exactly
+    prony = Prony(g=g, tau=tau) if nu is not None else Prony(g=g, tau=tau, k=g, k_tau=tau)
     pred = model_fn(E0, prony)
     rel = (pred - y) / y
     report = {
@@ -291,9 +294,11 @@ def fit_prony_relaxation(t, modulus_or_stress, n_terms: int = 3, *, strain0: flo
 
     ``t`` (s, strictly increasing, >= 0); ``modulus_or_stress``: relaxation modulus E(t) (MPa),
     or stress (MPa) under the step strain ``strain0``. With ``nu`` the shear modulus relaxes and
-    the bulk modulus stays elastic (3-D bar in uniaxial stress); without, E relaxes (1-D rod).
+    the bulk modulus stays elastic (3-D bar in uniaxial stress); without, E relaxes (1-D rod) and
+    the returned Prony carries the same terms on the bulk modulus (``k = g``, constant nu).
     Returns ``(E0, Prony, report)``: instantaneous modulus E0 (MPa), positive relative terms
     (sum < 1), report with the relative residuals. Terms that fit to zero are dropped.
+    FEM material: ``dataclasses.replace(material, E=E0, prony=prony)``.
     """
     name = "modulus" if strain0 is None else "stress"
     if strain0 is not None and not (np.isfinite(strain0) and strain0 != 0):
