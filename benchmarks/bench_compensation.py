@@ -145,7 +145,7 @@ def part2() -> None:
             ("narx (input-output)", "narx", comp.CompensationOptions()),
             ("narx (50 fed-back outputs, closed loop)", "narx",
              comp.CompensationOptions(narx_output_delays=50))]
-    print("| model | fit (s) | " + " | ".join(f"{r.name} RMSE (N) / NCC" for r in train + val) + " |")
+    print("| model | fit wall (s) | " + " | ".join(f"{r.name} RMSE (N) / NCC" for r in train + val) + " |")
     print("|---|---:|" + "---:|" * (len(train) + len(val)))
     segs = {}
     for label, model, opts in runs:

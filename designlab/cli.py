@@ -364,6 +364,12 @@ def compensate(model: Optional[List[str]] = typer.Option(
     console.print(table)
     for m, f in result.fits.items():
         console.print(f"{m}: fitted in {f['time_s']:.2f} s", highlight=False)
+    val_names = {r.name for r in val_recs}
+    for w in result.between_models:
+        if w["task"] in val_names:
+            console.print(f"Wilcoxon {w['task']} {w['output']}: {w['a']} vs {w['b']}: p(RMSE) = "
+                          f"{w['rmse']['p_value']:.3g}, p(NCC) = {w['ncc']['p_value']:.3g} "
+                          f"({segments} segments)", highlight=False)
     for path in comp.write_outputs(result, train_recs + val_recs, out):
         console.print(f"wrote {path}")
 
