@@ -156,3 +156,38 @@ def test_fitted_material_reproduces_creep_data_in_the_fem(nu_fit):
     res = solve_history(model, History(t, {"load": np.ones_like(t)}))
     eps = res.U[3 * model.nodes("xmax")].mean(axis=0) / 10.0
     assert np.max(np.abs(eps / (0.3 * J) - 1)) < 0.015
+
+
+@pytest.mark.parametrize("nu, start", [(None, "rest"), (0.4, "relaxed")])
+def test_fit_history_recovers_terms_from_ramps_and_holds(nu, start):
+    """A real-world test: finite-rate ramps, holds and unloading, jittered clock, prestrain."""
+    dt = 0.1
+    t = np.arange(0.0, 120.0, dt)
+    eps = np.interp(t, [0, 2, 40, 42, 80, 81, 120], [0.05, 0.15, 0.15, 0.10, 0.10, 0.2, 0.2])
+    model = pf._model(E0, TRUE, nu, "strain")
+    # reference stress from the expm recursion (independent of the modal filter used to fit)
+    if start == "rest":
+        sig = model.response(t, eps)
+    else:
+        # equilibrium at the prestrain: long-term modulus, plus the response to the increments
+        sig = model.response(t, eps - eps[0]) + pf.relaxation_modulus(E0, TRUE, [1e12], nu=nu)[0] * eps[0]
+    rng = np.random.default_rng(7)
+    tj = t + np.r_[0.0, rng.uniform(-0.02, 0.02, len(t) - 1)]
+    noisy = sig + 0.004 * np.abs(sig).max() * rng.standard_normal(len(t))
+    E0_fit, prony, rep = pf.fit_prony_history(tj, eps, noisy, 2, nu=nu, start=start)
+    assert E0_fit == pytest.approx(E0, rel=0.02)
+    assert np.allclose(prony.g, TRUE.g, rtol=0.05)
+    assert np.allclose(prony.tau, TRUE.tau, rtol=0.06)
+    assert rep["rms_rel_error"] < 0.006 and rep["dt"] == pytest.approx(dt, rel=0.01)
+
+
+def test_fit_history_bad_input():
+    t = np.linspace(0, 10, 50)
+    with pytest.raises(ParameterError, match="start"):
+        pf.fit_prony_history(t, t, t, 2, start="hot")
+    with pytest.raises(DataError, match="vary"):
+        pf.fit_prony_history(t, np.ones(50), t, 2)
+    with pytest.raises(DataError, match="increasing"):
+        pf.fit_prony_history(t[::-1], t, t, 2)
+    with pytest.raises(DataError, match="lengths"):
+        pf.fit_prony_history(t, t[:-1], t, 2)

@@ -14,6 +14,10 @@ Two material views share one set of functions:
 Either model is a linear state-space system ``x' = A x + B u``, ``y = C x + D u`` in the internal
 (viscous) strains; responses to piecewise-linear inputs use its exact first-order-hold
 discretisation (``scipy.linalg.expm``), step responses its eigen-decomposition.
+
+Fits (``-> (E0, Prony, report)``, positive terms, sum < 1): :func:`fit_prony_relaxation`
+(step-strain test), :func:`fit_prony_creep` (step-stress test), :func:`fit_prony_history` (any
+strain history with its stress: finite-rate ramps, holds, cycles).
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import eig, expm
 from scipy.optimize import least_squares, nnls
+from scipy.signal import lfilter, lfiltic
 
 from designlab.errors import DataError, ParameterError
 from designlab.fem.prony import Prony
@@ -226,7 +231,7 @@ def _tau_grid(t: np.ndarray, n: int) -> np.ndarray:
     return 10 ** np.linspace(lo + 0.25 * (hi - lo) / n, hi - 0.25 * (hi - lo) / n, n)
 
 
-def _finish(E_inf, E_i, tau, t, y, model_fn, res, n_terms, kind, nu):
+def _finish(E_inf, E_i, tau, t, y, model_fn, res, n_terms, kind, nu, denom=None):
     keep = E_i > 1e-7 * (E_inf + E_i.sum())
     E0 = float(E_inf + E_i.sum())
     g, tau = E_i[keep] / E0, tau[keep]
@@ -236,7 +241,7 @@ def _finish(E_inf, E_i, tau, t, y, model_fn, res, n_terms, kind, nu):
     # bulk modulus relaxes like the shear modulus, so a 3-D FEM bar reproduces E(t) exactly
     prony = Prony(g=g, tau=tau) if nu is not None else Prony(g=g, tau=tau, k=g, k_tau=tau)
     pred = model_fn(E0, prony)
-    rel = (pred - y) / y
+    rel = (pred - y) / (y if denom is None else denom)
     report = {
         "kind": kind,
         "n_terms_requested": int(n_terms),
@@ -255,37 +260,36 @@ def _finish(E_inf, E_i, tau, t, y, model_fn, res, n_terms, kind, nu):
     return E0, prony, report
 
 
-def _fit(t, y, n_terms, forward, init_amp, kind, nu):
-    """Least squares on relative residuals over ``[E_inf, E_1..n, log tau_1..n]``
-    (E_inf > 0, E_i >= 0, tau within a decade of the data span), from several starts."""
-    n = n_terms
-    scale = float(np.max(y) if kind == "relaxation" else 1.0 / np.min(y))
-    tp = t[t > 0]
-    lt_lo, lt_hi = np.log(tp[0]) - np.log(10.0), np.log(t[-1]) + np.log(10.0)
+def _fit(n: int, resid, init_amp, tau0: np.ndarray, lt_bounds: tuple[float, float], scale: float):
+    """Least squares over ``[E_inf, E_1..n, log tau_1..n]`` (E_inf > 0, E_i >= 0, log tau within
+    ``lt_bounds``) from three spreads of the initial time constants ``tau0``; ``resid(E_inf,
+    E_i, tau)`` gives the residual vector, ``init_amp(tau) -> (E_inf, E_i)`` the start."""
+    lt_lo, lt_hi = lt_bounds
 
     def unpack(p):
         return p[0] * scale, p[1:n + 1] * scale, np.exp(p[n + 1:])
 
-    def resid(p):
-        E_inf, E_i, tau = unpack(p)
-        return forward(E_inf, E_i, tau) / y - 1.0
-
     lb = np.concatenate([[1e-9], np.zeros(n), np.full(n, lt_lo)])
     ub = np.concatenate([[np.inf], np.full(n, np.inf), np.full(n, lt_hi)])
     best = None
+    mid = np.exp(np.mean(np.log(tau0)))
     for shrink in (1.0, 0.6, 1.6):
-        tau0 = _tau_grid(t, n)
-        mid = np.exp(np.mean(np.log(tau0)))
-        tau0 = mid * (tau0 / mid) ** shrink
-        E_inf0, E_i0 = init_amp(tau0)
+        tau = mid * (tau0 / mid) ** shrink
+        E_inf0, E_i0 = init_amp(tau)
         p0 = np.concatenate([[max(E_inf0 / scale, 1e-6)], np.maximum(E_i0 / scale, 1e-6),
-                             np.clip(np.log(tau0), lt_lo + 1e-9, lt_hi - 1e-9)])
-        res = least_squares(resid, p0, bounds=(lb, ub), x_scale="jac", method="trf",
-                            xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=400 * (2 * n + 1))
+                             np.clip(np.log(tau), lt_lo + 1e-9, lt_hi - 1e-9)])
+        res = least_squares(lambda p: resid(*unpack(p)), p0, bounds=(lb, ub), x_scale="jac",
+                            method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12,
+                            max_nfev=400 * (2 * n + 1))
         if best is None or res.cost < best.cost:
             best = res
     E_inf, E_i, tau = unpack(best.x)
     return E_inf, E_i, tau, best
+
+
+def _log_tau_bounds(t: np.ndarray) -> tuple[float, float]:
+    tp = t[t > 0]
+    return np.log(tp[0]) - np.log(10.0), np.log(t[-1]) + np.log(10.0)
 
 
 def fit_prony_relaxation(t, modulus_or_stress, n_terms: int = 3, *, strain0: float | None = None,
@@ -322,7 +326,8 @@ def fit_prony_relaxation(t, modulus_or_stress, n_terms: int = 3, *, strain0: flo
         a, _ = nnls(Phi / y[:, None], np.ones_like(y))
         return a[0], a[1:]
 
-    E_inf, E_i, tau, res = _fit(t, y, n_terms, forward, init_amp, "relaxation", nu)
+    E_inf, E_i, tau, res = _fit(n_terms, lambda *p: forward(*p) / y - 1.0, init_amp,
+                                _tau_grid(t, n_terms), _log_tau_bounds(t), float(np.max(y)))
     return _finish(E_inf, E_i, tau, t, y, lambda E0, p: relaxation_modulus(E0, p, t, nu), res,
                    n_terms, "relaxation", nu)
 
@@ -360,9 +365,111 @@ def fit_prony_creep(t, compliance_or_strain, n_terms: int = 3, *, stress0: float
         w = a[1:] if a[1:].sum() > 0 else np.ones(len(tau0))
         return E_inf, (E0 - E_inf) * w / w.sum()
 
-    E_inf, E_i, tau, res = _fit(t, y, n_terms, forward, init_amp, "creep", nu)
+    E_inf, E_i, tau, res = _fit(n_terms, lambda *p: forward(*p) / y - 1.0, init_amp,
+                                _tau_grid(t, n_terms), _log_tau_bounds(t), float(1.0 / np.min(y)))
     return _finish(E_inf, E_i, tau, t, y, lambda E0, p: creep_compliance(E0, p, t, nu), res,
                    n_terms, "creep", nu)
+
+
+def _uniform_response(model: _LinearModel, u: np.ndarray, dt: float, relaxed: bool) -> np.ndarray:
+    """Output for input samples ``u`` on a uniform grid of step ``dt`` (input linear between
+    samples: exact), starting from rest with a jump to ``u[0]`` or relaxed (equilibrium) at
+    ``u[0]``. Modal decomposition, one IIR filter (scipy.signal.lfilter) per mode."""
+    y = model.D * u
+    if len(model.B) == 0:
+        return y
+    x0 = -np.linalg.solve(model.A, model.B) * u[0] if relaxed else np.zeros(len(model.B))
+    lam, V = eig(model.A)
+    if np.linalg.cond(V) > 1e8 or np.any(np.abs(lam.imag) > 1e-9 * np.abs(lam.real)):
+        # (nearly) defective: exact first-order-hold recursion on the state; a relaxed start
+        # is rest plus the equilibrium response to u[0] (linearity)
+        t = dt * np.arange(len(u))
+        if relaxed:
+            y_inf = model.C @ (-np.linalg.solve(model.A, model.B)) + model.D
+            return model.response(t, u - u[0]) + y_inf * u[0]
+        return model.response(t, u)
+    lam, V = lam.real, V.real
+    b = np.linalg.solve(V, model.B)
+    z0 = np.linalg.solve(V, x0)
+    c = model.C @ V
+    x = lam * dt
+    a = np.exp(x)
+    phi0 = np.expm1(x) / lam
+    phi1 = (np.expm1(x) - x) / (lam * x)
+    for k in range(len(lam)):
+        bb = np.array([b[k] * phi1[k], b[k] * (phi0[k] - phi1[k])])
+        aa = np.array([1.0, -a[k]])
+        zi = lfiltic(bb, aa, y=[z0[k]], x=[u[0]])
+        z = np.empty(len(u))
+        z[0] = z0[k]
+        z[1:] = lfilter(bb, aa, u[1:], zi=zi)[0]
+        y = y + c[k] * z
+    return y
+
+
+def fit_prony_history(t, strain, stress, n_terms: int = 3, *, nu: float | None = None,
+                      start: str = "rest", dt: float | None = None):
+    """Fit a generalized Maxwell material to any uniaxial strain history and its stress
+    (ramps, holds, cycles: e.g. a real relaxation test with a finite loading rate).
+
+    ``t`` (s, strictly increasing), ``strain`` (-), ``stress`` (MPa), resampled linearly to a
+    uniform step ``dt`` (default: the median step) when the samples are not uniform.
+    ``start``: "rest" (undeformed before t[0]; strain[0] is applied as a jump) or "relaxed"
+    (held at strain[0] long enough to be in equilibrium). ``nu`` as in
+    :func:`fit_prony_relaxation`. Returns ``(E0, Prony, report)``; the report's errors are
+    relative to max |stress|.
+    """
+    if start not in ("rest", "relaxed"):
+        raise ParameterError("start", start, "rest or relaxed")
+    if isinstance(n_terms, bool) or not isinstance(n_terms, (int, np.integer)) or not 1 <= n_terms <= 12:
+        raise ParameterError("n_terms", n_terms, "an integer 1..12")
+    t, eps, sig = (np.asarray(x, float).ravel() for x in (t, strain, stress))
+    if not len(t) == len(eps) == len(sig):
+        raise DataError(f"t, strain and stress have different lengths ({len(t)}, {len(eps)}, {len(sig)})")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(eps)) and np.all(np.isfinite(sig))):
+        raise DataError("t, strain and stress must be finite (NaN or inf found)")
+    if len(t) < 4 * n_terms + 4:
+        raise DataError(f"{len(t)} points are too few for {n_terms} Prony terms (need >= {4 * n_terms + 4})")
+    if np.any(np.diff(t) <= 0):
+        raise DataError("t must be strictly increasing (s)")
+    if not np.any(sig != 0) or not np.any(eps != eps[0]):
+        raise DataError("strain must vary and stress must not be all zero")
+    if nu is not None:
+        _check_material(1.0, nu)
+    steps = np.diff(t)
+    if dt is None:
+        dt = float(np.median(steps))
+    if not (np.isfinite(dt) and dt > 0):
+        raise ParameterError("dt", dt, "a time step > 0 s")
+    if not np.allclose(steps, dt, rtol=1e-6, atol=0):
+        grid = t[0] + dt * np.arange(int(np.floor((t[-1] - t[0]) / dt + 1e-9)) + 1)
+        eps, sig = np.interp(grid, t, eps), np.interp(grid, t, sig)
+        t = grid
+    relaxed = start == "relaxed"
+    span = t[-1] - t[0]
+    denom = float(np.max(np.abs(sig)))
+
+    def forward(E_inf, E_i, tau):
+        E0 = E_inf + E_i.sum()
+        return _uniform_response(_model(E0, _raw_prony(E_i / E0, tau), nu, "strain"), eps, dt, relaxed)
+
+    def init_amp(tau0):
+        cols = [eps]
+        for tt in tau0:   # unit Maxwell branch: h = eps - a, a' = (eps - a) / tau
+            unit = _LinearModel(np.array([[-1.0 / tt]]), np.array([1.0 / tt]), np.array([-1.0]), 1.0)
+            cols.append(_uniform_response(unit, eps, dt, relaxed))
+        a, _ = nnls(np.column_stack(cols), sig)
+        return a[0], a[1:]
+
+    tau0 = 10 ** np.linspace(np.log10(2 * dt), np.log10(span), n_terms + 2)[1:-1]
+    bounds = (np.log(dt / 10.0), np.log(10.0 * span))
+    E_inf, E_i, tau, res = _fit(n_terms, lambda *p: (forward(*p) - sig) / denom, init_amp, tau0,
+                                bounds, denom / max(float(np.max(np.abs(eps))), 1e-300))
+    out = _finish(E_inf, E_i, tau, t, sig,
+                  lambda E0, p: _uniform_response(_model(E0, p, nu, "strain"), eps, dt, relaxed),
+                  res, n_terms, "history", nu, denom=denom)
+    out[2]["dt"] = dt
+    return out
 
 
 class _RawProny:
