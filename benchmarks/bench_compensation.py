@@ -60,7 +60,8 @@ def _rmse(a, b):
 def part1() -> None:
     U, Y, dt = synthetic_gauges()
     T = U.shape[0]
-    print(f"## synthetic: {T} samples, dt = {dt * 1e3:.1f} ms, 2 gauges -> (F_n, F_x)\n")
+    print(f"## synthetic: {T} samples, dt = {dt * 1e3:.1f} ms, 2 gauges -> (F_n, F_x); "
+          f"F_n {Y[:, 0].min():.2f}..{Y[:, 0].max():.2f} N, F_x {Y[:, 1].min():.2f}..{Y[:, 1].max():.2f} N\n")
     print("| step | wall (s) | CPU (s) | result |")
     print("|---|---:|---:|---|")
     c = U[:, 0] + U[:, 1]                   # seed 000: F_n from Ch1 + Ch2
@@ -75,7 +76,8 @@ def part1() -> None:
     p, rep = mpl.fit(c, Y[:, 0], dt, order=4)
     el, cpu = time.perf_counter() - t0, time.process_time() - c0
     print(f"| mPL fit F_n, cells chosen on held-out 20 % | {el:.2f} | {cpu:.2f} | {rep.n_cells} cells, "
-          f"train RMSE {rep.rmse:.4f} N, history {[(n, round(a, 4)) for n, a, _ in rep.history]} |")
+          f"train RMSE {rep.rmse:.4f} N, held-out RMSE by cells "
+          f"{', '.join(f'{n}: {v:.4f}' for n, _, v in rep.history)} N |")
     for od in (0, 50):
         t0, c0 = time.perf_counter(), time.process_time()
         net, nrep = narx.fit(U, Y, narx.NARXParams(output_delays=od))
