@@ -61,7 +61,7 @@ def test_calculix_node_by_node():
     require_tool("ccx")
     cases = verify.calculix_cases(threads=1)
     _assert_passed(cases)
-    assert len(cases) == 3
+    assert len(cases) == 4
 
 
 def test_case_failure_detection_and_report(tmp_path):

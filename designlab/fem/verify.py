@@ -229,9 +229,22 @@ def convergence_rates(levels: dict[int, tuple[int, ...]] | None = None) -> list[
 # --------------------------------------------------------------------------- CalculiX
 
 
+def _distorted_block_model() -> Model:
+    """Distorted TET10 block: clamped at x = 0, non-uniform prescribed displacement at x = max,
+    traction on top: exercises prescribed values, loads and curved-free straight cells."""
+    mesh = distorted_box(6, 3, 4, size=(12.0, 6.0, 8.0), order=2, seed=4)
+    model = Model(mesh, materials={"block": STEEL_LIKE})
+    model.fix("xmin")
+    model.prescribe("xmax", displacement=lambda x: np.column_stack(
+        [0.01 + 0.002 * x[:, 1], -0.003 * x[:, 2], 0.02 * np.sin(x[:, 1] / 6.0)]))
+    model.traction("zmax", (0.5, -0.2, -1.0))
+    return model
+
+
 def calculix_models() -> dict[str, Model]:
     """The models compared node by node with CalculiX."""
     return {
+        "distorted TET10 prescribed+traction": _distorted_block_model(),
         "cantilever TET10 nu=0": _cantilever_model(2),
         "cantilever TET10 2 materials": _cantilever_model(2, n=(20, 3, 3), nu=0.3,
                                                             two_materials=True),
