@@ -175,6 +175,7 @@ def cross_validate(effect: fx.Effect, ctx: fx.Context, y: np.ndarray,
     se = float(np.std(rel, ddof=1) / math.sqrt(rel.size)) if rel.size > 1 else float("inf")
     return {"relative": float(rel.mean()), "standard_error": se,
             "z": float(rel.mean() / se) if se > 0 else float("inf"),
+            "blocks_improved": int(np.sum(rel > 0)), "blocks": int(rel.size),
             "improvement": float((e0 - e1).mean()),
             "error_without": float(e0.mean()), "error_with": float(e1.mean()),
             "per_block_relative": rel.tolist(), "per_block_without": e0.tolist()}
@@ -467,16 +468,21 @@ def _plots(o: str, ser: dict, rep: dict, out: Path) -> list[Path]:
     files.append(_savefig(fig, out / f"timeseries_{o}.png"))
     plt.close(fig)
     for k, st in enumerate(ser["stages"], 1):
-        fig, ax = plt.subplots(figsize=(6, 4.5))
+        fig, ax = plt.subplots(1, 2, figsize=(11, 4.5))
         idx = np.linspace(0, st["regressor"].size - 1, min(st["regressor"].size, 4000)).astype(int)
-        ax.plot(st["regressor"][idx], st["residual"][idx], ".", ms=2, color="0.6",
-                label="residual before (train)")
-        ax.plot(st["regressor"][idx], st["contribution"][idx], ".", ms=2, color="C3",
-                label=f"{st['key']} fit")
-        ax.set_xlabel(st["regressor_name"])
-        ax.set_ylabel(f"{o} residual ({unit})")
-        ax.set_title(f"{o} effect {k}: {st['key']}")
-        ax.legend(fontsize=8, markerscale=4)
+        r, c = st["residual"][idx], st["contribution"][idx]
+        ax[0].plot(st["regressor"][idx], r, ".", ms=2, color="0.6", label="residual before (train)")
+        ax[0].plot(st["regressor"][idx], c, ".", ms=2, color="C3", label=f"{st['key']} fit")
+        ax[0].set_xlabel(st["regressor_name"])
+        ax[0].set_ylabel(f"{o} residual ({unit})")
+        ax[0].legend(fontsize=8, markerscale=4)
+        ax[1].plot(c, r, ".", ms=2, color="C0")
+        lim = [min(c.min(), r.min()), max(c.max(), r.max())]
+        ax[1].plot(lim, lim, "k--", lw=0.8, label="1:1")
+        ax[1].set_xlabel(f"{st['key']} contribution ({unit})")
+        ax[1].set_ylabel(f"residual before ({unit})")
+        ax[1].legend(fontsize=8)
+        fig.suptitle(f"{o} effect {k}: {st['key']}")
         fig.tight_layout()
         safe = st["key"].replace("[", "_").replace("]", "")
         files.append(_savefig(fig, out / f"effect_{o}_{k}_{safe}.png"))
