@@ -332,3 +332,169 @@ def test_write_png_is_atomic_and_checks_suffix(tmp_path):
         write_png(strap_bodies(), tmp_path / "x.jpg")
     path = write_png(strap_bodies(), tmp_path / "x.png", size=(300, 200))
     assert path.exists() and [f.name for f in tmp_path.iterdir()] == ["x.png"]
+
+
+def test_separate_pieces_are_separate_objects_laid_out(tmp_path):
+    """A second host-material piece (a clip printed beside the strap) is its own 3MF object,
+    placed beside the strap on the plate; the trace stays a volume of the strap object."""
+    import lib3mf
+
+    bodies = strap_bodies()
+    bodies["clip"] = Body("clip", Pos(0, 0, 5) * Box(8, 6, 1.5, align=LOW), "TPU",
+                          (0.3, 0.5, 0.9), 1)
+    p = prepare("strap", bodies)
+    path = tmp_path / "two.3mf"
+    path.write_bytes(threemf_of(p))
+    model = lib3mf.get_wrapper().CreateModel()
+    model.QueryReader("3mf").ReadFromFile(str(path))
+    items = model.GetBuildItems()
+    boxes = []
+    while items.MoveNext():
+        item = items.GetCurrent()
+        obj = item.GetObjectResource()
+        mesh = model.GetMeshObjectByID(obj.GetResourceID())
+        t = item.GetObjectTransform().Fields
+        shift = np.array([t[3][0], t[3][1], t[3][2]])
+        v = np.array([[x.Coordinates[0], x.Coordinates[1], x.Coordinates[2]]
+                      for x in mesh.GetVertices()]) + shift
+        boxes.append((mesh.GetName(), v.min(0), v.max(0)))
+    names = [b[0] for b in boxes]
+    assert names == ["strap-strap", "strap-clip"]
+    (_, lo0, hi0), (_, lo1, hi1) = boxes
+    assert lo0[2] == pytest.approx(0) and lo1[2] == pytest.approx(0)  # both on the plate
+    assert hi0[0] + 4.99 <= lo1[0]  # side by side, 5 mm apart
+    if require_tool("prusa-slicer"):
+        assert len(prusa_info(path)) == 2
+
+
+# --- the default parts -------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def default_parts():
+    from designlab.geometry.parts import PARTS, make_part
+
+    return {name: make_part(name, None, None) for name in PARTS}
+
+
+@pytest.fixture(scope="module")
+def prepared_parts(default_parts):
+    return {name: prepare(name, part.build()) for name, part in default_parts.items()}
+
+
+def test_default_parts_are_printable(prepared_parts):
+    for name, p in prepared_parts.items():
+        assert p.ok, [r for r in p.reports if not r.ok]
+        for r in p.reports:
+            if r.printed:
+                assert r.watertight and r.manifold and r.valid_brep and r.volume_mm3 > 0
+
+
+def test_default_parts_slice(prepared_parts, default_parts, tmp_path):
+    """Every default part slices; the strap (0.1 mm layers, two extruders) prints its traces with
+    the second tool, in the trace layers, whole (their full extent) and inside the strap."""
+    from designlab.geometry.export import print_objects
+
+    require_tool("prusa-slicer")
+    for name, p in prepared_parts.items():
+        path = tmp_path / f"{name}.3mf"
+        path.write_bytes(threemf_of(p))
+        info = prusa_info(path)
+        assert len(info) == len(print_objects(p))
+        assert all(o["manifold"] == "yes" for o in info)
+        layer = 0.1 if name == "strap" else 0.3
+        g = gcode_extrusions(slice_gcode(path, tmp_path / f"{name}.gcode", layer))
+        if name != "strap":
+            assert set(g) == {0} and len(g[0]) > 100
+            continue
+        strap = default_parts["strap"]
+        assert set(g) == {0, 1}
+        t1 = g[1]
+        z_layers = sorted(set(np.round(t1[:, 2], 3)))
+        lo, hi = strap.trace_z
+        n_trace_layers = round((hi - lo) / strap.layer_height)
+        assert z_layers[0] == pytest.approx(lo + strap.layer_height)
+        assert len([z for z in z_layers if z <= hi + 1e-6]) == n_trace_layers
+        assert max(z_layers) <= strap.thickness + 1e-6  # pads rise to the top, not above
+        traces = np.vstack([p.meshes[k].vertices for k in ("trace_left", "trace_right")])
+        extent = traces[:, :2].max(0) - traces[:, :2].min(0)
+        assert t1[:, :2].max(0) - t1[:, :2].min(0) == pytest.approx(extent, abs=1.0)
+        t0 = g[0][np.isin(np.round(g[0][:, 2], 3), z_layers)]
+        assert np.all(t1[:, :2].min(0) >= t0[:, :2].min(0))
+        assert np.all(t1[:, :2].max(0) <= t0[:, :2].max(0))
+
+
+# --- command line --------------------------------------------------------------------------------
+
+def _run(argv, capsys):
+    from designlab.cli import main
+
+    try:
+        main(argv)
+        code = 0
+    except SystemExit as exc:
+        code = exc.code
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["export", "wing"], "part='wing'"),
+    (["export", "strap", "--set", "strap_width"], "--set"),
+    (["export", "strap", "--set", "no_such=1"], "no_such"),
+    (["export", "strap", "--set", "strap_width=abc"], "strap_width"),
+    (["export", "strap", "--set", "strap_width=1000"], "strap_width"),
+    (["export", "all", "--set", "strap_width=12"], "PART.NAME=VALUE"),
+    (["export", "strap", "--format", "stl,obj"], "--format"),
+    (["export", "strap", "--nozzle", "0"], "--nozzle"),
+    (["export", "strap", "--config", "MISSING.toml"], "--config"),
+    (["export", "strap", "--config", "BAD.toml"], "--config"),
+])
+def test_export_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, argv, needle):
+    out = tmp_path / "out"
+    (tmp_path / "BAD.toml").write_text("strap_width = [unclosed\n")
+    argv = [a.replace("MISSING.toml", str(tmp_path / "missing.toml"))
+            .replace("BAD.toml", str(tmp_path / "BAD.toml")) for a in argv]
+    code, _, err = _run(argv + ["--out", str(out)], capsys)
+    assert code == 2
+    assert needle in err and len(err.strip().splitlines()) == 1, err
+    assert not out.exists()
+
+
+def test_show_bad_input(tmp_path, capsys):
+    for argv, needle in ((["show", "all", "--out", str(tmp_path / "a.png")], "part='all'"),
+                         (["show", "strap", "--out", str(tmp_path / "a.jpg")], ".png"),
+                         (["show", "wing", "--out", str(tmp_path / "a.png")], "wing")):
+        code, _, err = _run(argv, capsys)
+        assert code == 2 and needle in err and len(err.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_cli_export_and_show(tmp_path, capsys):
+    out = tmp_path / "out"
+    code, stdout, _ = _run(["export", "strap", "--out", str(out), "--set", "strap_width=14"],
+                           capsys)
+    assert code == 0
+    files = sorted(f.name for f in (out / "strap").iterdir())
+    assert files == ["strap-nail_plate.stl", "strap-strap.stl", "strap-trace_left.stl",
+                     "strap-trace_right.stl", "strap.3mf", "strap.glb", "strap.png", "strap.step"]
+    assert "printability" in stdout and "wrote" in stdout
+    code, _, _ = _run(["export", "all", "--out", str(out), "--format", "3mf", "--no-png",
+                       "--set", "flexure.disc_thickness=3.5"], capsys)
+    assert code == 0
+    for part in ("fingertip", "flexure"):
+        assert [f.name for f in (out / part).iterdir()] == [f"{part}.3mf"]
+    png = tmp_path / "pics" / "fingertip.png"
+    code, _, _ = _run(["show", "fingertip", "--out", str(png), "--width", "400", "--height",
+                       "300"], capsys)
+    assert code == 0 and png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_cli_export_refuses_unprintable_part(tmp_path, capsys, monkeypatch):
+    import designlab.geometry.printability as pr
+
+    monkeypatch.setattr(pr, "MM_WALL_FACTOR", 5.0)  # traces now "too thin": 0.8 < 2.0 mm
+    out = tmp_path / "out"
+    code, _, err = _run(["export", "strap", "--out", str(out), "--no-png"], capsys)
+    assert code == 2
+    assert "trace_left" in err and "nothing written" in err
+    assert not out.exists()

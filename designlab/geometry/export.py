@@ -27,7 +27,7 @@ from designlab.errors import ParameterError
 from designlab.geometry.body import Body
 from designlab.geometry.printability import BodyReport, PrintabilityError, check_part
 from designlab.geometry.tessellate import tessellate  # noqa: F401  (re-exported)
-from designlab.geometry.threemf import Volume3MF, threemf_bytes
+from designlab.geometry.threemf import Object3MF, Volume3MF, plate_layout, threemf_bytes
 
 FORMATS = ("stl", "3mf", "step", "gltf")
 #: print tessellation: chordal 0.01 mm (a tenth of a 0.1 mm layer), 0.2 rad
@@ -107,13 +107,44 @@ def bodies_assembly(bodies: Mapping[str, Body]):
     return assy
 
 
-def threemf_of(prepared: Prepared) -> bytes:
-    """The part's printed bodies as one 3MF object with one volume per body, host body first."""
-    order = sorted(prepared.meshes, key=lambda k: (prepared.bodies[k].extruder, k))
-    vols = [Volume3MF(k, prepared.meshes[k].vertices, prepared.meshes[k].faces,
-                      prepared.bodies[k].extruder, prepared.bodies[k].material,
-                      prepared.bodies[k].color) for k in order]
-    return threemf_bytes(prepared.name, vols)
+def print_objects(prepared: Prepared, touch: float = 0.01) -> list[list[str]]:
+    """Group the printed bodies into print objects (lists of body names, host first).
+
+    Every body on the host extruder (the lowest one used) is its own object, printed apart; a body
+    on another extruder joins the host body it touches (within ``touch`` mm: the traces embedded
+    in the strap), so that the slicer keeps it in place; one touching no host stands alone."""
+    from designlab.geometry.printability import manifold_of
+
+    bodies = {k: prepared.bodies[k] for k in prepared.meshes}
+    host_ext = min(b.extruder for b in bodies.values())
+    hosts = [k for k, b in bodies.items() if b.extruder == host_ext]
+    groups = {h: [h] for h in hosts}
+    alone = []
+    mani = {k: manifold_of(m) for k, m in prepared.meshes.items()}
+    for k, b in sorted(bodies.items(), key=lambda kv: (kv[1].extruder, kv[0])):
+        if b.extruder == host_ext:
+            continue
+        host = next((h for h in hosts if mani[h].min_gap(mani[k], 10 * touch) <= touch), None)
+        if host is None:
+            alone.append([k])
+        else:
+            groups[host].append(k)
+    return list(groups.values()) + alone
+
+
+def threemf_of(prepared: Prepared, layout: bool = True) -> bytes:
+    """The part's printed bodies as a 3MF: one object per :func:`print_objects` group (host body
+    first, then its embedded bodies as volumes on their own extruders), laid out side by side on
+    the plate (``layout``) or at their model coordinates."""
+    objects = []
+    for group in print_objects(prepared):
+        vols = [Volume3MF(k, prepared.meshes[k].vertices, prepared.meshes[k].faces,
+                          prepared.bodies[k].extruder, prepared.bodies[k].material,
+                          prepared.bodies[k].color) for k in group]
+        objects.append(Object3MF(f"{prepared.name}-{group[0]}", vols))
+    if layout:
+        objects = plate_layout(objects)
+    return threemf_bytes(prepared.name, objects)
 
 
 def _save_step(assy, path: Path) -> None:
@@ -131,7 +162,7 @@ def _save_gltf(assy, path: Path) -> None:
     except ImportError:
         from cadquery.occ_impl.exporters.assembly import exportGLTF
 
-        exportGLTF(assy, str(path), binary=True)
+        exportGLTF(assy, str(path), binary=True, tolerance=0.01, angularTolerance=0.2)
     else:
         save_assembly_gltf(assy, path)
 

@@ -10,7 +10,9 @@ Per printed body:
   opposite wall (VTK cell locator): *walls* (samples whose normal is mostly horizontal) must be at
   least the nozzle diameter wide, *skins* (normal mostly vertical) at least one layer thick.
   A conductive trace's thickness is thus governed by the layer height (0.2 mm = two 0.1 mm
-  layers is fine) and its width by the nozzle. Bodies printed by another extruder inside a host
+  layers is fine) and its width by the nozzle. A thin region counts as a failure only when its
+  surface area exceeds ``THIN_AREA_MM2``; smaller ones (slivers, wedge tips where two cuts meet,
+  which a slicer drops without consequence) are reported as warnings. Bodies printed by another extruder inside a host
   body (the traces) need ``MM_WALL_FACTOR`` nozzle widths: PrusaSlicer 2.5 (default Arachne
   perimeters, 0.4 mm nozzle, 0.1 mm layers) silently drops an embedded second-extruder line
   0.6 mm wide and prints one 0.7 mm wide (measured with ``tests/test_export.py``'s fixture).
@@ -37,6 +39,8 @@ from designlab.geometry.tessellate import tessellate, topods
 SKIN_NZ = 0.7
 #: embedded bodies of a second extruder need this many nozzle widths (see module docstring)
 MM_WALL_FACTOR = 2.0
+#: thin regions up to this surface area (mm^2) are slivers/wedge tips: a warning, not a failure
+THIN_AREA_MM2 = 0.5
 #: overlaps smaller than this fraction of the smaller body (or 1e-3 mm^3) are tessellation noise
 OVERLAP_REL = 1e-4
 
@@ -59,6 +63,7 @@ class BodyReport:
     layer_mm: float = 0.1
     wall_required_mm: float = 0.4
     problems: tuple[str, ...] = field(default_factory=tuple)
+    warnings: tuple[str, ...] = field(default_factory=tuple)
 
     @property
     def ok(self) -> bool:
@@ -148,16 +153,38 @@ def ray_thickness(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray
     return out
 
 
-def feature_sizes(mesh: trimesh.Trimesh, max_faces: int = 20000, n_area: int = 4000,
-                  seed: int = 0) -> tuple[float, float]:
-    """``(min_wall, min_skin)`` in mm: smallest thickness seen from samples whose normal is
-    mostly horizontal (wall width) and mostly vertical (skin thickness); inf if none."""
+@dataclass(frozen=True)
+class FeatureSizes:
+    """Smallest wall width and skin thickness seen (mm) and the surface area (mm^2) of faces
+    whose wall/skin is thinner than required."""
+
+    min_wall: float
+    min_skin: float
+    thin_wall_area: float
+    thin_skin_area: float
+
+
+def feature_sizes(mesh: trimesh.Trimesh, min_wall: float = 0.4, min_skin: float = 0.1,
+                  max_faces: int = 20000, n_area: int = 4000, seed: int = 0) -> FeatureSizes:
+    """Thicknesses from samples whose normal is mostly horizontal (wall width) or mostly vertical
+    (skin thickness); ``inf`` when there are none. Thin areas are the summed areas of the faces
+    whose centroid is thinner than ``0.99 * min_wall`` / ``0.99 * min_skin`` (1 % slack for
+    tessellation chords on exact-size features), scaled up when faces were subsampled."""
     p, n = _surface_samples(mesh, max_faces, n_area, seed)
     d = ray_thickness(mesh, p, n)
     skin = np.abs(n[:, 2]) >= SKIN_NZ
     wall = float(d[~skin].min()) if (~skin).any() else float("inf")
     skin_t = float(d[skin].min()) if skin.any() else float("inf")
-    return wall, skin_t
+    nf = len(mesh.faces)
+    k = min(nf, max_faces)  # the first k samples are face centroids
+    fidx = np.arange(nf) if nf <= max_faces else None
+    if fidx is None:  # recover the subsampled face indices (same generator as above)
+        fidx = np.random.default_rng(seed).choice(nf, max_faces, replace=False)
+    area = mesh.area_faces[fidx] * (nf / k)
+    dk, sk = d[:k], skin[:k]
+    thin_w = float(area[~sk & (dk < 0.99 * min_wall)].sum())
+    thin_s = float(area[sk & (dk < 0.99 * min_skin)].sum())
+    return FeatureSizes(wall, skin_t, thin_w, thin_s)
 
 
 def check_body(part: str, body: Body, nozzle: float = 0.4, layer: float = 0.1,
@@ -189,19 +216,24 @@ def check_body(part: str, body: Body, nozzle: float = 0.4, layer: float = 0.1,
     if not volume > 0:
         problems.append(f"volume {volume:.3g} mm^3 is not positive")
     wall = skin = float("nan")
+    warnings = []
     if watertight and volume > 0:
-        wall, skin = feature_sizes(mesh)
-        # 1% slack: tessellation chords and ray round-off on exact-size features
-        if wall < 0.99 * min_wall:
-            what = (f"the {nozzle:g} mm nozzle" if min_wall == nozzle else
-                    f"{min_wall:g} mm ({min_wall / nozzle:g} nozzle widths, embedded extruder "
-                    f"{body.extruder} body)")
-            problems.append(f"wall {wall:.3g} mm thinner than {what}")
-        if skin < 0.99 * layer:
-            problems.append(f"skin {skin:.3g} mm thinner than a {layer:g} mm layer")
+        fs = feature_sizes(mesh, min_wall, layer)
+        wall, skin = fs.min_wall, fs.min_skin
+        what = (f"the {nozzle:g} mm nozzle" if min_wall == nozzle else
+                f"{min_wall:g} mm ({min_wall / nozzle:g} nozzle widths, embedded extruder "
+                f"{body.extruder} body)")
+        for kind, value, need, area, text in (
+                ("wall", wall, min_wall, fs.thin_wall_area, what),
+                ("skin", skin, layer, fs.thin_skin_area, f"a {layer:g} mm layer")):
+            if not value < 0.99 * need:
+                continue
+            msg = f"{kind} {value:.3g} mm thinner than {text} over {area:.3g} mm^2"
+            # slivers and wedge tips where two cuts meet: the slicer drops them harmlessly
+            (problems if area > THIN_AREA_MM2 else warnings).append(msg)
     return BodyReport(**base, volume_mm3=volume, watertight=watertight, manifold=is_manifold,
                       valid_brep=valid_brep, min_wall_mm=wall, min_skin_mm=skin,
-                      problems=tuple(problems))
+                      problems=tuple(problems), warnings=tuple(warnings))
 
 
 def overlaps(meshes: Mapping[str, trimesh.Trimesh]) -> dict[tuple[str, str], float]:
@@ -261,6 +293,8 @@ def reports_table(reports: list[BodyReport]):
             t.add_row(r.part, r.body, "-", "-", "-", "-", "-", "-", "[dim]bought, not printed[/]")
             continue
         status = "[green]ok[/]" if r.ok else "[red]" + "; ".join(r.problems) + "[/]"
+        if r.warnings:
+            status += " [yellow](" + "; ".join(r.warnings) + ")[/]"
         t.add_row(r.part, r.body, str(r.extruder), f"{r.volume_mm3:.4g}",
                   "yes" if r.watertight else "no", "yes" if r.manifold else "no",
                   f"{mm(r.min_wall_mm)} (>= {r.wall_required_mm:g})",

@@ -65,16 +65,16 @@ def ensure_display() -> bool:
 
 
 def _meshes(bodies: Mapping[str, Body], tolerance: float) -> list[tuple[Body, trimesh.Trimesh]]:
-    return [(b, tessellate(b.shape, tolerance, 0.3, check=False)) for b in bodies.values()]
+    return [(b, tessellate(b.shape, tolerance, 0.5, check=False)) for b in bodies.values()]
 
 
 def _opacity(body: Body, items) -> float:
-    """Bought parts are see-through; so is the host body of a multi-material part, so that the
-    embedded second-extruder bodies (traces) show."""
+    """Bought parts are see-through; so are the printed host bodies of a part that has bought
+    parts or bodies on a second extruder (traces) inside, so that those show."""
     if not body.printed:
         return BOUGHT_OPACITY
-    multi = any(b.printed and b.extruder > 1 for b, _ in items)
-    return HOST_OPACITY if multi and body.extruder == 1 else 1.0
+    inner = any(not b.printed or b.extruder > 1 for b, _ in items)
+    return HOST_OPACITY if inner and body.extruder == 1 else 1.0
 
 
 def _render_pyvista(items, path: Path, size: tuple[int, int], title: str) -> None:
@@ -87,8 +87,8 @@ def _render_pyvista(items, path: Path, size: tuple[int, int], title: str) -> Non
         pl.add_mesh(pv.PolyData(np.asarray(m.vertices), faces), color=body.color,
                     opacity=_opacity(body, items), smooth_shading=False, specular=0.2,
                     label=f"{body.name} ({body.material})")
-    pl.add_legend(bcolor="white", face="rectangle", loc="lower left", border=False,
-                  size=(0.3, min(0.5, 0.05 * len(items))))
+    pl.add_legend(bcolor=None, face="rectangle", loc="upper left", border=False,
+                  size=(0.22, min(0.36, 0.032 * len(items))))
     if title:
         pl.add_text(title, position="upper_edge", font_size=12, color="black")
     pl.view_isometric()
@@ -127,7 +127,7 @@ def _render_matplotlib(items, path: Path, size: tuple[int, int], title: str) -> 
 
 
 def render_bodies(bodies: Mapping[str, Body], path: str | Path, size: tuple[int, int] = (1200, 900),
-                  title: str = "", tolerance: float = 0.05, backend: str = "auto") -> str:
+                  title: str = "", tolerance: float = 0.1, backend: str = "auto") -> str:
     """Write a PNG of ``bodies`` to ``path``; returns the backend used (``pyvista`` or
     ``matplotlib``). ``backend="auto"`` prefers pyvista when an X display can be had."""
     items = _meshes(bodies, tolerance)

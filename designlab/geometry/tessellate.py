@@ -32,6 +32,7 @@ def triangulate(obj: Any, tolerance: float = 0.01,
     oriented, vertices not merged across faces."""
     from OCP.BRep import BRep_Tool
     from OCP.BRepMesh import BRepMesh_IncrementalMesh
+    from OCP.BRepTools import BRepTools
     from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
     from OCP.TopExp import TopExp_Explorer
     from OCP.TopLoc import TopLoc_Location
@@ -41,6 +42,9 @@ def triangulate(obj: Any, tolerance: float = 0.01,
         raise MeshingError(f"tessellation tolerances must be > 0, got {tolerance}, "
                            f"{angular_tolerance}")
     shape = topods(obj)
+    # drop any triangulation cached on the shape (e.g. a finer one from a glTF export), so the
+    # result depends on the tolerances asked for only
+    BRepTools.Clean_s(shape)
     BRepMesh_IncrementalMesh(shape, tolerance, False, angular_tolerance, True)
     verts, faces, offset = [], [], 0
     explorer = TopExp_Explorer(shape, TopAbs_FACE)
