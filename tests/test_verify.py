@@ -96,3 +96,13 @@ def test_cli_verify_exit_codes(tmp_path, monkeypatch, capsys):
     assert _run(["verify", "--reference", "abaqus", "--out", str(tmp_path / "g")]) == 2
     assert "calculix" in capsys.readouterr().err
     assert not (tmp_path / "g").exists()
+
+
+def test_cli_reference_calculix_without_ccx_is_one_line_error(tmp_path, monkeypatch, capsys):
+    from designlab.fem import calculix
+
+    monkeypatch.setattr(calculix.shutil, "which", lambda name: None)
+    assert _run(["verify", "--reference", "calculix", "--out", str(tmp_path / "h")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "ccx" in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "h").exists()
