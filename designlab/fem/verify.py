@@ -28,7 +28,7 @@ from designlab.fem.static import solve_static
 from designlab.geometry.mesh import TetMesh, box_tet_mesh
 
 #: the elastic material of the static cases (MPa)
-STEEL_LIKE = Material("verify", E=2000.0, nu=0.3)
+ELASTIC = Material("verify", E=2000.0, nu=0.3)
 
 
 def case(name: str, quantity: str, value: float, reference: float, tolerance: float,
@@ -79,13 +79,13 @@ def patch_test(orders=(1, 2)) -> list[dict]:
     out = []
     for order in orders:
         mesh = distorted_box(3, 3, 3, order=order, seed=1)
-        model = Model(mesh, materials={"block": STEEL_LIKE})
+        model = Model(mesh, materials={"block": ELASTIC})
         model.prescribe(_boundary_nodes(mesh), displacement=lambda x: x @ A.T + c)
         res = solve_static(model, solver="direct")
         exact = mesh.points @ A.T + c
         u = res.displacement()
         eps = 0.5 * (A + A.T)
-        lam, mu = STEEL_LIKE.lame
+        lam, mu = ELASTIC.lame
         sig = lam * np.trace(eps) * np.eye(3) + 2 * mu * eps
         sig_v = np.array([sig[0, 0], sig[1, 1], sig[2, 2], sig[0, 1], sig[0, 2], sig[1, 2]])
         s = res.stress()
@@ -102,7 +102,7 @@ def stiffness_symmetry(orders=(1, 2)) -> list[dict]:
     out = []
     for order in orders:
         mesh = distorted_box(4, 3, 3, order=order, seed=2)
-        K = stiffness(cell_basis(mesh), *STEEL_LIKE.lame)
+        K = stiffness(cell_basis(mesh), *ELASTIC.lame)
         asym = abs(K - K.T).max() / abs(K).max()
         out.append(case(f"symmetry of K {_elem(order)}", "max|K-K^T|/max|K|", asym, 0.0, 1e-13))
     return out
@@ -114,7 +114,7 @@ def rigid_body_modes(orders=(1, 2)) -> list[dict]:
     out = []
     for order in orders:
         mesh = distorted_box(4, 2, 3, order=order, seed=3)
-        K = stiffness(cell_basis(mesh), *STEEL_LIKE.lame).tocsc()
+        K = stiffness(cell_basis(mesh), *ELASTIC.lame).tocsc()
         scale = abs(K).max()
         lam = np.sort(spla.eigsh(K, k=8, sigma=-1e-3 * scale, which="LM",
                                  return_eigenvectors=False))
@@ -205,7 +205,7 @@ def convergence_rates(levels: dict[int, tuple[int, ...]] | None = None) -> list[
     """Observed order of the L2 displacement error under uniform refinement, manufactured
     solution with Dirichlet boundary: 2 for TET4, 3 for TET10 (rate of the finest pair)."""
     levels = levels or {1: (4, 8, 16), 2: (2, 4, 8)}
-    lam, mu = STEEL_LIKE.lame
+    lam, mu = ELASTIC.lame
     u_ex, b = _mms(lam, mu)
     out = []
     for order, ns in levels.items():
@@ -213,7 +213,7 @@ def convergence_rates(levels: dict[int, tuple[int, ...]] | None = None) -> list[
         for n in ns:
             mesh = box_tet_mesh(1.0, 1.0, 1.0, n, n, n)
             mesh = mesh.quadratic() if order == 2 else mesh
-            model = Model(mesh, materials={"block": STEEL_LIKE})
+            model = Model(mesh, materials={"block": ELASTIC})
             model.fix(_boundary_nodes(mesh))
             model.body_force(b)
             u = solve_static(model, solver="amg").displacement()   # AMG-CG, rtol 1e-10
@@ -233,7 +233,7 @@ def _distorted_block_model() -> Model:
     """Distorted TET10 block: clamped at x = 0, non-uniform prescribed displacement at x = max,
     traction on top: exercises prescribed values, loads and curved-free straight cells."""
     mesh = distorted_box(6, 3, 4, size=(12.0, 6.0, 8.0), order=2, seed=4)
-    model = Model(mesh, materials={"block": STEEL_LIKE})
+    model = Model(mesh, materials={"block": ELASTIC})
     model.fix("xmin")
     model.prescribe("xmax", displacement=lambda x: np.column_stack(
         [0.01 + 0.002 * x[:, 1], -0.003 * x[:, 2], 0.02 * np.sin(x[:, 1] / 6.0)]))
