@@ -26,6 +26,23 @@ API summary (stable names)::
     res.spring_force("button", "tip")  # N, k * elongation along axis + preload
     res.strain(case), res.stress(case), res.von_mises(case)   # (m, nq, 6) Voigt xx yy zz xy xz yz
 
+Viscoelastic histories (Prony series on the material; factor once per step size)::
+
+    from designlab.fem.viscoelastic import History, solve_history
+    hist = History.step_hold(t_end=60.0, n_steps=120, cases={"weight": 1.0})  # or
+    hist = History.piecewise([0, 1, 1, 30], [0, 1, 0, 0], case="weight", dt=0.1)  # ramp, drop
+    hh = solve_history(model, hist)    # hh.U (n_dofs, n_steps), hh.t
+    hh.wrench("xmin"), hh.twist(disc), hh.spring_force("button"), hh.displacement(step)
+
+Transducers (``read(result)`` -> one row per load case or time step)::
+
+    from designlab.fem.transducers import StrainGauge, ForceButton, RigidPose, ReactionWrench
+    g = StrainGauge(model, "trace", direction=(1, 0, 0))   # or a callable d(x); GF from material
+    g.read(res)   # {"strain", "dR_R", "resistance_ohm", "voltage_V"} (2.2 kOhm divider at 5 V)
+    ForceButton("button").read(res); RigidPose(disc).read(res); ReactionWrench("xmin").read(res)
+
+Output: ``designlab.fem.output.write_result_vtu(path, res, case)``, ``write_png(path, mesh, u)``.
+
 Building blocks: ``elements`` (TET4, TET10, TRI3, TRI6, quadrature), ``assembly``
 (``cell_basis``, ``stiffness``, ``mass``, ``strain_operator``, ``body_load``), ``facets``
 (``facet_basis``, ``traction_load``, ``pressure_load``, ``area_weights``), ``solvers``
@@ -37,6 +54,8 @@ from designlab.fem.materials import MATERIALS, Material, get_material
 from designlab.fem.model import Model, RefPoint, Spring, System
 from designlab.fem.solvers import factorize
 from designlab.fem.static import StaticResult, solve_static
+from designlab.fem.viscoelastic import History, HistoryResult, solve_history
 
 __all__ = ["MATERIALS", "Material", "get_material", "Model", "RefPoint", "Spring", "System",
-           "factorize", "StaticResult", "solve_static"]
+           "factorize", "StaticResult", "solve_static", "History", "HistoryResult",
+           "solve_history"]
