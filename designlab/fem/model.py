@@ -108,6 +108,7 @@ class System:
     F: np.ndarray
     F_preload: np.ndarray
     constrained: np.ndarray
+    free_dofs: np.ndarray        # dof of each column of T (free primary dofs, ascending)
 
     @property
     def n_dofs(self) -> int:
@@ -491,4 +492,5 @@ class Model:
             G = G + C @ G
         else:
             T = S
-        return System(self, cases, self.K_el, K_spring.tocsr(), T, G, F, F_pre, constrained)
+        return System(self, cases, self.K_el, K_spring.tocsr(), T, G, F, F_pre, constrained,
+                      np.nonzero(free)[0])

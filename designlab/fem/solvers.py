@@ -2,9 +2,10 @@
 
 ``factorize(K, solver="auto", near_null=None)`` returns a :class:`LinearSolver` whose
 ``.solve(F)`` takes (n,) or (n, k). Choices: ``"direct"`` (SuperLU, scipy), ``"cholmod"``
-(scikit-sparse, when installed), ``"amg"`` (pyamg smoothed aggregation with rigid-body modes as
-near-null space, preconditioned CG). ``"auto"``: cholmod if installed, else direct up to
-:data:`DIRECT_MAX_DOFS` unknowns, else amg.
+(scikit-sparse, when installed), ``"amg"`` (CG preconditioned by pyamg smoothed aggregation with
+rigid-body modes as near-null space; for TET10 with a TET4 p-multigrid level). ``"auto"``:
+cholmod if installed, else direct up to :data:`DIRECT_MAX_DOFS` unknowns (more when many
+right-hand sides reuse the factorisation), else amg.
 """
 
 from __future__ import annotations
@@ -24,8 +25,12 @@ except ImportError:  # pragma: no cover - depends on the environment
     _cholmod_cholesky = None
 
 SOLVERS = ("auto", "direct", "cholmod", "amg")
-#: above this many unknowns "auto" prefers AMG-CG over SuperLU (fill-in of 3D TET10 grows fast)
-DIRECT_MAX_DOFS = 60_000
+#: "auto" uses SuperLU up to this many unknowns for one or a few right-hand sides (its
+#: fill-in on 3D TET10 meshes grows fast: ~6 s for 14k, ~400 s for 108k unknowns here) ...
+DIRECT_MAX_DOFS = 12_000
+#: ... and up to this many when many right-hand sides (time steps) reuse the factorisation
+DIRECT_MAX_DOFS_MANY_RHS = 40_000
+MANY_RHS = 20
 
 
 def has_cholmod() -> bool:
@@ -42,11 +47,15 @@ class LinearSolver:
         self.n = K.shape[0]
         self.setup_seconds = 0.0
 
-    def solve(self, F: np.ndarray) -> np.ndarray:
+    def solve(self, F: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
+        """Solution of K U = F; ``x0`` (same shape) is a starting guess for iterative kinds."""
         F = np.asarray(F, float)
         if F.shape[0] != self.n:
             raise ParameterError("F", F.shape, f"first dimension {self.n}")
-        U = self._solve(F.reshape(self.n, -1))
+        if x0 is not None and self.kind == "amg":
+            U = self._solve(F.reshape(self.n, -1), np.asarray(x0, float).reshape(self.n, -1))
+        else:
+            U = self._solve(F.reshape(self.n, -1))
         if not np.all(np.isfinite(U)):
             raise ModelError("model is under-constrained or singular: solution is not finite")
         return U.reshape(F.shape)
@@ -92,26 +101,49 @@ class CholmodSolver(LinearSolver):  # pragma: no cover - needs scikit-sparse
 
 
 class AMGSolver(LinearSolver):
-    """Smoothed-aggregation AMG (pyamg) preconditioning CG; ``near_null``: (n, 6) rigid-body
-    modes of the reduced system (improves convergence a lot for elasticity)."""
+    """Preconditioned CG with smoothed-aggregation AMG (pyamg). ``near_null``: (n, 6)
+    rigid-body modes (aggregation keeps them, essential for elasticity). ``coarse``:
+    optional (P, B_c) p-multigrid level (TET10 -> TET4 interpolation and its rigid modes):
+    the preconditioner is then symmetric Gauss-Seidel on K around one SA-AMG V-cycle on
+    P^T K P, which converges far better than SA-AMG on quadratic elements directly."""
 
     kind = "amg"
 
-    def __init__(self, K, near_null=None, rtol=1e-10, maxiter=2000):
+    def __init__(self, K, near_null=None, coarse=None, rtol=1e-10, maxiter=1000):
         import pyamg
 
         super().__init__(K)
         t = time.perf_counter()
         self.K = sp.csr_matrix(K)
-        B = None if near_null is None else np.ascontiguousarray(near_null, float)
-        self._ml = pyamg.smoothed_aggregation_solver(self.K, B=B, symmetry="symmetric",
-                                                     max_coarse=500)
-        self._M = self._ml.aspreconditioner(cycle="V")
         self.rtol, self.maxiter = rtol, maxiter
         self.iterations: list[int] = []
+        if coarse is not None:
+            P, Bc = coarse
+            self._P, self._PT = sp.csr_matrix(P), sp.csr_matrix(P.T)
+            Kc = (self._PT @ self.K @ self._P).tocsr()
+            ml = pyamg.smoothed_aggregation_solver(Kc, B=np.ascontiguousarray(Bc),
+                                                   symmetry="symmetric", max_coarse=500)
+            Mc = ml.aspreconditioner(cycle="V")
+            self._M = spla.LinearOperator(self.K.shape, matvec=lambda r: self._two_level(r, Mc),
+                                          dtype=float)
+        else:
+            B = None if near_null is None else np.ascontiguousarray(near_null, float)
+            ml = pyamg.smoothed_aggregation_solver(self.K, B=B, symmetry="symmetric",
+                                                   max_coarse=500)
+            self._M = ml.aspreconditioner(cycle="V")
         self.setup_seconds = time.perf_counter() - t
 
-    def _solve(self, F):
+    def _two_level(self, r, Mc):
+        from pyamg.relaxation.relaxation import gauss_seidel
+
+        r = np.asarray(r, float).ravel()
+        x = np.zeros_like(r)
+        gauss_seidel(self.K, x, r, iterations=1, sweep="forward")
+        x += self._P @ Mc(self._PT @ (r - self.K @ x))
+        gauss_seidel(self.K, x, r, iterations=1, sweep="backward")
+        return x
+
+    def _solve(self, F, X0=None):
         U = np.zeros_like(F)
         for j in range(F.shape[1]):
             b = F[:, j]
@@ -122,8 +154,8 @@ class AMGSolver(LinearSolver):
             def count(_):
                 it[0] += 1
 
-            x, info = spla.cg(self.K, b, rtol=self.rtol, atol=0.0, maxiter=self.maxiter,
-                              M=self._M, callback=count)
+            x, info = spla.cg(self.K, b, x0=None if X0 is None else X0[:, j], rtol=self.rtol,
+                              atol=0.0, maxiter=self.maxiter, M=self._M, callback=count)
             if info != 0:
                 raise ModelError(f"AMG-CG did not converge in {self.maxiter} iterations "
                                  f"(model ill-conditioned or under-constrained)")
@@ -132,23 +164,29 @@ class AMGSolver(LinearSolver):
         return U
 
 
-def choose_solver(n: int, solver: str = "auto") -> str:
-    """The concrete method ``factorize`` uses for ``n`` unknowns."""
+def choose_solver(n: int, solver: str = "auto", n_rhs: int = 1) -> str:
+    """The concrete method ``factorize`` uses for ``n`` unknowns and ``n_rhs`` expected
+    right-hand sides."""
     if solver not in SOLVERS:
         raise ParameterError("solver", solver, "one of " + ", ".join(SOLVERS))
     if solver == "auto":
         if has_cholmod():
             return "cholmod"
-        return "direct" if n <= DIRECT_MAX_DOFS else "amg"
+        limit = DIRECT_MAX_DOFS_MANY_RHS if n_rhs >= MANY_RHS else DIRECT_MAX_DOFS
+        return "direct" if n <= limit else "amg"
     return solver
 
 
-def factorize(K: sp.spmatrix, solver: str = "auto", near_null=None) -> LinearSolver:
+def factorize(K: sp.spmatrix, solver: str = "auto", near_null=None, coarse=None,
+              n_rhs: int = 1) -> LinearSolver:
     """Factor (or precondition) the SPD matrix ``K`` once; see module docstring.
-    ``near_null``: (n, k) array or a callable returning it (evaluated only for AMG)."""
-    solver = choose_solver(K.shape[0], solver)
+    ``near_null`` ((n, k) array) and ``coarse`` ((P, B_c) or None): values or callables
+    returning them, evaluated only for AMG. ``n_rhs``: expected number of solves (guides
+    "auto")."""
+    solver = choose_solver(K.shape[0], solver, n_rhs)
     if solver == "direct":
         return DirectSolver(K)
     if solver == "cholmod":
         return CholmodSolver(K)
-    return AMGSolver(K, near_null=near_null() if callable(near_null) else near_null)
+    ev = lambda v: v() if callable(v) else v  # noqa: E731
+    return AMGSolver(K, near_null=ev(near_null), coarse=ev(coarse))

@@ -111,16 +111,45 @@ def _graph_nodes(model: Model, dofs: np.ndarray) -> np.ndarray:
 
 
 def near_null_space(system: System) -> np.ndarray:
-    """Rigid-body modes of the whole model mapped into the reduced (free) coordinates, for AMG."""
+    """Rigid-body modes of the whole model in the reduced (free) coordinates, for AMG."""
     model = system.model
     used = np.ones(model.n_points + sum(r.kind == "rigid" for r in model.refs.values()), bool)
     x = model.mesh.points
     L = max(float(np.ptp(x, axis=0).max()), 1e-9)
-    R = rigid_modes(model, used, x.mean(0), L)
-    # least-squares coordinates: free columns of T are unit columns on free primary dofs
-    T = system.T.tocsc()
-    sel = np.asarray(T.argmax(axis=0)).ravel()
-    return R[sel]
+    return rigid_modes(model, used, x.mean(0), L)[system.free_dofs]
+
+
+def p1_prolongation(system: System):
+    """For TET10 models: (P, B_c), the linear interpolation from the corner-node (TET4)
+    reduced dofs to the reduced TET10 dofs and the coarse rigid-body modes; None for TET4.
+    Used by the AMG solver as a p-multigrid level (SA-AMG works well on the P1 level)."""
+    model = system.model
+    mesh = model.mesh
+    if mesh.order != 2:
+        return None
+    from designlab.geometry.mesh import TET10_EDGES
+
+    npts, n = model.n_points, system.n_dofs
+    corners = np.unique(mesh.cells[:, :4])
+    mids, first = np.unique(mesh.cells[:, 4:].ravel(), return_index=True)
+    cell, k = np.divmod(first, 6)
+    a = mesh.cells[cell, TET10_EDGES[k, 0]]
+    b = mesh.cells[cell, TET10_EDGES[k, 1]]
+    rows = np.r_[corners, mids, mids]
+    cols = np.r_[corners, a, b]
+    vals = np.r_[np.ones(len(corners)), np.full(2 * len(mids), 0.5)]
+    Pn = sp.csr_matrix((vals, (rows, cols)), shape=(npts, npts))
+    nm = n - 3 * npts
+    P_full = sp.block_diag([sp.kron(Pn, sp.identity(3)), sp.identity(nm)], format="csr") \
+        if nm else sp.kron(Pn, sp.identity(3), format="csr")
+    is_coarse = np.zeros(n, bool)
+    is_coarse[(3 * corners[:, None] + np.arange(3)).ravel()] = True
+    is_coarse[3 * npts:] = True
+    ccols = np.nonzero(is_coarse[system.free_dofs])[0]
+    nf = len(system.free_dofs)
+    Sel = sp.csr_matrix((np.ones(nf), (np.arange(nf), system.free_dofs)), shape=(nf, n))
+    P = (Sel @ P_full @ system.T.tocsc()[:, ccols]).tocsr()
+    return P, near_null_space(system)[ccols]
 
 
 @dataclass(frozen=True, eq=False)
@@ -229,7 +258,8 @@ def solve_static(model: Model, solver: str = "auto", check: bool = True) -> Stat
     K = system.K()
     Kr = system.reduce(K)
     Fr = system.T.T @ (system.F + system.F_preload - K @ system.G)
-    lin = factorize(Kr, solver, near_null=lambda: near_null_space(system))
+    lin = factorize(Kr, solver, near_null=lambda: near_null_space(system),
+                    coarse=lambda: p1_prolongation(system), n_rhs=Fr.shape[1])
     q = lin.solve(Fr)
     U = system.T @ q + system.G
     return StaticResult(system, U, lin)

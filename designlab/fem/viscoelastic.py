@@ -28,7 +28,7 @@ from designlab.errors import ParameterError
 from designlab.fem.assembly import stiffness
 from designlab.fem.model import Model, RefPoint, Spring, System
 from designlab.fem.solvers import LinearSolver, factorize
-from designlab.fem.static import check_constrained, elastic_stress, near_null_space
+from designlab.fem.static import check_constrained, near_null_space, p1_prolongation
 
 _VOIGT_C = np.array([2.0, 2.0, 2.0, 1.0, 1.0, 1.0])     # tensor -> engineering Voigt stress
 _ONE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])
@@ -203,6 +203,7 @@ def solve_history(model: Model, history: History, solver: str = "auto",
     T = system.T
     Tt = T.T.tocsr()
     t_prev = t[0]
+    q_prev = None
     for n in range(nsteps):
         dt = 0.0 if n == 0 else float(t[n] - t_prev)
         t_prev = t[n]
@@ -213,7 +214,8 @@ def solve_history(model: Model, history: History, solver: str = "auto",
             Ge, Ke = pr.effective(dt)
             Gc, Kc = Ge.reshape(-1, nq)[:, 0], Ke.reshape(-1, nq)[:, 0]
             K = system.K(stiffness(model.basis, Kc - 2.0 * Gc / 3.0, Gc))
-            lin = factorize(system.reduce(K), solver, near_null=lambda: near_null_space(system))
+            lin = factorize(system.reduce(K), solver, near_null=lambda: near_null_space(system),
+                            coarse=lambda: p1_prolongation(system), n_rhs=nsteps)
             cache[key] = (lin, K)
         lin, K = cache[key]
         # history stress sigma_h (per qp, engineering Voigt)
@@ -229,7 +231,9 @@ def solve_history(model: Model, history: History, solver: str = "auto",
         f_h = np.zeros(system.n_dofs)
         f_h[:n3] = B.T @ (dx[:, None] * sig_h).ravel()
         rhs = Tt @ (F_all[:, n] - f_h - K @ G_all[:, n])
-        u = T @ lin.solve(rhs) + G_all[:, n]
+        q = lin.solve(rhs, x0=q_prev)
+        q_prev = q
+        u = T @ q + G_all[:, n]
         U[:, n] = u
         eps = (B @ u[:n3]).reshape(nqp, 6)
         th = eps[:, :3].sum(1)
