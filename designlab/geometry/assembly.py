@@ -31,7 +31,10 @@ def _atomic(path: str | Path, write) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=path.suffix, dir=path.parent)
     os.close(fd)
+    umask = os.umask(0)
+    os.umask(umask)
     try:
+        os.chmod(tmp, 0o666 & ~umask)
         write(tmp)
         if os.path.getsize(tmp) == 0:
             raise OSError(f"writing {path} produced an empty file")
@@ -52,8 +55,8 @@ def save_assembly_step(assy: cq.Assembly, path: str | Path) -> Path:
     return _atomic(path, write)
 
 
-def save_assembly_gltf(assy: cq.Assembly, path: str | Path, tolerance: float = 0.01,
-                       angular_tolerance: float = 0.1) -> Path:
+def save_assembly_gltf(assy: cq.Assembly, path: str | Path, tolerance: float = 0.05,
+                       angular_tolerance: float = 0.2) -> Path:
     """Coloured glTF of ``assy`` (binary for ``.glb``, text for ``.gltf``), mm; atomic."""
     from cadquery.occ_impl.exporters.assembly import exportGLTF
 

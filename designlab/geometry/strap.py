@@ -122,13 +122,22 @@ class ArchStrap:
         """Angles (rad, right gauge) of the leg ends ``a``/``b``, the turn width ``turn``, and the
         pad ``p0``/``p1`` (left gauge: mirrored)."""
         R = self.radius
-        r_min = R + self.leg_offsets[0] - self.trace_width / 2
+        r_min = R + float(self.leg_offsets[0]) - self.trace_width / 2
         a = (self.gauge_offset - self.gauge_length / 2) / R
         b = (self.gauge_offset + self.gauge_length / 2) / R
         turn = self.trace_width / r_min
         p0 = b + self.lead_length / R
         p1 = p0 + self.pad_length / R
         return {"a": a, "b": b, "turn": turn, "p0": p0, "p1": p1}
+
+    def gauge_offset_range(self) -> tuple[float, float]:
+        """Allowed ``gauge_offset`` given the other parameters: the two meanders keep
+        ``trace_gap`` apart at the apex and the pads stay on the arch (mm)."""
+        R = self.radius
+        lo = self.gauge_length / 2 + self.trace_gap / 2 + self.gauge_angles()["turn"] * R
+        hi = self.half_angle * R - self.edge_margin - self.gauge_length / 2 \
+            - self.lead_length - self.pad_length
+        return lo, hi
 
     def _check(self) -> None:
         w, n, g = self.trace_width, self.legs, self.trace_gap
@@ -168,11 +177,7 @@ class ArchStrap:
             raise ParameterError("lead_length", self.lead_length,
                                  f">= {w + g:g} mm (trace_width + trace_gap: pads clear the "
                                  "outer turns)")
-        R = self.radius
-        ang = self.gauge_angles()
-        lo = (self.gauge_length / 2 + g / 2) + ang["turn"] * R
-        hi = self.half_angle * R - self.edge_margin - self.gauge_length / 2 \
-            - self.lead_length - self.pad_length
+        lo, hi = self.gauge_offset_range()
         if not lo <= self.gauge_offset <= hi:
             raise ParameterError("gauge_offset", self.gauge_offset,
                                  f"{lo:.3g} <= value <= {hi:.3g} mm (gauges apart at the apex and "
