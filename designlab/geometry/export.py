@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import os
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
@@ -59,7 +59,6 @@ class Prepared:
     meshes: dict[str, trimesh.Trimesh]
     reports: list[BodyReport]
     assembly: Callable[[], Any] | None = None  # -> cadquery.Assembly (coloured)
-    params: dict = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -85,8 +84,7 @@ def prepare_part(part: Any, name: str | None = None, nozzle: float = 0.4,
     from designlab.geometry import assembly as asm
 
     name = name or type(part).__name__.lower()
-    prepared = prepare(name, part.build(), nozzle, layer, assembly=lambda: asm.assembly(part))
-    return prepared
+    return prepare(name, part.build(), nozzle, layer, assembly=lambda: asm.assembly(part))
 
 
 def require_printable(prepared: Iterable[Prepared]) -> None:
@@ -96,15 +94,14 @@ def require_printable(prepared: Iterable[Prepared]) -> None:
         raise PrintabilityError([r for p in prepared for r in p.reports])
 
 
-def bodies_assembly(bodies: Mapping[str, Body]):
-    """A coloured ``cadquery.Assembly`` of bodies (for parts without their own assembly)."""
-    import cadquery as cq
+def bodies_assembly(name: str, bodies: Mapping[str, Body]):
+    """Coloured ``cadquery.Assembly`` of bodies (:func:`designlab.geometry.assembly.assembly`
+    of a part whose ``build()`` returns ``bodies``)."""
+    from types import SimpleNamespace
 
-    assy = cq.Assembly(name="part")
-    for name, b in bodies.items():
-        assy.add(cq.Shape.cast(getattr(b.shape, "wrapped", b.shape)), name=name,
-                 color=cq.Color(*b.color))
-    return assy
+    from designlab.geometry.assembly import assembly
+
+    return assembly(SimpleNamespace(build=lambda: dict(bodies)), name=f"{name}_assembly")
 
 
 def print_objects(prepared: Prepared, touch: float = 0.01) -> list[list[str]]:
@@ -148,23 +145,15 @@ def threemf_of(prepared: Prepared, layout: bool = True) -> bytes:
 
 
 def _save_step(assy, path: Path) -> None:
-    try:
-        from designlab.geometry.assembly import save_assembly_step
-    except ImportError:
-        assy.export(str(path), exportType="STEP")
-    else:
-        save_assembly_step(assy, path)
+    from designlab.geometry.assembly import save_assembly_step
+
+    save_assembly_step(assy, path)
 
 
 def _save_gltf(assy, path: Path) -> None:
-    try:
-        from designlab.geometry.assembly import save_assembly_gltf
-    except ImportError:
-        from cadquery.occ_impl.exporters.assembly import exportGLTF
+    from designlab.geometry.assembly import save_assembly_gltf
 
-        exportGLTF(assy, str(path), binary=True, tolerance=0.01, angularTolerance=0.2)
-    else:
-        save_assembly_gltf(assy, path)
+    save_assembly_gltf(assy, path)
 
 
 def write(prepared: Prepared, out_dir: str | Path, formats: Iterable[str] = FORMATS,
@@ -187,7 +176,7 @@ def write(prepared: Prepared, out_dir: str | Path, formats: Iterable[str] = FORM
         def assy():
             if not assy_cache:
                 assy_cache.append(prepared.assembly() if prepared.assembly
-                                  else bodies_assembly(prepared.bodies))
+                                  else bodies_assembly(prepared.name, prepared.bodies))
             return assy_cache[0]
         if "step" in formats:
             jobs.append((f"{stem}.step", lambda p: _save_step(assy(), p)))
