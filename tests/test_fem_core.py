@@ -237,3 +237,32 @@ def test_unknown_sets_and_names():
         Model(mesh, materials={"block": "unobtainium"})
     with pytest.raises(ParameterError, match="components"):
         model.fix("xmin", "w")
+
+
+def test_beam_between_rigid_master_and_ground():
+    from designlab.fem.beam import beam_stiffness, circular_section
+
+    mesh = box_tet_mesh(2.0, 2.0, 2.0, 1, 1, 1).quadratic()
+    model = Model(mesh, materials={"block": Material("jelly", E=1e-7, nu=0.3)})
+    model.fix("zmin")
+    top = model.rigid("top", "zmax", ref_point=(1.0, 1.0, 2.0))
+    steel = Material("st", E=210000.0, nu=0.3)
+    sec = circular_section(2.0)
+    Lb = 20.0
+    K = beam_stiffness(top.x + [Lb, 0, 0], top.x, steel.E, steel.G, **sec)
+    # beam from the clamp (end a in beam_stiffness) to the top master: our end a is the master
+    model.beam("bolt", (top, top.x), None, _swap_ends(K))
+    model.force(top, force=(0.0, 0.0, -1.0), case="F")
+    res = solve_static(model)
+    uz = res.twist(top, "F")[5]
+    ref = -(Lb**3 / (3 * steel.E * sec["Iy"]) + Lb / (steel.G * sec["As"]))
+    assert uz == pytest.approx(ref, rel=1e-4)
+    # the clamped end of the beam carries the load: beam end force balances it
+    fb = res.beam_force("bolt", "F")
+    assert fb[2] == pytest.approx(-1.0, rel=1e-4)
+
+
+def _swap_ends(K):
+    """12x12 stiffness with end a and end b exchanged."""
+    p = np.r_[np.arange(6, 12), np.arange(6)]
+    return K[np.ix_(p, p)]

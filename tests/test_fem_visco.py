@@ -123,3 +123,18 @@ def test_history_bad_input():
     model.traction("xmax", (0.1, 0, 0), case="hang")
     with pytest.raises(ParameterError, match="history case"):
         solve_history(model, History(np.array([0.0, 1.0]), {"oops": np.ones(2)}))
+
+
+def test_batch_history_equals_separate_histories():
+    model = bar(PR1)
+    model.traction("xmax", (0.2, 0.0, 0.0), case="pull")
+    model.traction("xmax", (0.0, 0.0, 0.01), case="shear")
+    t = np.linspace(0.0, 4.0, 21)
+    amp = {"pull": np.minimum(t, 1.0), "shear": np.where(t > 2.0, 1.0, 0.0)}
+    both = solve_history(model, History(t, amp), batch=True)
+    assert both.U.shape == (model.n_dofs, 2, len(t))
+    for i, c in enumerate(("pull", "shear")):
+        one = solve_history(model, History(t, {c: amp[c]}))
+        np.testing.assert_allclose(both.U[:, i], one.U, rtol=1e-10, atol=1e-14)
+        np.testing.assert_allclose(both.wrench("xmin")[i], one.wrench("xmin"), atol=1e-12)
+        np.testing.assert_allclose(both.displacement(5)[i], one.displacement(5), atol=1e-14)

@@ -92,6 +92,18 @@ class Spring:
 
 
 @dataclass(frozen=True, eq=False)
+class Beam:
+    """A 12 x 12 stiffness ``K`` (e.g. :func:`designlab.fem.beam.beam_stiffness`) between two
+    6-dof ends ``a``, ``b`` (RefPoint or (RefPoint, xyz) on rigid reference points); dofs per
+    end (u_x, u_y, u_z, theta_x, theta_y, theta_z)."""
+
+    name: str
+    a: object
+    b: object
+    K: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
 class System:
     """Assembled linear system of a :class:`Model` (all dofs, all cases).
 
@@ -143,6 +155,7 @@ class Model:
         self._materials = dict(materials or {})
         self.refs: dict[str, RefPoint] = {}
         self.springs: dict[str, Spring] = {}
+        self.beams: dict[str, Beam] = {}
         self._constraints: list[tuple[np.ndarray, np.ndarray, str | None]] = []
         self._loads: list[tuple[str, np.ndarray, np.ndarray]] = []
         self._cases: list[str] = []
@@ -427,6 +440,41 @@ class Model:
         self.springs[name] = s
         return s
 
+    def frame_map(self, end) -> sp.csr_matrix:
+        """(6, n_dofs) map u -> (translation, rotation) of a point moving with a rigid
+        reference point: ``RefPoint`` (its own point) or ``(RefPoint, xyz)``."""
+        ref, p = (end if isinstance(end, tuple) else (end, None))
+        if not isinstance(ref, RefPoint) or ref.kind != "rigid":
+            raise ParameterError("beam end", end, "a rigid RefPoint or (rigid RefPoint, xyz)")
+        L = self.twist_map(ref)
+        if p is None:
+            return L
+        M = np.eye(6)
+        M[:3, 3:] = -skew(np.asarray(p, float) - ref.x)
+        return sp.csr_matrix(M @ L)
+
+    def beam(self, name: str, a, b, K) -> Beam:
+        """Connect two rigid reference points (or points on them) by a 12 x 12 stiffness
+        (N/mm, N, N mm/rad), e.g. a bolt modelled as a Timoshenko beam; ``b`` None: the
+        second end is clamped to ground."""
+        K = np.asarray(K, float)
+        if K.shape != (12, 12) or not np.allclose(K, K.T, rtol=1e-10, atol=1e-12 * abs(K).max()):
+            raise ParameterError("K", K.shape, "a symmetric 12 x 12 matrix")
+        if name in self.beams:
+            raise ParameterError("name", name, "a new beam name")
+        self.frame_map(a)                                # validate ends now
+        if b is not None:
+            self.frame_map(b)
+        beam = Beam(name, a, b, K)
+        self.beams[name] = beam
+        self._system = None
+        return beam
+
+    def beam_map(self, beam: Beam) -> sp.csr_matrix:
+        """(12, n_dofs) map u -> end motions of a beam."""
+        Lb = sp.csr_matrix((6, self.n_dofs)) if beam.b is None else self.frame_map(beam.b)
+        return sp.vstack([self.frame_map(beam.a), Lb]).tocsr()
+
     def spring_map(self, s: Spring) -> sp.csr_matrix:
         """(1 or 3, n_dofs) map u -> elongation along the axis (or the 3 relative motions)."""
         L = self.point_map(s.a)
@@ -453,6 +501,9 @@ class Model:
             K_spring = K_spring + s.k * (R.T @ R)
             if s.preload:
                 F_pre[:, cases.index(s.case)] -= s.preload * R.toarray()[0]
+        for bm in self.beams.values():
+            Lb = self.beam_map(bm)
+            K_spring = K_spring + Lb.T @ sp.csr_matrix(bm.K) @ Lb
         # loads
         F = np.zeros((n, nc))
         for case, d, v in self._loads:

@@ -67,6 +67,15 @@ def check_constrained(system: System) -> None:
         nodes = np.unique(_graph_nodes(model, Rm.indices))
         if len(nodes) > 1:
             links.append(np.column_stack([nodes[:-1], nodes[1:]]))
+    for bm in model.beams.values():
+        Lb = model.beam_map(bm)
+        lam, vec = np.linalg.eigh(bm.K)
+        keep = lam > 1e-12 * max(lam.max(), 0)
+        spring_rows.append((None, sp.csr_matrix((np.sqrt(lam[keep] / kref_of(Kd))[:, None]
+                                                 * vec[:, keep].T) @ Lb)))
+        nodes = np.unique(_graph_nodes(model, Lb.indices))
+        if len(nodes) > 1:
+            links.append(np.column_stack([nodes[:-1], nodes[1:]]))
     for r in model.refs.values():
         if r.kind == "distributing" and len(r.nodes) > 1:
             links.append(np.column_stack([r.nodes[:-1], r.nodes[1:]]))
@@ -81,7 +90,7 @@ def check_constrained(system: System) -> None:
     used = np.zeros(ng, bool)
     used[np.unique(model.mesh.cells)] = True
     used[npts:] = True
-    kref = np.median(Kd[Kd > 0]) if np.any(Kd > 0) else 1.0
+    kref = kref_of(Kd)
     cons = np.nonzero(system.constrained)[0]
     total_free = 0
     for c in np.unique(label[used]):
@@ -94,7 +103,7 @@ def check_constrained(system: System) -> None:
         R = rigid_modes(model, members, x0, L)
         M = [R[cons]]
         for s, Rm in spring_rows:
-            M.append(np.sqrt(s.k / kref) * (Rm @ R))
+            M.append((1.0 if s is None else np.sqrt(s.k / kref)) * (Rm @ R))
         sv = np.linalg.svd(np.vstack(M), compute_uv=False) if sum(len(m) for m in M) else []
         rank = int(np.sum(np.asarray(sv) > 1e-8))
         total_free += 6 - rank
@@ -102,6 +111,11 @@ def check_constrained(system: System) -> None:
         raise ModelError(f"model is under-constrained: {total_free} rigid-body modes free "
                          f"({ncomp} connected parts); add fixed/prescribed displacements or "
                          "springs")
+
+
+def kref_of(Kd: np.ndarray) -> float:
+    """Typical stiffness (median positive diagonal) for scaling springs in the rank test."""
+    return float(np.median(Kd[Kd > 0])) if np.any(Kd > 0) else 1.0
 
 
 def _graph_nodes(model: Model, dofs: np.ndarray) -> np.ndarray:
@@ -216,6 +230,12 @@ class StaticResult:
         e = self.model.spring_map(s) @ self._u(case)
         f = s.k * e + (s.preload if case == s.case else 0.0)
         return float(f[0]) if s.axis is not None else f
+
+    def beam_force(self, beam, case: str = "default") -> np.ndarray:
+        """(12,) forces and moments the beam exerts on its ends' dofs, negated: K (L u), i.e.
+        (f_a, m_a, f_b, m_b) acting *on the beam* at its ends (N, N mm)."""
+        b = self.model.beams[beam] if isinstance(beam, str) else beam
+        return b.K @ (self.model.beam_map(b) @ self._u(case))
 
     def strain(self, case: str = "default") -> np.ndarray:
         """(m, nq, 6) engineering strains (xx, yy, zz, xy, xz, yz) at quadrature points."""

@@ -116,10 +116,11 @@ class StrainGauge:
         object.__setattr__(self, "cells", cells)
 
     def strain(self, U) -> np.ndarray:
-        """Mean strain along the direction for each displacement column of U (n_dofs, k)."""
+        """Mean strain along the direction for each displacement column of U (n_dofs, ...)."""
         U = np.asarray(U)
         n3 = 3 * self.model.n_points
-        return np.asarray(self._op @ (U[:n3] if U.ndim == 1 else U[:n3, :])).ravel()
+        out = np.asarray(self._op @ U[:n3].reshape(n3, -1))
+        return out.reshape(U.shape[1:]) if U.ndim > 1 else out.reshape(())
 
     def dR_R(self, strain, temperature=None) -> np.ndarray:
         """Relative resistance change: (1 + GF eps + c2 eps^2)(1 + tcr (T - T0)) - 1."""

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import numpy as np
+import scipy.sparse as sp
 
 from designlab.errors import ParameterError
 from designlab.fem.assembly import stiffness
@@ -120,8 +121,11 @@ def _gamma(dt: float, tau: float) -> float:
 
 @dataclass(frozen=True, eq=False)
 class HistoryResult:
-    """Response to a :class:`History`: ``U`` (n_dofs, n_steps) displacements, ``F_int``
-    (3 n_points, n_steps) internal nodal forces. Methods mirror StaticResult with a time axis."""
+    """Response to a :class:`History`: ``U`` (n_dofs, n_steps) displacements and ``F_int``,
+    ``F_ext`` (3 n_points, n_steps) internal / applied nodal forces. In batch mode
+    (``solve_history(..., batch=True)``) every load case is its own history with its own
+    amplitude: ``U`` is (n_dofs, n_cases, n_steps) and every output gains a leading case axis
+    (order ``cases``). Methods mirror StaticResult with a time axis."""
 
     system: System
     history: History
@@ -130,6 +134,7 @@ class HistoryResult:
     F_ext: np.ndarray
     factorizations: int
     solvers: tuple[LinearSolver, ...]
+    batch: bool = False
 
     @property
     def model(self) -> Model:
@@ -139,43 +144,69 @@ class HistoryResult:
     def t(self) -> np.ndarray:
         return self.history.t
 
+    @property
+    def cases(self) -> tuple[str, ...]:
+        return self.system.cases
+
     def displacement(self, step: int = -1) -> np.ndarray:
-        """(n_points, 3) displacements at ``step``, mm."""
-        return self.U[: 3 * self.model.n_points, step].reshape(-1, 3)
+        """(n_points, 3) displacements at ``step`` (batch: (n_cases, n_points, 3)), mm."""
+        u = self.U[: 3 * self.model.n_points, ..., step]
+        return np.moveaxis(u.reshape(-1, 3, *u.shape[1:]), (0, 1), (-2, -1))
 
     def reactions(self, step: int = -1) -> np.ndarray:
-        """(n_points, 3) forces of supports/couplings/springs on the body at ``step``, N."""
-        return (self.F_int[:, step] - self.F_ext[:, step]).reshape(-1, 3)
+        """(n_points, 3) forces of supports/couplings/springs on the body at ``step``, N
+        (batch: (n_cases, n_points, 3))."""
+        r = self.F_int[..., step] - self.F_ext[..., step]
+        return np.moveaxis(r.reshape(-1, 3, *r.shape[1:]), (0, 1), (-2, -1))
 
     def wrench(self, where, about=(0.0, 0.0, 0.0)) -> np.ndarray:
-        """(n_steps, 6) reaction resultant (m_x, m_y, m_z, f_x, f_y, f_z) on a set."""
+        """(n_steps, 6) reaction resultant (m_x, m_y, m_z, f_x, f_y, f_z) on a set
+        (batch: (n_cases, n_steps, 6))."""
         ids = self.model.nodes(where)
         d = 3 * ids[:, None] + np.arange(3)
-        r = (self.F_int[d] - self.F_ext[d]).transpose(2, 0, 1)        # (steps, k, 3)
+        r = np.moveaxis(self.F_int[d] - self.F_ext[d], (0, 1), (-2, -1))   # (..., steps, k, 3)
         arm = self.model.mesh.points[ids] - np.asarray(about, float)
-        return np.concatenate([np.cross(arm[None], r).sum(1), r.sum(1)], axis=1)
+        return np.concatenate([np.cross(arm, r).sum(-2), r.sum(-2)], axis=-1)
+
+    def _apply(self, L) -> np.ndarray:
+        """Linear map (k, n_dofs) of every column: (..., n_steps, k)."""
+        U = self.U.reshape(self.U.shape[0], -1)
+        out = np.asarray(L @ U).reshape(L.shape[0], *self.U.shape[1:])
+        return np.moveaxis(out, 0, -1)
 
     def twist(self, ref: RefPoint | str) -> np.ndarray:
-        """(n_steps, 6) (w, v) of a reference point."""
+        """(n_steps, 6) (w, v) of a reference point (batch: (n_cases, n_steps, 6))."""
         ref = self.model.refs[ref] if isinstance(ref, str) else ref
-        vw = (self.model.twist_map(ref) @ self.U).T
-        return np.concatenate([vw[:, 3:], vw[:, :3]], axis=1)
+        vw = self._apply(self.model.twist_map(ref))
+        return np.concatenate([vw[..., 3:], vw[..., :3]], axis=-1)
 
     def spring_force(self, spring: Spring | str) -> np.ndarray:
-        """(n_steps,) spring reading k * elongation + preload(t), N."""
+        """(n_steps,) spring reading k * elongation + preload(t), N (batch: (n_cases,
+        n_steps)); isotropic springs add a trailing axis of 3."""
         s = self.model.springs[spring] if isinstance(spring, str) else spring
-        e = (self.model.spring_map(s) @ self.U)
-        f = s.k * e + s.preload * self.history.amplitude(s.case)[None]
-        return f[0] if s.axis is not None else f.T
+        f = s.k * self._apply(self.model.spring_map(s))                 # (..., steps, 1|3)
+        if s.preload:
+            amp = self.history.amplitude(s.case)
+            if self.batch:
+                amp = np.where(np.array(self.cases)[:, None] == s.case, amp[None], 0.0)
+            f = f + s.preload * amp[..., None]
+        return f[..., 0] if s.axis is not None else f
+
+    def beam_force(self, beam) -> np.ndarray:
+        """(n_steps, 12) K (L u) of a beam (batch: (n_cases, n_steps, 12))."""
+        b = self.model.beams[beam] if isinstance(beam, str) else beam
+        return self._apply(sp.csr_matrix(b.K) @ self.model.beam_map(b))
 
     def dofs(self, dofs) -> np.ndarray:
-        """(n_steps, k) history of selected dofs."""
-        return self.U[np.asarray(dofs)].T
+        """(n_steps, k) history of selected dofs (batch: (n_cases, n_steps, k))."""
+        return np.moveaxis(self.U[np.asarray(dofs)], 0, -1)
 
 
 def solve_history(model: Model, history: History, solver: str = "auto",
-                  check: bool = True) -> HistoryResult:
-    """March ``history`` with the exact exponential update (see module docstring)."""
+                  check: bool = True, batch: bool = False) -> HistoryResult:
+    """March ``history`` with the exact exponential update (see module docstring).
+    ``batch=True`` runs every load case as a separate history (amplitude ``a_c(t)`` on case c
+    alone) in the same march: one factorisation, multi-column solves."""
     system = model.build()
     if check:
         check_constrained(system)
@@ -184,22 +215,31 @@ def solve_history(model: Model, history: History, solver: str = "auto",
         raise ParameterError("history case", sorted(unknown)[0],
                              "one of the model's load cases: " + ", ".join(system.cases))
     t = history.t
+    nsteps = len(t)
     A = np.stack([history.amplitude(c) for c in system.cases], axis=1)   # (steps, cases)
-    F_all = (system.F + system.F_preload) @ A.T                          # (n_dofs, steps)
-    G_all = system.G @ A.T
+    Fc = system.F + system.F_preload
+    if batch:
+        F_all = Fc[:, :, None] * A.T[None]                               # (n_dofs, nb, steps)
+        G_all = system.G[:, :, None] * A.T[None]
+        Fx = system.F[:, :, None] * A.T[None]
+    else:
+        F_all, G_all, Fx = (Fc @ A.T)[:, None], (system.G @ A.T)[:, None], \
+            (system.F @ A.T)[:, None]
+    nb = F_all.shape[1]
     n3 = 3 * model.n_points
     B, dx = model.B, model.basis.dx.ravel()
     pr = _Prony(model)
     nqp = len(dx)
-    h = [np.zeros((len(q), 6)) for q, _, _ in pr.dev]
-    m = [np.zeros(len(q)) for q, _, _ in pr.vol]
-    e_old = np.zeros((nqp, 6))                  # deviatoric (engineering) strain
-    th_old = np.zeros(nqp)
-    cache: dict[float, tuple[LinearSolver, object]] = {}
-    nsteps = len(t)
-    U = np.zeros((system.n_dofs, nsteps), order="F")
-    F_int = np.zeros((n3, nsteps), order="F")
     nq = model.basis.dx.shape[1]
+    h = [np.zeros((len(q), 6, nb)) for q, _, _ in pr.dev]
+    m = [np.zeros((len(q), nb)) for q, _, _ in pr.vol]
+    e_old = np.zeros((nqp, 6, nb))              # deviatoric (engineering) strain
+    th_old = np.zeros((nqp, nb))
+    one = _ONE[None, :, None]
+    cvo = _VOIGT_C[None, :, None]
+    cache: dict[float, tuple[LinearSolver, object]] = {}
+    U = np.zeros((system.n_dofs, nb, nsteps))
+    F_int = np.zeros((n3, nb, nsteps))
     T = system.T
     Tt = T.T.tocsr()
     t_prev = t[0]
@@ -207,7 +247,7 @@ def solve_history(model: Model, history: History, solver: str = "auto",
     for n in range(nsteps):
         dt = 0.0 if n == 0 else float(t[n] - t_prev)
         t_prev = t[n]
-        if n == 0 and not (np.any(F_all[:, 0]) or np.any(G_all[:, 0])):
+        if n == 0 and not (np.any(F_all[..., 0]) or np.any(G_all[..., 0])):
             continue                                    # at rest
         key = round(dt, 12)
         if key not in cache:
@@ -215,46 +255,47 @@ def solve_history(model: Model, history: History, solver: str = "auto",
             Gc, Kc = Ge.reshape(-1, nq)[:, 0], Ke.reshape(-1, nq)[:, 0]
             K = system.K(stiffness(model.basis, Kc - 2.0 * Gc / 3.0, Gc))
             lin = factorize(system.reduce(K), solver, near_null=lambda: near_null_space(system),
-                            coarse=lambda: p1_prolongation(system), n_rhs=nsteps)
+                            coarse=lambda: p1_prolongation(system), n_rhs=nsteps * nb)
             cache[key] = (lin, K)
         lin, K = cache[key]
         # history stress sigma_h (per qp, engineering Voigt)
-        s_h = np.zeros((nqp, 6))
-        p_h = np.zeros(nqp)
+        s_h = np.zeros((nqp, 6, nb))
+        p_h = np.zeros((nqp, nb))
         for (q, g, tau), hi in zip(pr.dev, h):
             a, gam = np.exp(-dt / tau), _gamma(dt, tau)
-            s_h[q] += (pr.G0[q] * g)[:, None] * (a * hi - gam * e_old[q])
+            s_h[q] += (pr.G0[q] * g)[:, None, None] * (a * hi - gam * e_old[q])
         for (q, k, tau), mi in zip(pr.vol, m):
             a, gam = np.exp(-dt / tau), _gamma(dt, tau)
-            p_h[q] += pr.K0[q] * k * (a * mi - gam * th_old[q])
-        sig_h = s_h * _VOIGT_C + p_h[:, None] * _ONE
-        f_h = np.zeros(system.n_dofs)
-        f_h[:n3] = B.T @ (dx[:, None] * sig_h).ravel()
-        rhs = Tt @ (F_all[:, n] - f_h - K @ G_all[:, n])
+            p_h[q] += (pr.K0[q] * k)[:, None] * (a * mi - gam * th_old[q])
+        sig_h = s_h * cvo + p_h[:, None] * one
+        f_h = np.zeros((system.n_dofs, nb))
+        f_h[:n3] = B.T @ (dx[:, None, None] * sig_h).reshape(nqp * 6, nb)
+        rhs = Tt @ (F_all[..., n] - f_h - K @ G_all[..., n])
         q = lin.solve(rhs, x0=q_prev)
         q_prev = q
-        u = T @ q + G_all[:, n]
-        U[:, n] = u
-        eps = (B @ u[:n3]).reshape(nqp, 6)
+        u = T @ q + G_all[..., n]
+        U[..., n] = u
+        eps = (B @ u[:n3]).reshape(nqp, 6, nb)
         th = eps[:, :3].sum(1)
-        e = eps - (th / 3.0)[:, None] * _ONE
-        for i, (q, g, tau) in enumerate(pr.dev):
+        e = eps - (th / 3.0)[:, None] * one
+        for i, (q_, g, tau) in enumerate(pr.dev):
             a, gam = np.exp(-dt / tau), _gamma(dt, tau)
-            h[i] = a * h[i] + gam * (e[q] - e_old[q])
-        for i, (q, k, tau) in enumerate(pr.vol):
+            h[i] = a * h[i] + gam * (e[q_] - e_old[q_])
+        for i, (q_, k, tau) in enumerate(pr.vol):
             a, gam = np.exp(-dt / tau), _gamma(dt, tau)
-            m[i] = a * m[i] + gam * (th[q] - th_old[q])
+            m[i] = a * m[i] + gam * (th[q_] - th_old[q_])
         e_old, th_old = e, th
         # full stress -> internal forces
-        s = (pr.G0 * pr.ginf)[:, None] * e
-        p = pr.K0 * pr.kinf * th
-        for (q, g, tau), hi in zip(pr.dev, h):
-            s[q] += (pr.G0[q] * g)[:, None] * hi
-        for (q, k, tau), mi in zip(pr.vol, m):
-            p[q] += pr.K0[q] * k * mi
-        sig = s * _VOIGT_C + p[:, None] * _ONE
-        F_int[:, n] = B.T @ (dx[:, None] * sig).ravel()
-    F_ext = np.asarray(system.F[:n3] @ A.T, order="F")
+        s_ = (pr.G0 * pr.ginf)[:, None, None] * e
+        p = (pr.K0 * pr.kinf)[:, None] * th
+        for (q_, g, tau), hi in zip(pr.dev, h):
+            s_[q_] += (pr.G0[q_] * g)[:, None, None] * hi
+        for (q_, k, tau), mi in zip(pr.vol, m):
+            p[q_] += (pr.K0[q_] * k)[:, None] * mi
+        sig = s_ * cvo + p[:, None] * one
+        F_int[..., n] = B.T @ (dx[:, None, None] * sig).reshape(nqp * 6, nb)
+    F_ext = Fx[:n3]
+    if not batch:
+        U, F_int, F_ext = U[:, 0], F_int[:, 0], F_ext[:, 0]
     return HistoryResult(system, history, U, F_int, F_ext, len(cache),
-                         tuple(v[0] for v in cache.values()))
-
+                         tuple(v[0] for v in cache.values()), batch)
