@@ -108,3 +108,25 @@ def test_vtu_and_png_written_atomically(tmp_path):
     png = write_png(tmp_path / "r.png", model.mesh, res.displacement(), title="test")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert sorted(x.name for x in tmp_path.iterdir()) == ["r.png", "r.vtu"]
+
+
+def test_gauge_on_batch_history_and_history_vtu(tmp_path):
+    import meshio
+
+    mesh = two_region_block()
+    pr = Prony(g=(0.3,), tau=(1.0,), k=(0.3,), k_tau=(1.0,))
+    model = Model(mesh, materials={"strap": Material("tpu", E=12.0, nu=0.45, prony=pr),
+                                   "trace": "PI-ETPU"})
+    model.fix("xmin")
+    model.traction("xmax", (0.1, 0.0, 0.0), case="pull")
+    model.traction("xmax", (0.0, 0.0, 0.02), case="bend")
+    t = np.linspace(0.0, 3.0, 7)
+    res = solve_history(model, History(t, {"pull": np.ones(7), "bend": np.ones(7)}),
+                        batch=True)
+    g = StrainGauge(model, "trace", direction=(1.0, 0.0, 0.0))
+    r = g.read(res)
+    assert r["strain"].shape == (2, 7) and r["voltage_V"].shape == (2, 7)
+    assert np.all(np.diff(r["strain"][0]) > 0)           # creep of the strap under tension
+    p = write_result_vtu(tmp_path / "h.vtu", res, (0, -1))
+    np.testing.assert_allclose(meshio.read(p).point_data["displacement"],
+                               res.displacement(-1)[0])

@@ -46,14 +46,19 @@ def write_vtu(path, mesh: TetMesh, point_data: dict | None = None,
 
 def result_fields(result, which=None) -> tuple[dict, dict]:
     """(point_data, cell_data) of a StaticResult (``which`` = case, default first) or a
-    HistoryResult (``which`` = step, default last): displacement (mm), cell-mean strain
-    (xx yy zz xy xz yz), and for static results stress and von Mises (MPa)."""
+    HistoryResult (``which`` = step, default last; batch: (case index, step)): displacement
+    (mm), cell-mean strain (xx yy zz xy xz yz), and for static results stress and von Mises
+    (MPa)."""
     from designlab.fem.static import von_mises
 
     model = result.model
     if hasattr(result, "history"):
         step = -1 if which is None else which
-        u = result.U[:, step]
+        if result.batch:
+            case, step = (0, -1) if which is None else which
+            u = result.U[:, case, step]
+        else:
+            u = result.U[:, step]
         eps = (model.B @ u[: 3 * model.n_points]).reshape(model.mesh.n_cells, -1, 6)
         return ({"displacement": u[: 3 * model.n_points].reshape(-1, 3)},
                 {"strain": eps.mean(1)})
