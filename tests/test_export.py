@@ -498,3 +498,24 @@ def test_cli_export_refuses_unprintable_part(tmp_path, capsys, monkeypatch):
     assert code == 2
     assert "trace_left" in err and "nothing written" in err
     assert not out.exists()
+
+
+def test_self_intersecting_solid_is_reported():
+    """Two overlapping boxes' faces sewn into one shell: a self-intersecting solid."""
+    from build123d import Solid
+    from OCP.BRep import BRep_Builder
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeSolid
+    from OCP.TopoDS import TopoDS_Shell
+
+    from designlab.geometry.printability import brep_problems
+
+    a, b = Box(2, 2, 2), Pos(1, 1, 1) * Box(2, 2, 2)
+    builder, shell = BRep_Builder(), TopoDS_Shell()
+    builder.MakeShell(shell)
+    for f in a.faces() + b.faces():
+        builder.Add(shell, f.wrapped)
+    bad = Solid(BRepBuilderAPI_MakeSolid(shell).Solid())
+    assert any("self-intersecting" in p for p in brep_problems(bad))
+    assert brep_problems(a) == []
+    r = check_body("x", Body("x", bad, "PLA"))
+    assert not r.ok and not r.valid_brep
