@@ -175,6 +175,20 @@ def bench_memory(n: int, rows: list) -> None:
              ("max RSS (includes Python + numpy/scipy imports)", f"{rss:.0f} MB", f"solve {t:.2f} s")]
 
 
+class _Printer(list):
+    """A list of (label, value, note) rows that prints each row as soon as it is added."""
+
+    def __iadd__(self, rows):
+        for r in rows:
+            self.append(r)
+        return self
+
+    def append(self, row):
+        super().append(row)
+        x, y, z = row
+        print(f"{x:<58}  {y:>12}  {z}".rstrip(), flush=True)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", default="7,10,16,23")
@@ -192,7 +206,8 @@ def main(argv=None) -> None:
     if a.quick:
         a.sizes, a.assembly_n, a.visco_n, a.ccx_n = "4,6", 6, 4, 6
     sizes = [int(s) for s in a.sizes.split(",")]
-    rows: list = [("designlab FEM benchmark", time.strftime("%Y-%m-%d %H:%M"),
+    rows: list = _Printer()
+    rows += [("designlab FEM benchmark", time.strftime("%Y-%m-%d %H:%M"),
                    f"{os.cpu_count()} cores, load avg {os.getloadavg()[0]:.1f}, "
                    f"OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}")]
     bench_assembly(a.assembly_n, rows)
@@ -202,10 +217,6 @@ def main(argv=None) -> None:
     bench_visco(a.visco_n, rows)
     bench_memory(a.ccx_n, rows)
     rows.append(("load average at the end", f"{os.getloadavg()[0]:.1f}", ""))
-    w0 = max(len(r[0]) for r in rows)
-    w1 = max(len(r[1]) for r in rows)
-    for x, y, z in rows:
-        print(f"{x:<{w0}}  {y:>{w1}}  {z}".rstrip())
 
 
 if __name__ == "__main__":
