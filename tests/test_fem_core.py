@@ -266,3 +266,23 @@ def _swap_ends(K):
     """12x12 stiffness with end a and end b exchanged."""
     p = np.r_[np.arange(6, 12), np.arange(6)]
     return K[np.ix_(p, p)]
+
+
+@pytest.mark.parametrize("order,degree", [(1, 2), (2, 4)])
+def test_mass_and_gravity_totals(order, degree):
+    from designlab.fem.assembly import mass
+
+    mesh = box_tet_mesh(3.0, 2.0, 1.0, 3, 2, 1, material="steel")
+    mesh = mesh.quadratic() if order == 2 else mesh
+    rho = 7.85e-9
+    M = mass(cell_basis(mesh, degree=degree), rho)
+    assert M[0::3, 0::3].sum() == pytest.approx(rho * 6.0, rel=1e-12)
+    assert abs(M - M.T).max() < 1e-12 * abs(M).max()
+    model = Model(mesh)
+    model.gravity()
+    model.fix("zmin")
+    res = solve_static(model)
+    np.testing.assert_allclose(res.applied_wrench("gravity")[3:], [0, 0, -rho * 6.0 * 9810.0],
+                               rtol=1e-12)
+    np.testing.assert_allclose(res.wrench("zmin", "gravity")[3:], [0, 0, rho * 6.0 * 9810.0],
+                               rtol=1e-9, atol=1e-12 * rho * 6.0 * 9810.0)

@@ -193,10 +193,14 @@ def strain_operator(basis: CellBasis) -> sp.csr_matrix:
 
 def body_load(basis: CellBasis, b, cells: np.ndarray | None = None) -> np.ndarray:
     """Consistent nodal forces (3 n,) of a body force density ``b`` (N/mm^3): a (3,) vector,
-    or a callable ``b(x) -> (..., 3)`` of quadrature point coordinates; optionally only over
+    an (m, 3) per-cell array, or a callable ``b(x) -> (..., 3)`` of quadrature point coordinates; optionally only over
     the cells selected by the boolean/int array ``cells``."""
     x = basis.x
-    bq = b(x) if callable(b) else np.broadcast_to(np.asarray(b, float), x.shape)
+    if callable(b):
+        bq = b(x)
+    else:
+        b = np.asarray(b, float)
+        bq = np.broadcast_to(b[:, None, :] if b.shape == (len(x), 3) else b, x.shape)
     w = basis.dx
     sel = np.arange(basis.mesh.n_cells) if cells is None else np.asarray(cells)
     if sel.dtype == bool:
