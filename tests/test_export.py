@@ -298,6 +298,30 @@ def test_writer_failure_leaves_nothing(tmp_path, monkeypatch):
     assert (tmp_path / "strap" / "strap.3mf").read_bytes() == b"old"
 
 
+def test_multi_part_write_is_all_or_nothing(tmp_path, monkeypatch):
+    """The second part's STEP fails: the first part's finished files are not left behind."""
+    import designlab.geometry.export as ex
+
+    real = ex._save_step
+    calls = []
+
+    def second_fails(assy, path):
+        calls.append(path)
+        if len(calls) == 2:
+            raise OSError("disk full")
+        real(assy, path)
+
+    monkeypatch.setattr(ex, "_save_step", second_fails)
+    a, b = prepare("a", strap_bodies()), prepare("b", strap_bodies())
+    out = tmp_path / "deep" / "out"
+    with pytest.raises(OSError):
+        ex.write_all([a, b], out, formats="stl,step", png=False)
+    assert len(calls) == 2 and not (tmp_path / "deep").exists()
+    files = ex.write_all([a, b], out, formats="stl,3mf", png=False)
+    assert sorted(f.relative_to(out).as_posix() for f in files) == [
+        "a/a-strap.stl", "a/a-trace.stl", "a/a.3mf", "b/b-strap.stl", "b/b-trace.stl", "b/b.3mf"]
+
+
 def test_parse_formats():
     assert parse_formats("STL, 3mf,stp") == ("stl", "3mf", "step")
     with pytest.raises(Exception, match="--format"):

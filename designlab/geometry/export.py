@@ -156,12 +156,9 @@ def _save_gltf(assy, path: Path) -> None:
     save_assembly_gltf(assy, path)
 
 
-def write(prepared: Prepared, out_dir: str | Path, formats: Iterable[str] = FORMATS,
-          png: bool = True) -> list[Path]:
-    """Write a checked part under ``out_dir/<part>/``; all-or-nothing. Returns the paths."""
-    require_printable([prepared])
-    formats = parse_formats(formats)
-    target = Path(out_dir) / prepared.name
+def _jobs(prepared: Prepared, formats: tuple[str, ...],
+          png: bool) -> list[tuple[str, Callable[[Path], None]]]:
+    """(file name, writer(path)) for every output of a part."""
     stem = prepared.name
     jobs: list[tuple[str, Callable[[Path], None]]] = []
     if "stl" in formats:
@@ -186,39 +183,75 @@ def write(prepared: Prepared, out_dir: str | Path, formats: Iterable[str] = FORM
         from designlab.geometry.render import render_bodies
 
         jobs.append((f"{stem}.png", lambda p: render_bodies(prepared.bodies, p, title=stem)))
-    return _write_all(target, jobs)
+    return jobs
 
 
-def _write_all(target: Path, jobs: list[tuple[str, Callable[[Path], None]]]) -> list[Path]:
-    """Run each writer on a temp file in ``target``; on success ``os.replace`` all, else delete
-    the temp files (and ``target`` if this call created it)."""
-    created = not target.exists()
-    target.mkdir(parents=True, exist_ok=True)
-    temps: list[tuple[Path, Path]] = []
-    try:
+class _Staging:
+    """Temp files in their target directories, moved into place together by :meth:`commit`,
+    or deleted (with the directories this staging created) by :meth:`abort`."""
+
+    def __init__(self):
+        self.temps: list[tuple[Path, Path]] = []
+        self.created: list[Path] = []
+
+    def run(self, target: Path, jobs) -> None:
+        d = target
+        while not d.exists():
+            self.created.append(d)
+            d = d.parent
+        target.mkdir(parents=True, exist_ok=True)
         for fname, writer in jobs:
             fd, tmp = tempfile.mkstemp(prefix=f".{fname}.", suffix=".tmp" + Path(fname).suffix,
                                        dir=target)
             os.close(fd)
-            temps.append((Path(tmp), target / fname))
+            self.temps.append((Path(tmp), target / fname))
             writer(Path(tmp))
             if Path(tmp).stat().st_size == 0:
                 raise OSError(f"writing {fname} produced an empty file")
-    except BaseException:
-        for tmp, _ in temps:
+
+    def commit(self) -> list[Path]:
+        umask = os.umask(0)
+        os.umask(umask)
+        for tmp, final in self.temps:
+            os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual file mode
+            os.replace(tmp, final)
+        return [final for _, final in self.temps]
+
+    def abort(self) -> None:
+        for tmp, _ in self.temps:
             tmp.unlink(missing_ok=True)
-        if created:
+        for d in sorted(set(self.created), key=lambda x: len(x.parts), reverse=True):
             try:
-                target.rmdir()
+                d.rmdir()
             except OSError:
                 pass
+
+
+def write_all(prepared: Iterable[Prepared], out_dir: str | Path,
+              formats: Iterable[str] = FORMATS, png: bool = True,
+              progress: Callable[[str], None] | None = None) -> list[Path]:
+    """Write checked parts under ``out_dir/<part>/``, all-or-nothing across every file of every
+    part: each file is rendered to a temp file beside its target and only when all succeeded are
+    they moved into place (``os.replace``). Returns the paths written."""
+    prepared = list(prepared)
+    require_printable(prepared)
+    formats = parse_formats(formats)
+    staging = _Staging()
+    try:
+        for p in prepared:
+            if progress:
+                progress(p.name)
+            staging.run(Path(out_dir) / p.name, _jobs(p, formats, png))
+    except BaseException:
+        staging.abort()
         raise
-    umask = os.umask(0)
-    os.umask(umask)
-    for tmp, final in temps:
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual file mode
-        os.replace(tmp, final)
-    return [final for _, final in temps]
+    return staging.commit()
+
+
+def write(prepared: Prepared, out_dir: str | Path, formats: Iterable[str] = FORMATS,
+          png: bool = True) -> list[Path]:
+    """Write one checked part under ``out_dir/<part>/`` (see :func:`write_all`)."""
+    return write_all([prepared], out_dir, formats, png)
 
 
 def export_bodies(name: str, bodies: Mapping[str, Body], out_dir: str | Path,
@@ -280,14 +313,14 @@ def export_parts(parts: Mapping[str, Any], out_dir: str | Path, formats: Iterabl
         prepared.append(prepare_part(part, name, nozzle, layer))
         done += 1
     require_printable(prepared)
-    files: list[Path] = []
-    for p in prepared:
+    counter = iter(range(done, total))
+
+    def step(name: str) -> None:
         if progress:
-            progress(f"write {p.name}", done, total)
-        files += write(p, out_dir, formats, png)
-        done += 1
+            progress(f"write {name}", next(counter), total)
+    files = write_all(prepared, out_dir, formats, png, step)
     if progress:
-        progress("done", done, total)
+        progress("done", total, total)
     return ExportResult(files, [r for p in prepared for r in p.reports])
 
 
@@ -299,5 +332,11 @@ def write_png(bodies: Mapping[str, Body], path: str | Path, title: str = "",
     path = Path(path)
     if path.suffix.lower() != ".png":
         raise ParameterError("--out", str(path), "a file name ending in .png")
-    return _write_all(path.parent, [(path.name, lambda p: render_bodies(
-        bodies, p, size=size, title=title))])[0]
+    staging = _Staging()
+    try:
+        staging.run(path.parent, [(path.name, lambda p: render_bodies(
+            bodies, p, size=size, title=title))])
+    except BaseException:
+        staging.abort()
+        raise
+    return staging.commit()[0]
