@@ -1,13 +1,17 @@
-"""Printable export of a part: per-body STL, one (multi-material) 3MF, coloured STEP and glTF of
-the assembly, and a PNG picture. Units mm.
+"""Printable export of a part: per-body STL, one 3MF (multi-material where bodies are embedded),
+coloured STEP and glTF of the assembly, and a PNG picture. Units mm; build direction +z.
 
 Export runs in two steps so that nothing is half-written:
 
-1. :func:`prepare` builds the bodies, tessellates the printed ones (:func:`tessellate`) and runs
-   the printability checks; :func:`require_printable` raises :class:`PrintabilityError` (one line,
-   every body's report attached) when any body fails;
-2. :func:`write` renders every file into a temporary file inside the target directory and, only
-   when all of them succeeded, moves each into place with ``os.replace``.
+1. :func:`prepare` tessellates the printed bodies (:func:`tessellate`, 0.01 mm / 0.2 rad) and
+   runs the printability checks; :func:`require_printable` raises :class:`PrintabilityError`
+   (one line, every body's report attached) when any body of any part fails;
+2. :func:`write_all` renders every file of every part into a temporary file beside its target
+   and, only when all of them succeeded, moves each into place with ``os.replace``.
+
+The 3MF holds one object per host-material body, with the bodies of other extruders it touches
+as volumes of that object (:func:`print_objects`), laid out side by side on the plate. Bought
+bodies (``printed=False``) appear in STEP/glTF/PNG only.
 
 Layout: ``OUT/<part>/<part>-<body>.stl``, ``<part>.3mf``, ``<part>.step``, ``<part>.glb``,
 ``<part>.png``.
@@ -83,7 +87,10 @@ def prepare_part(part: Any, name: str | None = None, nozzle: float = 0.4,
     glTF come from :func:`designlab.geometry.assembly.assembly`."""
     from designlab.geometry import assembly as asm
 
-    name = name or type(part).__name__.lower()
+    if name is None:
+        from designlab.geometry.parts import part_name
+
+        name = part_name(part)
     return prepare(name, part.build(), nozzle, layer, assembly=lambda: asm.assembly(part))
 
 
