@@ -43,7 +43,9 @@ def test_relaxation_after_a_step_is_exact():
     force = -res.wrench("xmin")[:, 3]
     analytic = W * W * eps0 * E0 * PR2.relaxation(hist.t)
     np.testing.assert_allclose(force, analytic, rtol=1e-9)
-    assert res.factorizations == 2            # glassy jump + constant dt
+    assert res.factorizations == 1            # constant dt; the glassy jump by PCG on it
+    pcg = [s for s in res.solvers if s.kind == "pcg"]
+    assert len(pcg) == 1 and max(pcg[0].iterations) <= 10
 
 
 def test_relaxation_after_a_ramp_matches_convolution():
@@ -76,7 +78,7 @@ def test_creep_under_constant_load_within_one_percent():
     J = 1 / Einf - (1 / Einf - 1 / E0) * np.exp(-hist.t * PR1.g_inf / tau)
     np.testing.assert_allclose(u_end, s0 * J * L, rtol=0.01)
     assert abs(u_end[0] / (s0 / E0 * L) - 1) < 1e-9          # instantaneous response
-    assert res.factorizations == 2
+    assert res.factorizations == 1
 
 
 def test_deviatoric_and_volumetric_split():

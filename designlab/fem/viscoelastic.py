@@ -12,8 +12,10 @@ gamma_i = (1 - a_i) tau_i / dt (-> 1 for dt = 0: a jump, the glassy response). I
 whenever the strain history is piecewise linear on the time grid (e.g. relaxation after a step
 or a ramp), unconditionally stable, and second-order accurate otherwise (creep under constant
 load: error O(dt^2)). With a constant dt the algorithmic moduli G_eff = G0 (g_inf + sum g_i
-gamma_i), K_eff likewise, are constant: the system is factored once per distinct step size
-(a jump, dt = 0, needs the glassy matrix once more).
+gamma_i), K_eff likewise, are constant: the system is factored once, for the step size used
+most; other step sizes (a jump, dt = 0, needs the glassy moduli) are solved by CG
+preconditioned with that factorisation (a few iterations: the matrices differ only by the
+moduli scaling per region). With the AMG solver each step size gets its own preconditioner.
 
 Internal variables live at the quadrature points; strains come from one sparse product with
 the strain operator B and stresses return as forces through B^T.
@@ -24,8 +26,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
-from designlab.errors import ParameterError
+from designlab.errors import ModelError, ParameterError
 from designlab.fem.assembly import stiffness
 from designlab.fem.model import Model, RefPoint, Spring, System
 from designlab.fem.solvers import LinearSolver, factorize
@@ -244,6 +247,19 @@ def solve_history(model: Model, history: History, solver: str = "auto",
     Tt = T.T.tocsr()
     t_prev = t[0]
     q_prev = None
+    # the step size used most: factor it first and only (other sizes: preconditioned CG)
+    steps = np.round(np.diff(t), 12)
+    sizes, counts = np.unique(steps, return_counts=True) if len(steps) else ([0.0], [1])
+    main_dt = float(sizes[int(np.argmax(counts))])
+    main = None
+    if main_dt != 0.0 and len(steps):
+        Ge, Ke = pr.effective(main_dt)
+        Gc, Kc = Ge.reshape(-1, nq)[:, 0], Ke.reshape(-1, nq)[:, 0]
+        K = system.K(stiffness(model.basis, Kc - 2.0 * Gc / 3.0, Gc))
+        lin = factorize(system.reduce(K), solver, near_null=lambda: near_null_space(system),
+                        coarse=lambda: p1_prolongation(system), n_rhs=nsteps * nb)
+        main = (lin,)
+        cache[main_dt] = (lin, K)
     for n in range(nsteps):
         dt = 0.0 if n == 0 else float(t[n] - t_prev)
         t_prev = t[n]
@@ -254,8 +270,14 @@ def solve_history(model: Model, history: History, solver: str = "auto",
             Ge, Ke = pr.effective(dt)
             Gc, Kc = Ge.reshape(-1, nq)[:, 0], Ke.reshape(-1, nq)[:, 0]
             K = system.K(stiffness(model.basis, Kc - 2.0 * Gc / 3.0, Gc))
-            lin = factorize(system.reduce(K), solver, near_null=lambda: near_null_space(system),
-                            coarse=lambda: p1_prolongation(system), n_rhs=nsteps * nb)
+            Kr = system.reduce(K)
+            if key == main_dt or main is None or main[0].kind == "amg":
+                lin = factorize(Kr, solver, near_null=lambda: near_null_space(system),
+                                coarse=lambda: p1_prolongation(system), n_rhs=nsteps * nb)
+                if key == main_dt:
+                    main = (lin,)
+            else:       # other step sizes: CG preconditioned by the main factorisation
+                lin = _Preconditioned(Kr, main[0])
             cache[key] = (lin, K)
         lin, K = cache[key]
         # history stress sigma_h (per qp, engineering Voigt)
@@ -297,5 +319,33 @@ def solve_history(model: Model, history: History, solver: str = "auto",
     F_ext = Fx[:n3]
     if not batch:
         U, F_int, F_ext = U[:, 0], F_int[:, 0], F_ext[:, 0]
-    return HistoryResult(system, history, U, F_int, F_ext, len(cache),
-                         tuple(v[0] for v in cache.values()), batch)
+    solvers = tuple(v[0] for v in cache.values())
+    return HistoryResult(system, history, U, F_int, F_ext,
+                         sum(not isinstance(x, _Preconditioned) for x in solvers), solvers, batch)
+
+
+class _Preconditioned(LinearSolver):
+    """CG on ``K`` preconditioned by another step size's factorisation (same sparsity, moduli
+    scaled per region: converges in a few iterations)."""
+
+    kind = "pcg"
+
+    def __init__(self, K, pre: LinearSolver, rtol: float = 1e-12):
+        super().__init__(K)
+        self.K, self.pre, self.rtol = K, pre, rtol
+        self.iterations: list[int] = []
+
+    def _solve(self, F):
+        M = spla.LinearOperator(self.K.shape, matvec=lambda r: self.pre.solve(r), dtype=float)
+        U = np.zeros_like(F)
+        for j in range(F.shape[1]):
+            if not np.any(F[:, j]):
+                continue
+            it = [0]
+            x, info = spla.cg(self.K, F[:, j], rtol=self.rtol, atol=0.0, maxiter=200, M=M,
+                              callback=lambda _: it.__setitem__(0, it[0] + 1))
+            if info != 0:
+                raise ModelError("viscoelastic step did not converge (preconditioned CG)")
+            self.iterations.append(it[0])
+            U[:, j] = x
+        return U
