@@ -58,6 +58,14 @@ def test_tessellate_volumes_and_closure():
     assert ball.is_watertight and ball.volume == pytest.approx(4 / 3 * np.pi * 27, rel=5e-3)
 
 
+def test_tessellate_list_of_disjoint_solids():
+    """A list of solids (build123d's ShapeList after fusing disjoint parts) is one mesh."""
+    parts = Box(2, 2, 2).fuse(Pos(5, 0, 0) * Box(2, 2, 2))
+    m = tessellate(list(parts) if isinstance(parts, list) else [parts])
+    assert m.is_watertight and m.volume == pytest.approx(16.0)
+    assert len(m.split(only_watertight=True)) == 2
+
+
 def test_tessellate_rejects_open_shell():
     face = Box(10, 4, 2).faces()[0]
     with pytest.raises(MeshingError):

@@ -18,7 +18,19 @@ from designlab.errors import MeshingError
 
 
 def topods(obj: Any):
-    """The OCP ``TopoDS_Shape`` inside a Body, build123d/CadQuery shape or a TopoDS_Shape."""
+    """The OCP ``TopoDS_Shape`` inside a Body, build123d/CadQuery shape or a TopoDS_Shape; a list
+    of those (e.g. build123d's ``ShapeList`` from fusing disjoint solids) becomes a compound."""
+    if isinstance(obj, (list, tuple)):
+        from OCP.BRep import BRep_Builder
+        from OCP.TopoDS import TopoDS_Compound
+
+        if not obj:
+            raise MeshingError("cannot tessellate an empty list of shapes")
+        builder, comp = BRep_Builder(), TopoDS_Compound()
+        builder.MakeCompound(comp)
+        for item in obj:
+            builder.Add(comp, topods(item))
+        return comp
     shape = getattr(obj, "shape", obj)  # Body -> its shape
     shape = getattr(shape, "wrapped", shape)  # build123d / cadquery -> TopoDS_Shape
     if shape is None or not hasattr(shape, "IsNull") or shape.IsNull():
