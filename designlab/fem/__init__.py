@@ -1,4 +1,4 @@
-"""Finite elements: TET4/TET10 elasticity, viscoelastic Prony materials, solvers, transducers (mm, N, MPa, s).
+"""Finite elements: TET4/TET10 elasticity, Prony viscoelasticity, solvers, transducers (mm N MPa s).
 
 API summary (stable names)::
 

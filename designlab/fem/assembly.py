@@ -109,17 +109,6 @@ def _bsr_to_csr(pat: BlockPattern, blocks: np.ndarray) -> sp.csr_matrix:
     return K.tocsr()
 
 
-def per_cell(values, mesh: TetMesh) -> np.ndarray:
-    """Broadcast a scalar or per-region dict {region id: value} to an (m,) array."""
-    if isinstance(values, dict):
-        table = np.zeros(int(mesh.region.max()) + 1 if mesh.n_cells else 1)
-        for k, v in values.items():
-            if 0 <= k < len(table):
-                table[k] = v
-        return table[mesh.region]
-    return np.broadcast_to(np.asarray(values, float), (mesh.n_cells,))
-
-
 def stiffness(basis: CellBasis, lam, mu) -> sp.csr_matrix:
     """Isotropic elastic stiffness (N/mm) for Lame parameters ``lam``, ``mu`` (MPa): scalars
     or (m,) per cell. Symmetric CSR of size 3 n_points.
@@ -194,8 +183,8 @@ def strain_operator(basis: CellBasis) -> sp.csr_matrix:
 
 def body_load(basis: CellBasis, b, cells: np.ndarray | None = None) -> np.ndarray:
     """Consistent nodal forces (3 n,) of a body force density ``b`` (N/mm^3): a (3,) vector,
-    an (m, 3) per-cell array, or a callable ``b(x) -> (..., 3)`` of quadrature point coordinates; optionally only over
-    the cells selected by the boolean/int array ``cells``."""
+    an (m, 3) per-cell array, or a callable ``b(x) -> (..., 3)`` of quadrature point
+    coordinates; optionally only over the cells selected by the boolean/int array ``cells``."""
     x = basis.x
     if callable(b):
         bq = b(x)

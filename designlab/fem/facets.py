@@ -34,7 +34,8 @@ def _face_table(mesh: TetMesh):
 
 
 def orient_outward(mesh: TetMesh, tri: np.ndarray) -> np.ndarray:
-    """Copy of ``tri`` with every triangle ordered so its normal points out of its cell."""
+    """Copy of ``tri`` with every triangle ordered so its normal points out of its cell
+    (facets between two cells, e.g. region interfaces: out of the first cell found)."""
     tri = np.asarray(tri, np.int64)
     if len(tri) == 0:
         return tri

@@ -14,7 +14,7 @@ Components are strings: ``"xyz"``, ``"x"``, ``"all"``; rotations of reference po
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
@@ -136,6 +136,9 @@ class System:
 
     def reduce(self, K: sp.spmatrix) -> sp.csr_matrix:
         """T^T K T (symmetric positive definite when the model is properly constrained)."""
+        if self.T.nnz == self.T.shape[1]:          # no rigid couplings: a plain selection
+            K = sp.csr_matrix(K)
+            return K[self.free_dofs][:, self.free_dofs].tocsr()
         Kr = (self.T.T @ K @ self.T).tocsr()
         return ((Kr + Kr.T) * 0.5).tocsr()
 
