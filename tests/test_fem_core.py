@@ -286,3 +286,22 @@ def test_mass_and_gravity_totals(order, degree):
                                rtol=1e-12)
     np.testing.assert_allclose(res.wrench("zmin", "gravity")[3:], [0, 0, rho * 6.0 * 9810.0],
                                rtol=1e-9, atol=1e-12 * rho * 6.0 * 9810.0)
+
+
+def test_floating_second_body_is_reported():
+    a = box_tet_mesh(1.0, 1.0, 1.0, 1, 1, 1)
+    b = box_tet_mesh(1.0, 1.0, 1.0, 1, 1, 1, origin=(3.0, 0.0, 0.0))
+    n = a.n_points
+    fs = dict(a.facet_sets) | {"b_" + k: v + n for k, v in b.facet_sets.items()}
+    two = TetMesh(np.vstack([a.points, b.points]), np.vstack([a.cells, b.cells + n]),
+                  np.zeros(2 * a.n_cells, np.int64), {0: "block"}, {"block": "ABS"}, fs)
+    model = Model(two)
+    model.fix("xmin")
+    with pytest.raises(ModelError, match=r"6 rigid-body modes free \(2 connected parts\)"):
+        solve_static(model)
+    # a spring from the second body to ground along x leaves 5
+    model.spring("s", a=int(n), k=1.0, axis=(1, 0, 0))
+    with pytest.raises(ModelError, match=r"5 rigid-body modes free"):
+        solve_static(model)
+    model.fix("b_xmin")
+    assert solve_static(model).displacement().shape == (2 * n, 3)

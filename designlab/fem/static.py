@@ -76,9 +76,6 @@ def check_constrained(system: System) -> None:
         nodes = np.unique(_graph_nodes(model, Lb.indices))
         if len(nodes) > 1:
             links.append(np.column_stack([nodes[:-1], nodes[1:]]))
-    for r in model.refs.values():
-        if r.kind == "distributing" and len(r.nodes) > 1:
-            links.append(np.column_stack([r.nodes[:-1], r.nodes[1:]]))
     if links:
         lk = np.vstack(links)
         rows.append(lk[:, 0])
