@@ -1,0 +1,510 @@
+"""Virtual load test of the seed 000 arch strap: F_n and F_x on the finger pad -> Ch1, Ch2.
+
+The FEM model (mm, N, MPa, s):
+
+* the meshed strap (NinjaFlex) with its two embedded meanders (PI-ETPU), materials from the mesh;
+* **worn configuration** (default): the strap is printed flat, but worn it wraps around the
+  fingertip. Its arch planform is the development of a cone: the arch centre becomes the cone
+  apex, the arch centreline a circle of radius ``finger_radius`` around the finger axis, every
+  point keeps its distance to the inner face (which lies on the finger). The flat mesh is mapped
+  onto that cone (:func:`wrap_points`, an isometry of the inner face) and used as the stress-free
+  reference (the pre-stress of wrapping is neglected: linear analysis);
+* the tabs (``nail_plate`` facets) are fixed: they are held on the nail plate;
+* the finger pad (``finger_contact``, inner face around the apex) pushes the strap: ``F_n`` along
+  the outward normal of the inner face at the pad centre, ``F_x`` along the strap centreline there
+  (towards the right gauge), applied through a distributing (RBE3-like) coupling at the pad centre
+  (load = "coupling") or as a uniform traction over the contact (load = "traction"); the pulp is
+  soft, so it spreads the load over the contact without stiffening it (no rigid coupling);
+* two gauges: volume-mean strain of ``trace_left`` / ``trace_right`` along the strap centreline
+  (the meander legs' direction: the circle around the arch centre, mapped like the mesh), GF from
+  the trace material, dR/R -> voltage divider (2.2 kOhm, 5 V, seed 000 Fig. 3) -> Ch1 (left),
+  Ch2 (right); readings are voltage changes from the unloaded state.
+
+Why worn: flat, the strap is a 0.6 mm plate loaded across its thickness, the gauges sit at its
+mid-plane, and a linear model has no mechanism turning F_n into gauge strain (only bending,
+whose mean over a mid-plane gauge vanishes; the deflection would be ~100 mm per N). Wrapped, the
+band carries the pad's push as membrane tension on both sides of the apex (same sign in Ch1 and
+Ch2: the sum reads F_n) while F_x stretches one side and relaxes the other (the difference reads
+F_x), the premise of seed 000. ``configuration="flat"`` is kept for comparison.
+
+Elastic materials: one static solve with the unit load cases ``F_n`` and ``F_x`` scaled by the
+protocol; with Prony series: the whole history through
+:func:`~designlab.fem.viscoelastic.solve_history` (both cases, one History).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from designlab.calibration.calibration_matrix import (condition_number, fit_calibration_matrix,
+                                                      linearity_percent)
+from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
+from designlab.calibration.protocols import StrapLoadTest
+from designlab.errors import ParameterError
+from designlab.params import rng, validate
+
+CHANNELS = ("Ch1", "Ch2")          #: Ch1 = left gauge (x < 0), Ch2 = right gauge (x > 0)
+GAUGE_REGIONS = ("trace_left", "trace_right")
+CASES = ("F_n", "F_x")
+
+
+@dataclass(frozen=True)
+class StrapModelSettings:
+    """FEM settings of the strap test (mm).
+
+    The mesh is made with fTetWild directly on the part's bodies and facet sets, with the part's
+    refinement spheres at ``refinement_edge`` (0 = none): ``mesh_part`` always adds the part's
+    0.2 mm spheres, which give ~180k cells (400 s to mesh), far more than the gauges' *mean*
+    strain needs: edges of 1.5 mm (5.6k TET10), 1.0 mm (10.4k) and 1.5 mm with 0.5 mm at the
+    gauges (7.8k) give strain per N within 1.3 % (F_n) and 3 % (F_x) of each other.
+
+    ``tissue_stiffness``: the finger under the strap as a Winkler foundation. Without it the
+    wrapped band is held only at its tabs and bends freely (7.5 mm at the apex per N); the
+    pulp's ~2 N/mm under a ~1 cm^2 contact (fingertip indentation tests) gives ~0.02 N/mm^3.
+    Gauge strain per N changes by +40 % from none to 0.01 and by +9 % from 0.01 to 0.05."""
+
+    edge_length: float = field(default=1.5, metadata=rng(0.2, 5, unit="mm"))
+    refinement_edge: float = field(default=0.0, metadata=rng(0, 5, unit="mm",
+                                   doc="edge at the gauges/pads, 0 = no refinement"))
+    epsilon: float = field(default=0.05, metadata=rng(0.001, 0.2, unit="mm",
+                           doc="fTetWild envelope"))
+    quality: str = field(default="coarse", metadata=rng(choices=("coarse", "default", "fine")))
+    order: int = field(default=2, metadata=rng(choices=(1, 2)))
+    configuration: str = field(default="worn", metadata=rng(choices=("worn", "flat")))
+    finger_radius: float = field(default=9.0, metadata=rng(3, 20, unit="mm",
+                                 doc="finger radius under the strap centreline (index: ~9)"))
+    load: str = field(default="coupling", metadata=rng(choices=("coupling", "traction")))
+    tissue_stiffness: float = field(default=0.02, metadata=rng(0, 10, unit="N/mm^3",
+                                    doc="finger support under the strap outside the pad "
+                                        "(Winkler springs normal to the inner face), 0 = none"))
+    solver: str = field(default="direct", metadata=rng(choices=("auto", "direct", "cholmod",
+                                                                "amg")))
+    read_fraction: float = field(default=0.2, metadata=rng(0, 1, lo_open=True,
+                                 doc="end part of each staircase hold that is averaged"))
+
+    def __post_init__(self):
+        validate(self)
+
+
+# ------------------------------------------------------------------------------------ geometry
+
+def _polar(part, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distance to the arch centre and angle from +y towards +x (rad) of flat points."""
+    cx, cy = part.center
+    dx, dy = x[..., 0] - cx, x[..., 1] - cy
+    return np.hypot(dx, dy), np.arctan2(dx, dy)
+
+
+def _cone(part, finger_radius: float) -> tuple[float, float]:
+    sa = finger_radius / part.radius
+    if not 0 < sa < 1:
+        raise ParameterError("finger_radius", finger_radius,
+                             f"< arch radius {part.radius:.3g} mm (the arch wraps a cone)")
+    return sa, math.sqrt(1 - sa * sa)
+
+
+def wrap_points(part, x: np.ndarray, finger_radius: float) -> np.ndarray:
+    """Flat (printed) points -> worn: the planform on a cone around the finger axis (+y world),
+    the pad side at +z, the right gauge towards +x; ``z`` becomes the distance from the inner
+    face along the cone's outward normal. mm."""
+    x = np.asarray(x, float)
+    sa, ca = _cone(part, finger_radius)
+    rho, phi = _polar(part, x)
+    psi = phi / sa
+    er = np.stack([np.sin(psi), np.zeros_like(psi), np.cos(psi)], -1)
+    ey = np.array([0.0, 1.0, 0.0])
+    surf = (rho * sa)[..., None] * er + (rho * ca)[..., None] * ey
+    normal = ca * er - sa * ey
+    return surf + x[..., 2:3] * normal
+
+
+def worn_mesh(part, mesh, finger_radius: float):
+    """The flat mesh mapped by :func:`wrap_points` (same cells, sets and regions)."""
+    from designlab.geometry.mesh import TetMesh
+
+    pts = wrap_points(part, mesh.points, finger_radius)
+    return TetMesh(pts, mesh.cells, mesh.region, dict(mesh.region_names), dict(mesh.materials),
+                   dict(mesh.facet_sets), dict(mesh.point_sets))
+
+
+def centreline_direction(part, settings: StrapModelSettings) -> Callable[[np.ndarray], np.ndarray]:
+    """d(x): unit direction of the strap centreline (the meander legs) at points of the model."""
+    if settings.configuration == "flat":
+        def flat(x):
+            _, phi = _polar(part, x)
+            return np.stack([np.cos(phi), -np.sin(phi), np.zeros_like(phi)], -1)
+        return flat
+
+    def worn(x):
+        psi = np.arctan2(x[..., 0], x[..., 2])       # circles around the finger axis (y)
+        return np.stack([np.cos(psi), np.zeros_like(psi), -np.sin(psi)], -1)
+    return worn
+
+
+def pad_frame(part, settings: StrapModelSettings) -> dict[str, np.ndarray]:
+    """Pad centre (inner face at the apex), outward normal ``n`` (F_n) and centreline tangent
+    ``t`` (F_x, towards the right gauge) in the model's frame."""
+    apex = np.array([[0.0, part.arch_height, 0.0]])
+    if settings.configuration == "flat":
+        return {"centre": apex[0], "n": np.array([0.0, 0.0, 1.0]), "t": np.array([1.0, 0.0, 0.0])}
+    sa, ca = _cone(part, settings.finger_radius)
+    return {"centre": wrap_points(part, apex, settings.finger_radius)[0],
+            "n": np.array([0.0, -sa, ca]), "t": np.array([1.0, 0.0, 0.0])}
+
+
+def mesh_strap(part, settings: StrapModelSettings):
+    """Flat TET mesh of the strap and traces with the part's facet sets (see the settings)."""
+    from designlab.geometry.meshing import mesh_bodies_detailed
+
+    built = part.build()
+    bodies = [built[n] for n in part.mesh_bodies()]
+    ref = [(c, r, settings.refinement_edge) for c, r, _ in part.refinement()] \
+        if settings.refinement_edge > 0 else []
+    res = mesh_bodies_detailed(bodies, part.facet_sets(), edge_length=settings.edge_length,
+                               refinement=ref, epsilon=settings.epsilon,
+                               quality=settings.quality, order=settings.order)
+    return res.mesh
+
+
+# ------------------------------------------------------------------------------------ model
+
+def gauge_cells(part, flat_mesh, region: str) -> np.ndarray:
+    """Cells of a trace body that carry the gauge's resistance: the meander (legs, turns and
+    leads) without the connection pads. The pads (2 x 3 mm, 0.4 mm high, rising to the top
+    face) have a small fraction of the resistance of the 0.8 x 0.2 mm legs but ~40 % of the
+    trace volume, and they sit off the mid-plane in the strap's bending zone: a volume mean
+    including them reads their bending strain."""
+    rid = flat_mesh.region_id(region)
+    cells = np.nonzero(flat_mesh.region == rid)[0]
+    c = flat_mesh.points[flat_mesh.cells[cells, :4]].mean(axis=1)
+    _, phi = _polar(part, c)
+    return cells[np.abs(phi) < part.gauge_angles()["p0"]]
+
+
+def inner_face_nodes(part, flat_mesh) -> tuple[np.ndarray, np.ndarray]:
+    """Corner nodes of the inner (finger-side) face outside the pad contact and the tabs, and
+    their lumped areas (mm^2): where the finger supports the strap."""
+    from designlab.geometry.mesh_facets import centroids_normals
+
+    tri = flat_mesh.boundary_facets()
+    cen, nrm = centroids_normals(flat_mesh.points, tri)
+    rho, phi = _polar(part, cen)
+    inner = (nrm[:, 2] < -0.9) & (np.abs(cen[:, 2]) < part.layer_height / 2)
+    arch = np.abs(phi) < part.half_angle
+    contact = np.abs(phi) * part.radius <= part.contact_length / 2
+    tri = tri[inner & arch & ~contact]
+    p = flat_mesh.points[tri]
+    area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+    w = np.bincount(tri.ravel(), weights=np.repeat(area / 3.0, 3), minlength=flat_mesh.n_points)
+    ids = np.nonzero(w > 0)[0]
+    return ids, w[ids]
+
+
+def build_model(part, flat_mesh, settings: StrapModelSettings, materials=None):
+    """Model of the strap on its finger from the flat (printed) mesh: worn (or flat) geometry,
+    tabs fixed, the finger's support (``tissue_stiffness``), unit load cases ``F_n`` and ``F_x``
+    (1 N) at the pad. Returns (model, gauges {channel: StrainGauge}, pad frame)."""
+    from designlab.fem import Model
+    from designlab.fem.facets import area_weights, facet_basis
+    from designlab.fem.transducers import StrainGauge
+
+    worn = settings.configuration == "worn"
+    mesh = worn_mesh(part, flat_mesh, settings.finger_radius) if worn else flat_mesh
+    model = Model(mesh, materials)
+    model.fix("nail_plate")
+    frame = pad_frame(part, settings)
+    if settings.load == "coupling":
+        pad = model.distributing_coupling("pad", "finger_contact", ref_point=frame["centre"])
+        model.force(pad, force=frame["n"], case="F_n")
+        model.force(pad, force=frame["t"], case="F_x")
+    else:
+        area = float(area_weights(mesh, facet_basis(mesh, model.facets("finger_contact"))).sum())
+        model.traction("finger_contact", frame["n"] / area, case="F_n")
+        model.traction("finger_contact", frame["t"] / area, case="F_x")
+    if settings.tissue_stiffness > 0:
+        ids, area = inner_face_nodes(part, flat_mesh)
+        if worn:
+            sa, ca = _cone(part, settings.finger_radius)
+            psi = np.arctan2(mesh.points[ids, 0], mesh.points[ids, 2])
+            normals = np.column_stack([ca * np.sin(psi), np.full(len(ids), -sa),
+                                       ca * np.cos(psi)])
+        else:
+            normals = np.tile([0.0, 0.0, 1.0], (len(ids), 1))
+        for i, a, nv in zip(ids, area, normals):
+            model.spring(f"tissue_{i}", a=int(i), k=settings.tissue_stiffness * a, axis=nv)
+    d = centreline_direction(part, settings)
+    gauges = {ch: StrainGauge(model, gauge_cells(part, flat_mesh, reg), direction=d, name=ch)
+              for ch, reg in zip(CHANNELS, GAUGE_REGIONS)}
+    return model, gauges, frame
+
+
+@dataclass
+class StrapPrediction:
+    """Virtual test results: forces (N), gauge strains, channel voltages (V), report."""
+
+    t: np.ndarray
+    F_n: np.ndarray
+    F_x: np.ndarray
+    strain: np.ndarray          # (n_t, 2) mean strain along the legs, Ch1, Ch2
+    voltage: np.ndarray         # (n_t, 2) divider output, V
+    dV: np.ndarray              # (n_t, 2) change from the unloaded state, V
+    report: dict[str, Any]
+
+
+def run(part=None, protocol: StrapLoadTest | None = None,
+        settings: StrapModelSettings | None = None, *, materials=None, mesh=None,
+        progress: Callable[[str], None] | None = None) -> StrapPrediction:
+    """Mesh (unless ``mesh``, the flat printed mesh, is given), wrap, build, run the protocol's
+    history and evaluate the metrics."""
+    from designlab.fem import solve_static
+    from designlab.fem.viscoelastic import History, solve_history
+    from designlab.geometry.strap import ArchStrap
+
+    part = part or ArchStrap()
+    protocol = protocol or StrapLoadTest()
+    settings = settings or StrapModelSettings()
+    say = progress or (lambda s: None)
+    timings: dict[str, float] = {}
+    t0 = time.perf_counter()
+    if mesh is None:
+        say("meshing")
+        mesh = mesh_strap(part, settings)
+    timings["mesh"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    say("assembling")
+    model, gauges, frame = build_model(part, mesh, settings, materials)
+    mesh = model.mesh
+    model.build()
+    timings["assemble"] = time.perf_counter() - t0
+
+    t, fn, fx = protocol.time_history()
+    t0 = time.perf_counter()
+    viscous = any(m.prony is not None for m in model.region_materials.values())
+    if viscous:
+        say("viscoelastic history")
+        res = solve_history(model, History(t, {"F_n": fn, "F_x": fx}), solver=settings.solver)
+        strain = np.column_stack([gauges[c].strain(res.U) for c in CHANNELS])
+        unit = None
+    else:
+        say("static solve")
+        res = solve_static(model, solver=settings.solver)
+        U = res.U[:, [res.system.case_index(c) for c in CASES]]
+        unit = np.array([gauges[c].strain(U) for c in CHANNELS])       # (channel, case)
+        strain = np.column_stack([fn, fx]) @ unit.T
+    timings["solve"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    voltage = np.column_stack([gauges[c].voltage(strain[:, i]) for i, c in enumerate(CHANNELS)])
+    v0 = np.array([float(gauges[c].voltage(0.0)) for c in CHANNELS])
+    dV = voltage - v0
+    report = evaluate(protocol, settings, t, fn, fx, dV, strain)
+    timings["metrics"] = time.perf_counter() - t0
+    report["timings_s"] = timings
+    report["mesh"] = {"points": int(mesh.n_points), "cells": int(mesh.n_cells),
+                      "order": int(mesh.order), "dofs": int(model.n_dofs),
+                      "edge_length_mm": settings.edge_length,
+                      "refinement_edge_mm": settings.refinement_edge}
+    report["model"] = {
+        "configuration": settings.configuration,
+        "finger_radius_mm": settings.finger_radius if settings.configuration == "worn" else None,
+        "load": settings.load, "pad_centre_mm": frame["centre"].tolist(),
+        "F_n_direction": frame["n"].tolist(), "F_x_direction": frame["t"].tolist(),
+        "gauge_factor": {c: gauges[c].gauge_factor for c in CHANNELS},
+        "channels": {"Ch1": "trace_left", "Ch2": "trace_right"},
+        "readout": "voltage across the gauge, 2.2 kOhm divider at 5 V (seed 000 Fig. 3)",
+        "materials": {model.mesh.region_names[r]: m.name
+                      for r, m in model.region_materials.items()},
+    }
+    if unit is not None:
+        report["strain_per_N"] = {c: {"F_n": float(unit[i, 0]), "F_x": float(unit[i, 1])}
+                                  for i, c in enumerate(CHANNELS)}
+    report["viscoelastic"] = bool(viscous)
+    if not viscous:
+        report["notes"] = ["materials have no Prony series: elastic response, hysteresis is "
+                           "0 by construction (not a measurement of the printed part)"]
+    return StrapPrediction(t, fn, fx, strain, voltage, dV, report)
+
+
+# ------------------------------------------------------------------------------------ metrics
+
+def staircase_reads(protocol: StrapLoadTest, settings: StrapModelSettings, n: int):
+    """Per staircase level: sample indices of the end part (``read_fraction``) of its hold."""
+    n_hold = max(1, int(round(protocol.step_hold_s / protocol.dt_s)))
+    n_read = max(1, int(round(settings.read_fraction * n_hold)))
+    levels = 2 * protocol.n_steps + 1
+    return [np.arange((k + 1) * n_hold - n_read, (k + 1) * n_hold) for k in range(levels)
+            if (k + 1) * n_hold <= n]
+
+
+def _fit_transfer(F: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """M (k, 2) with Y ~ F M^T (least squares, no offset: readings are changes from rest)."""
+    Mt, *_ = np.linalg.lstsq(F, Y, rcond=None)
+    return Mt.T
+
+
+def evaluate(protocol: StrapLoadTest, settings: StrapModelSettings, t, fn, fx, dV,
+             strain) -> dict[str, Any]:
+    """Calibration matrix, sum/difference sensitivities, cross-talk, linearity, hysteresis."""
+    F = np.column_stack([fn, fx])
+    if np.linalg.matrix_rank(F, tol=1e-9 * max(np.abs(F).max(), 1e-300)) < 2:
+        raise ParameterError("protocol", {"shear_N": protocol.shear_N, "cycles": protocol.cycles},
+                             "shear_N > 0 and cycles >= 1 (the grasp cycles decorrelate F_n and "
+                             "F_x, which the 2x2 calibration needs)")
+    sd = np.column_stack([dV[:, 0] + dV[:, 1], dV[:, 0] - dV[:, 1]])
+    A, fit = fit_calibration_matrix(dV, F)               # [F_n, F_x] = A [dCh1, dCh2]
+    A_sd, fit_sd = fit_calibration_matrix(sd, F)         # [F_n, F_x] = A_sd [sum, diff]
+    M = _fit_transfer(F, dV)                             # V per N: channels x (F_n, F_x)
+    M_sd = _fit_transfer(F, sd)
+    # the paper's separate first-order fits: F_n from the sum, F_x from the difference
+    pn, px = np.polyfit(sd[:, 0], fn, 1), np.polyfit(sd[:, 1], fx, 1)
+    rms_n = float(np.sqrt(np.mean((np.polyval(pn, sd[:, 0]) - fn) ** 2)))
+    rms_x = float(np.sqrt(np.mean((np.polyval(px, sd[:, 1]) - fx) ** 2)))
+    cross = {
+        "F_x_in_sum_per_N_percent": float(100 * abs(M_sd[0, 1]) / abs(M_sd[0, 0])),
+        "F_n_in_diff_per_N_percent": float(100 * abs(M_sd[1, 0]) / abs(M_sd[1, 1])),
+        "F_x_in_sum_at_protocol_percent": float(100 * abs(M_sd[0, 1]) * protocol.shear_N
+                                                / (abs(M_sd[0, 0]) * protocol.normal_N)),
+        "F_n_in_diff_at_protocol_percent": float(100 * abs(M_sd[1, 0]) * protocol.normal_N
+                                                 / (abs(M_sd[1, 1]) * protocol.shear_N)),
+    }
+    # staircase: hysteresis (seed 001 eq. 1) and linearity
+    reads = staircase_reads(protocol, settings, len(t))
+    lev_n = np.array([fn[r].mean() for r in reads])
+    lev_x = np.array([fx[r].mean() for r in reads])
+    S = np.array([np.r_[dV[r].mean(0), sd[r].mean(0)] for r in reads])    # Ch1 Ch2 sum diff
+    names = ("Ch1", "Ch2", "sum", "diff")
+    by: dict[str, float | None] = {k: None for k in names}
+    lin: dict[str, float | None] = {k: None for k in names}
+    loops: dict[str, Any] = {}
+    if len(reads) == 2 * protocol.n_steps + 1 and protocol.n_steps >= 2:
+        lu, su, ld, sdn = loop_from_steps(lev_n, S)
+        h = hysteresis_percent(lu, su, ld, sdn)
+        by = {k: float(v) for k, v in zip(names, h)}
+        k_up = len(lu)
+        load_up = np.c_[lev_n, lev_n, lev_n, lev_x][:k_up]
+        lin = {k: linearity_percent(load_up[:, i], S[:k_up, i]) for i, k in enumerate(names)}
+        loops = {"F_n_N": lev_n.tolist(), "F_x_N": lev_x.tolist(),
+                 "readings_V": {k: S[:, i].tolist() for i, k in enumerate(names)}}
+    ch_h = [by[c] for c in CHANNELS if by[c] is not None]
+    signs = {"F_n": np.sign(M[:, 0]).tolist(), "F_x": np.sign(M[:, 1]).tolist()}
+    return {
+        "hysteresis_percent": {"overall": float(np.mean(ch_h)) if ch_h else None,
+                               "by_location": by,
+                               "definition": "seed 001 eq. (1) on the normal-force staircase, "
+                                             "readings = mean of the end of each hold; overall = "
+                                             "mean of Ch1 and Ch2"},
+        "calibration_matrix": A.tolist(),
+        "calibration_units": "N per V: [F_n, F_x] = A [dCh1, dCh2] (changes from rest)",
+        "calibration_fit": fit,
+        "condition_number": condition_number(A),
+        "calibration_matrix_sum_diff": A_sd.tolist(),
+        "calibration_sum_diff_fit": fit_sd,
+        "condition_number_sum_diff": condition_number(A_sd),
+        "sum_diff_linear_fits": {"F_n_per_V_sum": float(pn[0]), "F_n_offset_N": float(pn[1]),
+                                 "F_n_rms_N": rms_n, "F_x_per_V_diff": float(px[0]),
+                                 "F_x_offset_N": float(px[1]), "F_x_rms_N": rms_x},
+        "sensitivity": {
+            "V_per_N": {c: {"F_n": float(M[i, 0]), "F_x": float(M[i, 1])}
+                        for i, c in enumerate(CHANNELS)}
+            | {"sum": {"F_n": float(M_sd[0, 0]), "F_x": float(M_sd[0, 1])},
+               "diff": {"F_n": float(M_sd[1, 0]), "F_x": float(M_sd[1, 1])}},
+            "units": "V per N (channel voltage change per newton)"},
+        "cross_talk_percent": cross,
+        "linearity_percent_span": lin,
+        "premise": {"signs": signs,
+                    "normal_same_sign": bool(signs["F_n"][0] == signs["F_n"][1] != 0),
+                    "shear_opposite_sign": bool(signs["F_x"][0] == -signs["F_x"][1] != 0)},
+        "peak": {"strain": float(np.abs(strain).max()), "dV_V": float(np.abs(dV).max())},
+        "loops": loops,
+        "series": {"t_s": t.tolist(), "F_n_N": fn.tolist(), "F_x_N": fx.tolist(),
+                   "dCh1_V": dV[:, 0].tolist(), "dCh2_V": dV[:, 1].tolist(),
+                   "sum_V": sd[:, 0].tolist(), "diff_V": sd[:, 1].tolist()},
+    }
+
+
+# ------------------------------------------------------------------------------------ plots
+
+def _save(fig, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(suffix=".png", dir=path.parent)
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=120)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
+def plots(prediction: StrapPrediction, out_dir: str | Path) -> list[Path]:
+    """PNGs: time series, sum/difference vs F_n/F_x, hysteresis loop of the staircase."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    s = prediction.report["series"]
+    t = np.asarray(s["t_s"])
+    paths = []
+    fig, ax = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
+    ax[0].plot(t, s["F_n_N"], label="F_n")
+    ax[0].plot(t, s["F_x_N"], label="F_x")
+    ax[0].set_ylabel("force (N)")
+    ax[1].plot(t, 1e3 * np.asarray(s["dCh1_V"]), label="Ch1 (left)")
+    ax[1].plot(t, 1e3 * np.asarray(s["dCh2_V"]), label="Ch2 (right)")
+    ax[1].set_ylabel("channel change (mV)")
+    ax[2].plot(t, 1e3 * np.asarray(s["sum_V"]), label="Ch1 + Ch2")
+    ax[2].plot(t, 1e3 * np.asarray(s["diff_V"]), label="Ch1 - Ch2")
+    ax[2].set_ylabel("mV")
+    ax[2].set_xlabel("time (s)")
+    for a in ax:
+        a.legend(loc="upper right")
+        a.grid(alpha=0.3)
+    fig.suptitle("strap virtual load test (seed 000)")
+    fig.tight_layout()
+    paths.append(_save(fig, out / "strap_time_series.png"))
+    plt.close(fig)
+
+    fig, ax = plt.subplots(1, 2, figsize=(9, 4))
+    ax[0].plot(s["F_n_N"], 1e3 * np.asarray(s["sum_V"]), ".", ms=3)
+    ax[0].set_xlabel("F_n (N)")
+    ax[0].set_ylabel("Ch1 + Ch2 (mV)")
+    ax[1].plot(s["F_x_N"], 1e3 * np.asarray(s["diff_V"]), ".", ms=3, color="C1")
+    ax[1].set_xlabel("F_x (N)")
+    ax[1].set_ylabel("Ch1 - Ch2 (mV)")
+    for a in ax:
+        a.grid(alpha=0.3)
+    fig.suptitle("sum reads the normal force, difference the shear force")
+    fig.tight_layout()
+    paths.append(_save(fig, out / "strap_sum_diff.png"))
+    plt.close(fig)
+
+    loops = prediction.report.get("loops") or {}
+    if loops:
+        fig, ax = plt.subplots(figsize=(5, 4))
+        fnl = np.asarray(loops["F_n_N"])
+        k = int(np.argmax(fnl))
+        for name, c in (("sum", "C0"), ("Ch1", "C1"), ("Ch2", "C2")):
+            y = 1e3 * np.asarray(loops["readings_V"][name])
+            ax.plot(fnl[:k + 1], y[:k + 1], "o-", color=c, label=f"{name} up")
+            ax.plot(fnl[k:], y[k:], "s--", color=c, mfc="none", label=f"{name} down")
+        h = prediction.report["hysteresis_percent"]["by_location"]
+        ax.set_title(f"staircase loop: hysteresis sum {h['sum']:.2g} %")
+        ax.set_xlabel("F_n (N)")
+        ax.set_ylabel("reading (mV)")
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+        fig.tight_layout()
+        paths.append(_save(fig, out / "strap_hysteresis.png"))
+        plt.close(fig)
+    return paths

@@ -1,0 +1,164 @@
+"""Virtual load test of the seed 000 strap: wrap geometry, physics premise, metrics, plots."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from designlab.calibration import strap_test as st
+from designlab.calibration.protocols import StrapLoadTest
+from designlab.errors import ParameterError
+from designlab.geometry.strap import ArchStrap
+
+PART = ArchStrap()
+COARSE = st.StrapModelSettings(edge_length=1.5)
+
+
+def test_wrap_is_an_isometry_of_the_inner_face():
+    """Arc length along the centreline and across the strap is kept; the centreline becomes a
+    circle of the finger radius around the finger axis (y)."""
+    R, (cx, cy) = PART.radius, PART.center
+    phi = np.linspace(-PART.half_angle, PART.half_angle, 401)
+    line = np.column_stack([cx + R * np.sin(phi), cy + R * np.cos(phi), np.zeros_like(phi)])
+    w = st.wrap_points(PART, line, 9.0)
+    length = np.linalg.norm(np.diff(w, axis=0), axis=1).sum()
+    assert length == pytest.approx(2 * PART.half_angle * R, rel=1e-4)
+    assert np.hypot(w[:, 0], w[:, 2]) == pytest.approx(np.full(len(w), 9.0))
+    assert np.ptp(w[:, 1]) < 1e-9
+    across = np.array([[cx, cy + R - 5, 0.0], [cx, cy + R + 5, 0.0]])
+    a = st.wrap_points(PART, across, 9.0)
+    assert np.linalg.norm(a[1] - a[0]) == pytest.approx(10.0, rel=1e-9)
+    # thickness maps to the outward normal: 0.6 mm above the apex is 0.6 mm away
+    apex = np.array([[0.0, PART.arch_height, 0.0], [0.0, PART.arch_height, 0.6]])
+    b = st.wrap_points(PART, apex, 9.0)
+    assert np.linalg.norm(b[1] - b[0]) == pytest.approx(0.6)
+    fr = st.pad_frame(PART, st.StrapModelSettings())
+    assert (b[1] - b[0]) / 0.6 == pytest.approx(fr["n"])
+
+
+def test_wrap_rejects_a_finger_wider_than_the_arch():
+    with pytest.raises(ParameterError, match="finger_radius"):
+        st.wrap_points(PART, np.zeros((1, 3)), PART.radius + 1)
+
+
+def test_staircase_reads_pick_the_end_of_each_hold():
+    prot = StrapLoadTest(n_steps=2, step_hold_s=1.0, dt_s=0.1, cycles=1)
+    t, fn, fx = prot.time_history()
+    reads = st.staircase_reads(prot, st.StrapModelSettings(read_fraction=0.2), len(t))
+    assert len(reads) == 5
+    assert [list(r) for r in reads[:2]] == [[8, 9], [18, 19]]
+    assert [fn[r].mean() for r in reads] == pytest.approx([0, 2.5, 5, 2.5, 0])
+
+
+def _synthetic(prot, M, lag=0.0):
+    """Channels from a known 2x2 response (V per N), optional first-order lag (hysteresis)."""
+    t, fn, fx = prot.time_history()
+    dV = np.column_stack([fn, fx]) @ np.asarray(M).T
+    if lag:
+        a = np.exp(-prot.dt_s / lag)
+        y = np.zeros_like(dV)
+        for i in range(1, len(t)):
+            y[i] = a * y[i - 1] + (1 - a) * dV[i]
+        dV = y
+    return t, fn, fx, dV
+
+
+def test_evaluate_recovers_a_known_response():
+    prot = StrapLoadTest()
+    M = np.array([[0.02, 0.015], [0.02, -0.015]])        # V per N: Ch1, Ch2 x F_n, F_x
+    t, fn, fx, dV = _synthetic(prot, M)
+    r = st.evaluate(prot, st.StrapModelSettings(), t, fn, fx, dV, dV / 10)
+    A = np.array(r["calibration_matrix"])
+    assert A == pytest.approx(np.linalg.inv(M), rel=1e-9)
+    assert r["condition_number"] == pytest.approx(np.linalg.cond(M), rel=1e-9)
+    assert r["sensitivity"]["V_per_N"]["sum"]["F_n"] == pytest.approx(0.04)
+    assert r["sensitivity"]["V_per_N"]["diff"]["F_x"] == pytest.approx(0.03)
+    assert r["cross_talk_percent"]["F_x_in_sum_per_N_percent"] == pytest.approx(0, abs=1e-9)
+    assert r["premise"]["normal_same_sign"] and r["premise"]["shear_opposite_sign"]
+    assert r["hysteresis_percent"]["overall"] == pytest.approx(0, abs=1e-9)
+    json.dumps(r)
+    # a lagging sensor shows hysteresis on the staircase; one gauge leaking shear into the sum
+    M2 = np.array([[0.02, 0.02], [0.02, -0.01]])
+    t, fn, fx, dV = _synthetic(prot, M2, lag=2.0)
+    r2 = st.evaluate(prot, st.StrapModelSettings(), t, fn, fx, dV, dV)
+    assert r2["hysteresis_percent"]["overall"] > 1.0
+    assert r2["cross_talk_percent"]["F_x_in_sum_per_N_percent"] > 10
+
+
+def test_evaluate_needs_decorrelated_loads():
+    prot = StrapLoadTest(cycles=0)
+    t, fn, fx, dV = _synthetic(prot, np.eye(2))
+    with pytest.raises(ParameterError, match="cycles"):
+        st.evaluate(prot, st.StrapModelSettings(), t, fn, fx, dV, dV)
+
+
+@pytest.fixture(scope="module")
+def flat_mesh():
+    return st.mesh_strap(PART, COARSE)
+
+
+@pytest.fixture(scope="module")
+def prediction(flat_mesh):
+    return st.run(PART, StrapLoadTest(), COARSE, mesh=flat_mesh)
+
+
+def test_worn_strap_meets_the_seed_000_premise(prediction):
+    """Both gauges stretch under F_n (the sum reads it); F_x stretches one and relaxes the
+    other (the difference reads it), with the left/right responses matched by symmetry."""
+    r = prediction.report
+    e = r["strain_per_N"]
+    assert e["Ch1"]["F_n"] > 0 and e["Ch2"]["F_n"] > 0
+    assert e["Ch1"]["F_n"] == pytest.approx(e["Ch2"]["F_n"], rel=0.05)
+    assert e["Ch1"]["F_x"] > 0 > e["Ch2"]["F_x"]
+    assert -e["Ch2"]["F_x"] == pytest.approx(e["Ch1"]["F_x"], rel=0.1)
+    assert r["premise"]["normal_same_sign"] and r["premise"]["shear_opposite_sign"]
+    ct = r["cross_talk_percent"]
+    assert ct["F_x_in_sum_per_N_percent"] < 5 and ct["F_n_in_diff_per_N_percent"] < 5
+    # membrane estimate: each side carries ~F_n/2 over the strap's EA = 12 MPa * 15 * 0.6 mm^2
+    assert 0.3 < e["Ch1"]["F_n"] / (0.5 / (12.0 * 15 * 0.6)) < 3
+
+
+def test_report_contract(prediction, tmp_path):
+    r = prediction.report
+    json.dumps(r)
+    for key in ("hysteresis_percent", "calibration_matrix", "condition_number", "sensitivity",
+                "timings_s", "mesh"):
+        assert key in r
+    assert set(r["hysteresis_percent"]["by_location"]) == {"Ch1", "Ch2", "sum", "diff"}
+    assert r["hysteresis_percent"]["overall"] == pytest.approx(0, abs=1e-6)   # elastic
+    assert not r["viscoelastic"]
+    assert set(r["timings_s"]) == {"mesh", "assemble", "solve", "metrics"}
+    assert np.array(r["calibration_matrix"]).shape == (2, 2)
+    assert 1 <= r["condition_number"] < 10
+    # the fitted matrix reproduces the forces (divider nonlinearity only)
+    assert r["calibration_fit"]["rms_residual_N"] < 0.02 * StrapLoadTest().normal_N
+    assert 0 < r["linearity_percent_span"]["sum"] < 5
+    # channels: divider change from the unloaded state; the readout saturates gently
+    assert prediction.dV[0] == pytest.approx([0, 0], abs=1e-12)
+    paths = st.plots(prediction, tmp_path)
+    assert [p.name for p in paths] == ["strap_time_series.png", "strap_sum_diff.png",
+                                       "strap_hysteresis.png"]
+    assert all(p.stat().st_size > 1000 for p in paths)
+    assert not list(tmp_path.glob("*.tmp*")) and len(list(tmp_path.iterdir())) == 3
+
+
+def test_viscoelastic_materials_give_hysteresis(flat_mesh):
+    """With a Prony series in both TPUs the history is marched and the staircase loop opens."""
+    from designlab.fem.materials import get_material
+    from designlab.fem.prony import Prony
+
+    pr = Prony(g=(0.3,), tau=(2.0,))
+    mats = {"strap": dataclasses.replace(get_material("NinjaFlex"), prony=pr),
+            "trace_left": dataclasses.replace(get_material("PI-ETPU"), prony=pr),
+            "trace_right": dataclasses.replace(get_material("PI-ETPU"), prony=pr)}
+    prot = StrapLoadTest(n_steps=2, step_hold_s=1.0, dt_s=0.25, cycles=1, cycle_period_s=1.0)
+    p = st.run(PART, prot, COARSE, materials=mats, mesh=flat_mesh)
+    r = p.report
+    assert r["viscoelastic"]
+    h = r["hysteresis_percent"]
+    assert h["overall"] > 0.5
+    assert h["by_location"]["sum"] > 0.5
+    assert r["premise"]["normal_same_sign"] and r["premise"]["shear_opposite_sign"]
