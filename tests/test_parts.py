@@ -97,7 +97,8 @@ def fingertips(draw):
     rf = draw(st.floats(7, 11))
     r = draw(st.floats(max(0.0, 5.7 - h), min(9.0, rf)))
     return CantileverFingertip(h=h, r=r, fingertip_radius=rf,
-                               load_table="II" if h + r > 22.76 else "III")
+                               load_table="II" if h + r > 22.76 else "III",
+                               skin_thickness=draw(st.sampled_from([0.0, 0.0, 1.5])))
 
 
 @st.composite
@@ -196,17 +197,25 @@ def test_strap_rejects(kw, name):
 
 
 # ------------------------------------------------------------------------------- fingertip
-def _fingertip_volume(p: CantileverFingertip) -> float:
-    R, h, r, rb = p.fingertip_radius, p.h, p.r, p.ball_radius
+def _outline_volume(R: float, h: float, r: float) -> float:
+    """Cylinder R x h plus the top rounded with edge radius r (Pappus on the quarter disc)."""
     top = math.pi * ((R - r) ** 2 * r + 2 * (R - r) * math.pi * r ** 2 / 4 + 2 * r ** 3 / 3)
-    return math.pi * R ** 2 * h + top - 2 / 3 * math.pi * rb ** 3
+    return math.pi * R ** 2 * h + top
 
 
 @SETTINGS
 @given(fingertips())
 def test_fingertip_builds(p):
     b = check_bodies(p)
-    assert b["fingertip"].shape.volume == pytest.approx(_fingertip_volume(p), rel=1e-6)
+    R, h, r, rb, t = p.fingertip_radius, p.h, p.r, p.ball_radius, p.skin_thickness
+    # OCC's adaptive volume integration is good to ~1e-5 on these analytic faces
+    assert volume(b["fingertip"].shape) == pytest.approx(
+        _outline_volume(R, h, r) - 2 / 3 * math.pi * rb ** 3, rel=1e-4)
+    assert ("skin" in b) == (t > 0) and ("skin" in p.mesh_bodies()) == (t > 0)
+    if t:
+        assert volume(b["skin"].shape) == pytest.approx(
+            _outline_volume(R + t, h, r + t) - _outline_volume(R, h, r), rel=1e-4)
+        assert b["skin"].material == "silicone" and not b["skin"].printed
     rb, rbolt = p.ball_radius, p.bolt_diameter / 2
     zt = p.bolt_top_z
     hole = math.pi * rbolt ** 2 * (zt + math.sqrt(rb ** 2 - rbolt ** 2))
@@ -220,8 +229,9 @@ def test_fingertip_builds(p):
     assert {n for n, x in b.items() if x.printed} == {"fingertip", "base", "cap"}
     assert all(b[n].material == "ABS" for n in ("fingertip", "base", "cap"))
     assert all(b[n].material == "steel" for n in ("ball", "bolt"))
-    for name, (pt, d) in p.load_points().items():  # load points lie on the fingertip surface
-        assert b["fingertip"].shape.distance_to(tuple(pt)) < 1e-6, name
+    outer = b["skin" if t else "fingertip"].shape
+    for name, (pt, d) in p.load_points().items():  # load points lie on the outer surface
+        assert outer.distance_to(tuple(pt)) < 1e-6, name
         assert np.linalg.norm(d) == pytest.approx(1.0)
 
 
@@ -298,6 +308,18 @@ def test_fingertip_facet_sets():
         assert sets[f"load_{k}"].any(), k
     for center, radius, edge in p.refinement():
         assert center.shape == (3,) and radius > 0 and edge > 0
+
+
+def test_fingertip_silicone_skin():
+    p = CantileverFingertip(skin_thickness=1.0)
+    b = p.build()
+    assert p.total_height == pytest.approx(21.0) and p.outer_radius == 10.0
+    assert p.mesh_bodies() == ("fingertip", "skin", "base", "cap")
+    pt, d = p.load_points()["h1"]
+    assert np.hypot(*pt[:2]) == pytest.approx(math.sqrt(10 ** 2 - 8.41 ** 2))
+    assert b["skin"].shape.distance_to(tuple(pt)) < 1e-6
+    inter = b["skin"].shape & b["fingertip"].shape
+    assert inter is None or abs(inter.volume) < 1e-6
 
 
 @pytest.mark.parametrize("kw, name", [

@@ -21,7 +21,8 @@ read the paper's datum: heights are measured from the dome's base plane (the bal
 
 Bodies: ``fingertip``, ``base``, ``cap`` (ABS, printed, meshed); ``ball`` and ``bolt`` (steel) and
 ``sensor_1..3`` (FSS015 body + steel button, approximate 5 x 5 x 2.3 mm outline): bought, coupled
-in FEM rather than meshed.
+in FEM rather than meshed; with ``skin_thickness > 0`` a cast silicone ``skin`` over the fingertip
+(the paper's optional coating; meshed), whose outer surface then carries the load points.
 """
 
 from __future__ import annotations
@@ -85,6 +86,8 @@ class CantileverFingertip:
     load_table: str = field(default="III", metadata=rng(choices=("II", "III"),
                                                         doc="seed 001 table of load points"))
     load_patch_radius: float = field(default=1.0, metadata=rng(0.2, 3, unit="mm"))
+    skin_thickness: float = field(default=0.0, metadata=rng(0, 3, unit="mm",
+                                                            doc="silicone coating, 0 = none"))
 
     def __post_init__(self):
         validate(self)
@@ -102,7 +105,13 @@ class CantileverFingertip:
 
     @property
     def top_z(self) -> float:
-        return self.h + self.r
+        """Top of the outer surface (the skin's, if any)."""
+        return self.h + self.r + self.skin_thickness
+
+    @property
+    def outer_radius(self) -> float:
+        """Radius of the outer surface (printed fingertip plus skin)."""
+        return self.fingertip_radius + self.skin_thickness
 
     @property
     def base_z(self) -> tuple[float, float]:
@@ -140,18 +149,19 @@ class CantileverFingertip:
         return axes, -self.ball_radius * axes
 
     def surface_radius(self, z: float) -> float:
-        """Radius of the fingertip's outer surface at height ``z`` (0 <= z <= top_z)."""
-        R = self.fingertip_radius
+        """Radius of the outer surface at height ``z`` (0 <= z <= top_z); with a skin, the
+        outline is offset by its thickness (edge radius ``r + skin_thickness``)."""
+        R, r = self.outer_radius, self.r + self.skin_thickness
         if z <= self.h:
             return R
-        return (R - self.r) + math.sqrt(max(self.r ** 2 - (z - self.h) ** 2, 0.0))
+        return (R - r) + math.sqrt(max(r ** 2 - (z - self.h) ** 2, 0.0))
 
     def surface_height(self, rho: float) -> float:
-        """Height of the fingertip's top surface at radius ``rho`` (0 <= rho <= radius)."""
-        R = self.fingertip_radius
-        if rho <= R - self.r:
+        """Height of the outer top surface at radius ``rho`` (0 <= rho <= outer_radius)."""
+        R, r = self.outer_radius, self.r + self.skin_thickness
+        if rho <= R - r:
             return self.top_z
-        return self.h + math.sqrt(max(self.r ** 2 - (rho - (R - self.r)) ** 2, 0.0))
+        return self.h + math.sqrt(max(r ** 2 - (rho - (R - r)) ** 2, 0.0))
 
     def load_table_values(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
         """(heights, radii) of the selected seed 001 table (mm)."""
@@ -172,7 +182,7 @@ class CantileverFingertip:
             if z < self.top_z:
                 out[f"h{i}"] = (np.array([*(self.surface_radius(z) * e[:2]), z]), -e.copy())
         for i, rho in enumerate(radii, 1):
-            if rho > self.fingertip_radius:
+            if rho > self.outer_radius:
                 continue
             out[f"r{i}"] = (np.array([*(rho * e[:2]), self.surface_height(rho)]),
                             np.array([0.0, 0.0, -1.0]))
@@ -228,7 +238,8 @@ class CantileverFingertip:
         return dict(_build(self))
 
     def mesh_bodies(self) -> tuple[str, ...]:
-        return ("fingertip", "base", "cap")
+        skin = ("skin",) if self.skin_thickness > 0 else ()
+        return ("fingertip", *skin, "base", "cap")
 
     def well_floor_centers(self) -> np.ndarray:
         """(3, 3) centres of the well floors (where each sensor's back rests on the base)."""
@@ -239,8 +250,9 @@ class CantileverFingertip:
         """``ball_seat`` (fingertip's spherical seat), ``sensor_well_1..3`` (well floors: the
         sensors' reaction on the base, outward normal along the sensor axis), ``bolt_head``
         (annulus of the cap bottom under the bolt head), ``cap_mount`` (rest of the cap bottom,
-        fixed to the robot), ``base_cap`` (base bottom and cap top, to tie them), ``load_h*``/``load_r*``
-        (fingertip surface within ``load_patch_radius`` of each load point)."""
+        fixed to the robot), ``load_h*``/``load_r*`` (fingertip surface within
+        ``load_patch_radius`` of each load point). The base-cap contact is an interface between
+        two meshed bodies (not boundary), which the mesher names itself."""
         rb, tol = self.ball_radius, 0.05
         axes, _ = self.sensor_axes()
         floors = self.well_floor_centers()
@@ -272,11 +284,7 @@ class CantileverFingertip:
             rho = np.hypot(c[:, 0], c[:, 1])
             return (n[:, 2] < -0.95) & (np.abs(c[:, 2] - z_cb) < tol) & (rho > r_cb + 0.5)
 
-        def base_cap(c, n):
-            return (np.abs(n[:, 2]) > 0.95) & (np.abs(c[:, 2] - self.base_z[0]) < tol)
-
-        out = {"ball_seat": ball_seat, "bolt_head": bolt_head, "cap_mount": cap_mount,
-               "base_cap": base_cap}
+        out = {"ball_seat": ball_seat, "bolt_head": bolt_head, "cap_mount": cap_mount}
         for k in range(3):
             out[f"sensor_well_{k + 1}"] = well(k)
         for name, (p, d) in self.load_points().items():
@@ -300,8 +308,9 @@ def _patch(point: np.ndarray, direction: np.ndarray, radius: float) -> FacetSele
     return sel
 
 
-def _fingertip_solid(p: CantileverFingertip):
-    R, h, r = p.fingertip_radius, p.h, p.r
+def _outline_solid(R: float, h: float, r: float):
+    """Solid of revolution: cylinder of radius ``R`` and height ``h`` on ``z = 0`` whose top edge
+    is rounded with radius ``r`` (``r = R``: hemispherical dome)."""
     # features below EPS are snapped away (no sliver edges); the outline moves by < EPS
     h = 0.0 if h < EPS else h
     r = 0.0 if r < EPS else (R if R - r < EPS else r)
@@ -315,9 +324,7 @@ def _fingertip_solid(p: CantileverFingertip):
     if R - r > 0:
         edges.append(Line((R - r, 0, top), (0, 0, top)))
     edges.append(Line((0, 0, top), (0, 0, 0)))
-    face = Face(Wire(edges))
-    solid = revolve(face, Axis.Z, 360)
-    return solid - Sphere(p.ball_radius)
+    return revolve(Face(Wire(edges)), Axis.Z, 360)
 
 
 def _well_plane(p: CantileverFingertip, axis: np.ndarray) -> Plane:
@@ -332,7 +339,13 @@ def _well_plane(p: CantileverFingertip, axis: np.ndarray) -> Plane:
 def _build(p: CantileverFingertip) -> dict[str, Body]:
     rb = p.ball_radius
     axes, _ = p.sensor_axes()
-    fingertip = single_solid(_fingertip_solid(p).clean(), "fingertip")
+    inner = _outline_solid(p.fingertip_radius, p.h, p.r)
+    fingertip = single_solid((inner - Sphere(rb)).clean(), "fingertip")
+    skin = None
+    if p.skin_thickness > 0:
+        t = p.skin_thickness
+        outer = _outline_solid(p.fingertip_radius + t, p.h, p.r + t)
+        skin = single_solid((outer - inner).clean(), "skin")
 
     # ball with the tapped blind hole (modelled at the bolt's nominal diameter)
     rbolt = p.bolt_diameter / 2
@@ -386,4 +399,6 @@ def _build(p: CantileverFingertip) -> dict[str, Body]:
     }
     for k, s in enumerate(sensors):
         out[f"sensor_{k + 1}"] = Body(f"sensor_{k + 1}", s, "steel", dark, printed=False)
+    if skin is not None:  # cast silicone coating, not printed
+        out["skin"] = Body("skin", skin, "silicone", (0.95, 0.85, 0.3), printed=False)
     return out
