@@ -410,6 +410,7 @@ def test_assemblies_step_and_gltf(tmp_path, monkeypatch):
 
     from designlab.geometry import assembly as asm
 
+    assert asm.assembly(ArchStrap(), name="strap").name == "strap_assembly"
     p = CantileverFingertip()
     a = asm.assembly(p)
     assert sorted(c.name for c in a.children) == sorted(p.build())

@@ -19,7 +19,10 @@ from designlab.geometry.body import Body
 def assembly(part, name: str | None = None) -> cq.Assembly:
     """A ``cadquery.Assembly`` with one named, coloured child per body of ``part.build()``."""
     bodies: dict[str, Body] = part.build()
-    assy = cq.Assembly(name=name or type(part).__name__)
+    name = name or type(part).__name__
+    if name in bodies:  # cadquery needs unique names, the root's included
+        name += "_assembly"
+    assy = cq.Assembly(name=name)
     for body in bodies.values():
         shape = cq.Shape.cast(body.shape.wrapped)
         assy.add(shape, name=body.name, color=cq.Color(*body.color, 1.0))
