@@ -35,13 +35,13 @@ from designlab.geometry.body import Body, FacetSelector
 from designlab.geometry.solids import annular_sector, polygon_face, single_solid
 from designlab.params import rng, validate
 
-#: conductive traces never come closer than this to the strap's side edges (mm)
+#: nozzle diameter (mm): the narrowest printable meander line and gap
 NOZZLE = 0.4
 
 
 @dataclass(frozen=True)
 class ArchStrap:
-    """Parameters of the arch strap (mm, counts). Defaults: seed 000 where stated, else estimates."""
+    """Parameters of the arch strap (mm, counts); defaults: seed 000 where stated, else ours."""
 
     strap_width: float = field(default=15.0, metadata=rng(8, 30, unit="mm", doc="seed 000: 15"))
     thickness: float = field(default=0.6, metadata=rng(0.3, 3, unit="mm", doc="seed 000: 0.6"))
