@@ -389,6 +389,36 @@ def test_flexure_rejects_touching_coils():
     one_line_error(lambda: SpringFlexure(disc_radius=10.0), "disc_radius")
 
 
+@pytest.mark.parametrize("ends", ["closed_ground", "plain"])
+def test_flexure_from_free_length(ends):
+    p = SpringFlexure.with_free_length(19.8, ends=ends)
+    assert p.length == pytest.approx(19.8, abs=1e-3)
+    if ends == "closed_ground":
+        assert p.pitch_angle == pytest.approx(0.1029, abs=2e-4)  # the paper's angle back
+    one_line_error(lambda: SpringFlexure.with_free_length(3.0), "free_length")
+
+
+# ------------------------------------------------------------------------------- bad values
+def _ranged_fields(cls):
+    return [f for f in dataclasses.fields(cls) if f.metadata and f.metadata.get("lo") is not None
+            and f.metadata.get("hi") is not None]
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(st.data())
+def test_out_of_range_values_name_the_parameter(data):
+    cls = data.draw(st.sampled_from([ArchStrap, CantileverFingertip, SpringFlexure]))
+    f = data.draw(st.sampled_from(_ranged_fields(cls)))
+    lo, hi = f.metadata["lo"], f.metadata["hi"]
+    bad = data.draw(st.sampled_from([lo - 0.5 * (hi - lo) - 1, hi + 0.5 * (hi - lo) + 1,
+                                     float("inf"), "abc"]))
+    if isinstance(f.default, int) and not isinstance(bad, str) and math.isfinite(bad):
+        bad = int(bad)
+    with pytest.raises(ParameterError) as exc:
+        make_part(part_name(cls()), {f.name: bad})
+    assert exc.value.name == f.name and "\n" not in str(exc.value)
+
+
 # ------------------------------------------------------------------------------- registry
 def test_make_part():
     assert set(PARTS) == {"strap", "fingertip", "flexure"}

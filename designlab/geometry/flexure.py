@@ -68,6 +68,21 @@ class SpringFlexure:
         validate(self)
         self._check()
 
+    @classmethod
+    def with_free_length(cls, free_length: float, **kw) -> "SpringFlexure":
+        """The spring whose free length (between the discs) is ``free_length`` mm: solves for
+        ``pitch_angle`` given the other parameters (``kw``)."""
+        base = cls(**kw)
+        d, n = base.wire_diameter, base.active_coils
+        if base.ends == "closed_ground":
+            p = (free_length - 2 * d) / n
+        else:
+            p = (free_length - 2 * base.wire_radius * (1 - PLAIN_EMBED)) / n
+        if not p > 0:
+            raise ParameterError("free_length", free_length,
+                                 f"> {free_length - p * n:.3g} mm for these ends and wire")
+        return cls(**{**kw, "pitch_angle": math.atan(p / (math.pi * base.mean_diameter))})
+
     # ------------------------------------------------------------------ derived (mm, rad)
     @property
     def wire_diameter(self) -> float:
