@@ -80,7 +80,7 @@ def _prism():
     return box_tet_mesh(6, 6, 30, 2, 2, 6, origin=(-3, -3, 0), material="ABS").quadratic()
 
 
-BOX = dataclasses.replace(ft.FlexureModelSettings(), base_set="zmin", tip_set="zmax")
+BOX = ft.FlexureModelSettings(truth="fem", base_set="zmin", tip_set="zmax")
 
 
 def test_fem_truth_on_a_given_mesh_matches_the_6x6_routine():
