@@ -189,6 +189,8 @@ def test_strap_facet_sets():
     ({"trace_thickness": 0.35}, "trace_thickness"),
     ({"tab_length": 6.0}, "tab_length"),
     ({"thickness": float("nan")}, "thickness"),
+    ({"legs": 4.5}, "legs"),
+    ({"slot_count": "3"}, "slot_count"),
 ])
 def test_strap_rejects(kw, name):
     msg = one_line_error(lambda: ArchStrap(**kw), name)
@@ -430,6 +432,7 @@ def test_make_part():
     one_line_error(lambda: make_part("gripper"), "part")
     one_line_error(lambda: make_part("strap", {"nope": "1"}), "nope")
     one_line_error(lambda: make_part("flexure", {"pitch_angle": "0.01"}), "pitch_angle")
+    assert make_part("strap", None, {"legs": 6.0, "slot_count": 2.0}).slot_count == 2
     p1 = make_part("strap")
     assert p1.build()["strap"].shape is p1.build()["strap"].shape  # cached
 

@@ -82,6 +82,12 @@ class ArchStrap:
     nail_plate_thickness: float = field(default=1.2, metadata=rng(0.4, 5, unit="mm"))
 
     def __post_init__(self):
+        for name in ("legs", "slot_count"):  # counts: accept 4.0 from TOML/JSON, not 4.5
+            v = getattr(self, name)
+            if isinstance(v, float) and v.is_integer():
+                object.__setattr__(self, name, int(v))
+            elif not isinstance(v, int) or isinstance(v, bool):
+                raise ParameterError(name, v, "an integer")
         validate(self)
         self._check()
 
