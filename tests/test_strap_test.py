@@ -145,6 +145,18 @@ def test_report_contract(prediction, tmp_path):
     assert not list(tmp_path.glob("*.tmp*")) and len(list(tmp_path.iterdir())) == 3
 
 
+def test_flat_strap_has_no_membrane_path_for_normal_force(flat_mesh, prediction):
+    """Printed flat, the 0.6 mm strap only bends under F_n and the mid-plane gauges see a small
+    fraction of the worn strap's membrane strain; in-plane F_x still reads."""
+    flat = st.run(PART, StrapLoadTest(), dataclasses.replace(COARSE, configuration="flat",
+                                                              tissue_stiffness=0.0),
+                  mesh=flat_mesh).report["strain_per_N"]
+    worn = prediction.report["strain_per_N"]
+    for ch in st.CHANNELS:
+        assert abs(flat[ch]["F_n"]) < 0.25 * worn[ch]["F_n"]
+    assert flat["Ch1"]["F_x"] > 0 > flat["Ch2"]["F_x"]
+
+
 def test_viscoelastic_materials_give_hysteresis(flat_mesh):
     """With a Prony series in both TPUs the history is marched and the staircase loop opens."""
     from designlab.fem.materials import get_material

@@ -22,7 +22,8 @@ The FEM model (mm, N, MPa, s):
 
 Why worn: flat, the strap is a 0.6 mm plate loaded across its thickness, the gauges sit at its
 mid-plane, and a linear model has no mechanism turning F_n into gauge strain (only bending,
-whose mean over a mid-plane gauge vanishes; the deflection would be ~100 mm per N). Wrapped, the
+whose mean over a mid-plane gauge vanishes: 118 mm apex deflection and 0.0003-0.0006 gauge
+strain per N on the 1.5 mm mesh, a tenth of the worn strap's 0.0053). Wrapped, the
 band carries the pad's push as membrane tension on both sides of the apex (same sign in Ch1 and
 Ch2: the sum reads F_n) while F_x stretches one side and relaxes the other (the difference reads
 F_x), the premise of seed 000. ``configuration="flat"`` is kept for comparison.
@@ -67,7 +68,8 @@ class StrapModelSettings:
     gauges (7.8k) give strain per N within 1.3 % (F_n) and 3 % (F_x) of each other.
 
     ``tissue_stiffness``: the finger under the strap as a Winkler foundation. Without it the
-    wrapped band is held only at its tabs and bends freely (7.5 mm at the apex per N); the
+    wrapped band is held only at its tabs and bends freely (9.4 mm at the apex per N; 1.3 mm
+    with 0.02 N/mm^3); the
     pulp's ~2 N/mm under a ~1 cm^2 contact (fingertip indentation tests) gives ~0.02 N/mm^3.
     Gauge strain per N changes by +40 % from none to 0.01 and by +9 % from 0.01 to 0.05."""
 
