@@ -53,6 +53,12 @@ def to_pyvista(mesh: TetMesh, facets: bool = True):
     return grid
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def write_vtu(mesh: TetMesh, path: str | os.PathLike) -> Path:
     """Write ``mesh`` to a binary, compressed ``.vtu`` file atomically; returns the path."""
     path = Path(path)
@@ -63,6 +69,7 @@ def write_vtu(mesh: TetMesh, path: str | os.PathLike) -> Path:
     os.close(fd)
     try:
         grid.save(tmp, binary=True)
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

@@ -19,6 +19,7 @@ the global size at ``grading`` mm per mm.
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from dataclasses import dataclass, field
 from typing import Any, Iterable, Mapping, Sequence
 
@@ -32,7 +33,7 @@ from designlab.geometry.mesh_facets import interface_facets, select_facets
 #: quality presets: (edge length factor, fTetWild stop energy)
 PRESETS = {"coarse": (2.0, 40.0), "default": (1.0, 15.0), "fine": (0.7, 10.0)}
 #: linear cells a default edge length aims at (TET10 of that: ~1e5 DOF)
-TARGET_CELLS = 25_000
+TARGET_CELLS = 12_000
 #: cells per mm^3 of a mesh of regular-ish tetrahedra with unit edge length
 _CELLS_PER_EDGE3 = 8.5
 
@@ -55,29 +56,104 @@ class MeshResult:
         return {name: float(v[self.mesh.region == rid].sum())
                 for rid, name in self.mesh.region_names.items()}
 
+    def report(self) -> dict:
+        """JSON-ready summary: sizes, settings, quality, region volumes, facet set sizes."""
+        from designlab.geometry.mesh_quality import mesh_quality
+
+        m = self.mesh
+        got = self.region_volumes()
+        return {
+            "n_points": m.n_points, "n_cells": m.n_cells, "order": m.order,
+            "dof": 3 * m.n_points, "edge_length_mm": self.edge_length,
+            "epsilon_mm": self.epsilon, "stop_energy": self.stop_energy,
+            "seconds": self.seconds, "attempts": list(self.attempts),
+            "materials": dict(m.materials),
+            "regions": {name: {"id": rid, "cells": int((m.region == rid).sum()),
+                               "volume_mm3": got[name],
+                               "body_volume_mm3": self.body_volumes[name],
+                               "volume_error_percent":
+                                   100.0 * (got[name] / self.body_volumes[name] - 1.0)}
+                        for rid, name in m.region_names.items()},
+            "facet_sets": {k: int(len(v)) for k, v in m.facet_sets.items()},
+            "quality": mesh_quality(m).as_dict(),
+        }
+
+
+def save_mesh(result: MeshResult, out_dir: str | Path) -> tuple[Path, Path]:
+    """Write ``mesh.vtu`` and ``mesh.json`` (:meth:`MeshResult.report`) into ``out_dir``; the
+    report is written only after the mesh, each atomically."""
+    import json
+    import os
+    import tempfile
+
+    from designlab.geometry.mesh_io import _umask, write_vtu
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    text = json.dumps(result.report(), indent=2)
+    vtu = write_vtu(result.mesh, out / "mesh.vtu")
+    fd, tmp = tempfile.mkstemp(suffix=".json", prefix=".mesh.", dir=out)
+    with os.fdopen(fd, "w") as fh:
+        fh.write(text)
+    os.chmod(tmp, 0o666 & ~_umask())
+    os.replace(tmp, out / "mesh.json")
+    return vtu, out / "mesh.json"
+
 
 # --------------------------------------------------------------------------- geometry helpers
 
-def thickness(surface) -> float:
-    """Thickness of a closed surface estimated as ``2 V / A`` (exact for a thin slab), mm."""
-    return float(2.0 * surface.volume / surface.area)
-
-
-def winding_number(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray,
-                   chunk: int = 400_000) -> np.ndarray:
-    """Generalised winding number of a closed triangle surface at each point (1 inside, 0
-    outside; van Oosterom-Strackee solid angles), vectorised in chunks of point x triangle."""
-    tri = np.asarray(vertices, float)[np.asarray(faces)]
+def _solid_angle_sum(points: np.ndarray, tri: np.ndarray, chunk: int = 400_000) -> np.ndarray:
+    """Exact winding number of triangles ``tri`` (t, 3, 3) at ``points`` (van Oosterom-Strackee
+    solid angles / 4 pi), vectorised in chunks of point x triangle pairs."""
     out = np.empty(len(points))
     step = max(1, chunk // max(len(tri), 1))
     for s in range(0, len(points), step):
-        q = np.asarray(points[s:s + step], float)[:, None, :]
+        q = points[s:s + step, None, :]
         a, b, c = tri[None, :, 0] - q, tri[None, :, 1] - q, tri[None, :, 2] - q
         la, lb, lc = (np.linalg.norm(x, axis=-1) for x in (a, b, c))
         det = np.einsum("...i,...i->...", a, np.cross(b, c))
         den = (la * lb * lc + np.einsum("...i,...i->...", a, b) * lc
                + np.einsum("...i,...i->...", b, c) * la + np.einsum("...i,...i->...", c, a) * lb)
         out[s:s + step] = np.arctan2(det, den).sum(axis=1) / (2.0 * np.pi)
+    return out
+
+
+def winding_number(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray,
+                   leaf: int = 16, beta: float = 2.0) -> np.ndarray:
+    """Generalised winding number of a closed triangle surface at each point (1 inside, 0
+    outside). Triangles are grouped in grid clusters of about ``leaf``; a cluster farther than
+    ``beta`` times its radius contributes its dipole term (Barill et al. 2018 fast winding
+    numbers, first order), nearer ones their exact solid angles."""
+    points = np.asarray(points, float)
+    tri = np.asarray(vertices, float)[np.asarray(faces)]
+    if len(tri) <= 4 * leaf or len(points) == 0:
+        return _solid_angle_sum(points, tri)
+    cen = tri.mean(axis=1)
+    lo, hi = cen.min(axis=0), cen.max(axis=0)
+    vec_area = 0.5 * np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    area = np.linalg.norm(vec_area, axis=1) + 1e-300
+    cell = max(float(np.sqrt(area.sum() * leaf / len(tri))), float((hi - lo).max()) / 128.0)
+    key = np.floor((cen - lo) / cell).astype(np.int64)
+    _, cluster = np.unique(key, axis=0, return_inverse=True)
+    cluster = cluster.ravel()
+    order = np.argsort(cluster, kind="stable")
+    bounds = np.searchsorted(cluster[order], np.arange(cluster.max() + 2))
+    out = np.zeros(len(points))
+    for c in range(len(bounds) - 1):
+        members = order[bounds[c]:bounds[c + 1]]
+        if len(members) == 0:
+            continue
+        w = area[members]
+        centre = (cen[members] * w[:, None]).sum(axis=0) / w.sum()
+        radius = np.linalg.norm(tri[members] - centre, axis=2).max()
+        dipole = vec_area[members].sum(axis=0)
+        r = centre - points
+        dist = np.linalg.norm(r, axis=1)
+        far = dist > beta * radius
+        out[far] += (r[far] @ dipole) / (4.0 * np.pi * dist[far] ** 3)
+        near = np.flatnonzero(~far)
+        if len(near):
+            out[near] += _solid_angle_sum(points[near], tri[members])
     return out
 
 
@@ -127,23 +203,27 @@ def _as_bodies(bodies: Mapping[str, Body] | Sequence[Body]) -> list[Body]:
     return items
 
 
-def _tessellate(body: Body, tolerance: float):
+def _tessellate(body: Body, tolerance: float, angular_tolerance: float):
     from designlab.geometry.tessellate import tessellate
 
     try:
-        return tessellate(body.shape, tolerance)
+        return tessellate(body.shape, tolerance, angular_tolerance)
     except MeshingError as exc:
         raise MeshingError(f"body {body.name!r}: {exc}") from None
 
 
-def _union(bodies: list[Body], tolerance: float):
+def _union(bodies: list[Body], tolerance: float, angular_tolerance: float):
     """Tessellated boundary of the union of the bodies (OpenCascade fuse)."""
     from designlab.geometry.tessellate import tessellate
 
+    from build123d import Compound
+
     shapes = [b.shape for b in bodies]
     fused = shapes[0].fuse(*shapes[1:]) if len(shapes) > 1 else shapes[0]
+    if not hasattr(fused, "wrapped"):  # disjoint solids come back as a ShapeList
+        fused = Compound(list(fused))
     try:
-        return tessellate(fused, tolerance)
+        return tessellate(fused, tolerance, angular_tolerance)
     except MeshingError as exc:
         raise MeshingError(f"union of bodies {', '.join(b.name for b in bodies)}: {exc}") from None
 
@@ -203,16 +283,20 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
                          edge_length: float | None = None, refinement: Iterable = (),
                          order: int = 2, quality: str = "default",
                          epsilon: float | None = None, stop_energy: float | None = None,
-                         tessellation_tolerance: float = 0.01, volume_rtol: float = 0.05,
+                         tessellation_tolerance: float | None = None,
+                         angular_tolerance: float = 0.5, volume_rtol: float = 0.05,
                          interfaces: bool = True, threads: int = 1,
                          target_cells: int = TARGET_CELLS) -> MeshResult:
     """Mesh bodies into one conforming TET4/TET10 mesh; see the module doc for the method.
 
-    edge_length: ideal edge length, mm (default: smaller of the host thickness and the size for
-                 ``target_cells``; scaled by the ``quality`` preset)
+    edge_length: ideal edge length, mm (default: the smaller of 1.5 x the host's thickness
+                 ``2 V / A`` and the size for ``target_cells``; scaled by the ``quality`` preset)
     refinement:  ``(centre (3,) mm, radius mm, edge_length mm)`` spheres of finer elements
-    quality:     ``coarse`` (fast, tests), ``default`` or ``fine``
+    quality:     ``coarse`` (fast, tests), ``default`` or ``fine``: scales the default and the
+                 refinement edge lengths (x2, x1, x0.7) and sets fTetWild's stop energy
     epsilon:     fTetWild envelope, mm (default a tenth of the thinnest body, <= 1e-3 diagonal)
+    tessellation_tolerance: chordal tolerance of the surfaces, mm (default epsilon / 2,
+                 >= 0.01); ``angular_tolerance`` in rad
     volume_rtol: largest accepted relative error of a region's volume
     threads:     fTetWild threads (1 = deterministic; 0 = all cores)
     """
@@ -225,13 +309,27 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
         raise ParameterError("edge_length", edge_length, "a number > 0 mm")
     if epsilon is not None and not (np.isfinite(epsilon) and epsilon > 0):
         raise ParameterError("epsilon", epsilon, "a number > 0 mm")
-    refinement = _check_refinement(refinement)
+    factor, energy = PRESETS[quality]
+    refinement = [(c, r, factor * e) for c, r, e in _check_refinement(refinement)]
     items = _as_bodies(bodies)
-    surfaces = [_tessellate(b, tessellation_tolerance) for b in items]
+    brep = np.array([(float(b.shape.volume), float(b.shape.area)) for b in items])
+    if not (brep[:, 0] > 0).all():
+        k = int(np.argmin(brep[:, 0]))
+        raise MeshingError(f"body {items[k].name!r} has no volume ({brep[k, 0]:.4g} mm^3): "
+                           f"not a solid")
+    t_body = 2.0 * brep[:, 0] / brep[:, 1]
+    host = int(np.argmax(brep[:, 0]))
+    boxes = [b.shape.bounding_box() for b in items]
+    lo = np.min([tuple(bb.min) for bb in boxes], axis=0)
+    hi = np.max([tuple(bb.max) for bb in boxes], axis=0)
+    diag = float(np.linalg.norm(hi - lo))
+    eps = float(epsilon) if epsilon is not None else float(
+        np.clip(0.1 * t_body.min(), 1e-5 * diag, 1e-3 * diag))
+    tol = float(tessellation_tolerance) if tessellation_tolerance else max(0.5 * eps, 0.01)
+    surfaces = [_tessellate(b, tol, angular_tolerance) for b in items]
     volumes = np.array([s.volume for s in surfaces])
-    host = int(np.argmax(volumes))
     if len(items) > 1:
-        union = _union(items, tessellation_tolerance)
+        union = _union(items, tol, angular_tolerance)
         overlap = volumes.sum() - union.volume
         if overlap > 1e-3 * volumes.sum() + 1e-9:
             raise MeshingError(f"bodies {', '.join(b.name for b in items)} overlap by "
@@ -242,18 +340,11 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
         faces = np.vstack([s.faces + o for s, o in zip(parts, offsets)])
     else:
         verts, faces = np.asarray(surfaces[0].vertices), np.asarray(surfaces[0].faces)
-    lo, hi = verts.min(axis=0), verts.max(axis=0)
-    diag = float(np.linalg.norm(hi - lo))
-    t_min = min(thickness(s) for s in surfaces)
-
-    factor, energy = PRESETS[quality]
     if stop_energy is not None:
         energy = float(stop_energy)
     if edge_length is None:
         h_vol = (_CELLS_PER_EDGE3 * volumes.sum() / target_cells) ** (1.0 / 3.0)
-        edge_length = factor * min(thickness(surfaces[host]), h_vol)
-    eps = float(epsilon) if epsilon is not None else float(np.clip(0.1 * t_min, 1e-5 * diag,
-                                                                   1e-3 * diag))
+        edge_length = factor * min(1.5 * t_body[host], h_vol)
     names = [b.name for b in items]
     log: list[str] = []
     for h, e, se in _attempts(float(edge_length), eps, energy):
