@@ -53,3 +53,58 @@ def test_missing_sets_raise_model_error(bar):
     a, L, mesh, fem = bar
     with pytest.raises(ModelError, match="does not exist"):
         stiffness_6x6(mesh, "flexure_base", "zmax")
+
+
+def test_report_shows_which_model_is_closer_to_the_measurement(shared):
+    """Entry by entry: an FEM matrix equal to the measurement wins every non-zero entry."""
+    from designlab.calibration import flexure_report as fr
+    from designlab.fem.spring import VISIFLEX_CATALOG
+
+    paper = fr.load_paper(shared / "data/papers/visiflex_flexure.json")
+    h = fr.camera_offset(paper)
+    K_meas_centre = transform_stiffness(paper["K_c_measured"], transform(translation=(0, 0, -h)))
+    rep = fr.flexure_report(VISIFLEX_CATALOG, "camera", K_fem_spring_si=K_meas_centre, paper=paper)
+    assert all(r["closer_to_measured"] == "fem" for r in rep["rows"])
+    assert all(abs(r["fem_vs_measured_pct"]) < 1e-6 for r in rep["rows"])
+    # an FEM twice the closed form loses wherever the closed form is already above the measurement
+    K_cf = np.asarray(rep["closed_form"])
+    rep2 = fr.flexure_report(VISIFLEX_CATALOG, "spring", paper=paper,
+                             K_fem_spring_si=2 * np.asarray(fr.flexure_report(
+                                 VISIFLEX_CATALOG, "spring", paper=paper)["closed_form"]))
+    row = {r["entry"]: r for r in rep2["rows"]}
+    assert row["k_vx"]["closer_to_measured"] == "closed_form"      # 10979 vs 5830 measured
+    assert rep2["condition_numbers"]["fem"] == pytest.approx(rep2["condition_numbers"]["closed_form"])
+    assert K_cf.shape == (6, 6)
+
+
+def test_flexure_geometry_from_spring():
+    pytest.importorskip("build123d")
+    from designlab.errors import ParameterError
+    from designlab.fem.flexure_fem import flexure_from_spring, spring_material
+    from designlab.fem.spring import VISIFLEX_AS_PRINTED, VISIFLEX_CATALOG, HelicalSpring
+
+    f = flexure_from_spring(VISIFLEX_CATALOG)
+    assert f.ends == "closed_ground" and f.active_coils == 1.75 and f.wire_radius == 1.015
+    assert f.length == pytest.approx(VISIFLEX_CATALOG.free_length, abs=0.05)
+    assert flexure_from_spring(VISIFLEX_AS_PRINTED).ends == "plain"
+    with pytest.raises(ParameterError, match="inactive_coils"):
+        flexure_from_spring(HelicalSpring(inactive_coils=1.0))
+    m = spring_material(VISIFLEX_CATALOG)
+    assert m.G == pytest.approx(69000.0) and m.E == 193000.0
+
+
+@pytest.mark.slow
+def test_small_pitch_helix_axial_stiffness_matches_closed_form():
+    """Meshed helix (5 plain coils, pitch angle 0.08 rad, spring index 5) vs the zero-pitch
+    closed form: axial stiffness within 10 % (the flat end footprints clamped on the discs
+    shorten the free wire by ~0.35 turn, so the FEM is ~7 % stiffer); takes minutes (fTetWild)."""
+    from designlab.fem.flexure_fem import fem_stiffness
+    from designlab.fem.spring import HelicalSpring, stiffness_zero_pitch
+
+    s = HelicalSpring(wire_radius=2.0, mean_diameter=20.0, coils=5.0, pitch_angle=0.08)
+    fem = fem_stiffness(s, edge_length=2.0, quality="coarse")
+    K = stiffness_zero_pitch(s)
+    assert fem.K_centre[5, 5] == pytest.approx(K[5, 5], rel=0.10)
+    assert fem.K_centre[2, 2] == pytest.approx(K[2, 2], rel=0.15)
+    assert fem.asymmetry < 1e-6
+    assert np.all(np.linalg.eigvalsh(fem.K) > 0)
