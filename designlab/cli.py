@@ -503,7 +503,7 @@ def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure")
     from rich.table import Table
 
     from designlab.errors import ParameterError
-    from designlab.geometry.meshing import mesh_bodies_detailed, save_mesh
+    from designlab.geometry.meshing import mesh_part_detailed, save_mesh
     from designlab.geometry.parts import PARTS, make_part
     from designlab.params import load_toml, parse_sets
 
@@ -511,10 +511,8 @@ def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure")
         raise ParameterError("part", part, "one of " + ", ".join(PARTS))
     obj = make_part(part, parse_sets(set_), load_toml(config) if config is not None else None)
     with console.status(f"meshing {part} (fTetWild)...", spinner="dots"):
-        built = obj.build()
-        res = mesh_bodies_detailed([built[n] for n in obj.mesh_bodies()], obj.facet_sets(),
-                                   refinement=obj.refinement() if refine else (), order=order,
-                                   edge_length=edge_length, quality=quality)
+        res = mesh_part_detailed(obj, refine=refine, order=order, edge_length=edge_length,
+                                 quality=quality)
         vtu, js = save_mesh(res, out)
     rep = res.report()
     table = Table(title=f"{part}: {rep['n_cells']} TET{4 if order == 1 else 10} cells, "

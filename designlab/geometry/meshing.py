@@ -31,7 +31,7 @@ from designlab.geometry.mesh import TetMesh, box_tet_mesh
 from designlab.geometry.mesh_facets import interface_facets, select_facets
 
 #: quality presets: (edge length factor, fTetWild stop energy)
-PRESETS = {"coarse": (2.0, 40.0), "default": (1.0, 15.0), "fine": (0.7, 10.0)}
+PRESETS = {"coarse": (2.0, 25.0), "default": (1.0, 15.0), "fine": (0.7, 10.0)}
 #: linear cells a default edge length aims at (TET10 of that: ~1e5 DOF)
 TARGET_CELLS = 12_000
 #: cells per mm^3 of a mesh of regular-ish tetrahedra with unit edge length
@@ -230,7 +230,7 @@ def _union(bodies: list[Body], tolerance: float, angular_tolerance: float):
 
 # --------------------------------------------------------------------------- meshing core
 
-def _tetwild(vertices, faces, edge_length, epsilon, stop_energy, sizing, threads):
+def _tetwild_call(vertices, faces, edge_length, epsilon, stop_energy, sizing, threads):
     import pytetwild
 
     diag = float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
@@ -242,6 +242,42 @@ def _tetwild(vertices, faces, edge_length, epsilon, stop_energy, sizing, threads
         edge_length_abs=edge_length, epsilon=epsilon / diag, stop_energy=stop_energy,
         num_threads=threads, quiet=True, **kw)
     return np.asarray(points, float), np.asarray(cells, np.int64)
+
+
+def _child(conn, args):
+    try:
+        conn.send(("ok", _tetwild_call(*args)))
+    except BaseException as exc:  # reported to the parent, which decides
+        conn.send(("error", f"{type(exc).__name__}: {exc}"))
+    finally:
+        conn.close()
+
+
+def _tetwild(vertices, faces, edge_length, epsilon, stop_energy, sizing, threads,
+             isolate: bool = True):
+    """fTetWild in a forked child process (``isolate``): a C++ abort inside fTetWild then
+    becomes a ``RuntimeError`` here instead of killing the caller."""
+    import multiprocessing as mp
+
+    args = (vertices, faces, edge_length, epsilon, stop_energy, sizing, threads)
+    if not isolate or "fork" not in mp.get_all_start_methods():
+        return _tetwild_call(*args)
+    ctx = mp.get_context("fork")
+    recv, send = ctx.Pipe(duplex=False)
+    proc = ctx.Process(target=_child, args=(send, args), daemon=True)
+    proc.start()
+    send.close()
+    try:
+        status, payload = recv.recv()
+    except EOFError:
+        proc.join()
+        raise RuntimeError(f"fTetWild crashed (exit code {proc.exitcode})") from None
+    finally:
+        recv.close()
+    proc.join()
+    if status != "ok":
+        raise RuntimeError(payload)
+    return payload
 
 
 def compact(points: np.ndarray, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -285,7 +321,7 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
                          epsilon: float | None = None, stop_energy: float | None = None,
                          tessellation_tolerance: float | None = None,
                          angular_tolerance: float = 0.5, volume_rtol: float = 0.05,
-                         interfaces: bool = True, threads: int = 1,
+                         interfaces: bool = True, threads: int = 1, isolate: bool = True,
                          target_cells: int = TARGET_CELLS) -> MeshResult:
     """Mesh bodies into one conforming TET4/TET10 mesh; see the module doc for the method.
 
@@ -298,7 +334,8 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
     tessellation_tolerance: chordal tolerance of the surfaces, mm (default epsilon / 2,
                  >= 0.01); ``angular_tolerance`` in rad
     volume_rtol: largest accepted relative error of a region's volume
-    threads:     fTetWild threads (1 = deterministic; 0 = all cores)
+    threads:     fTetWild threads (0 = all cores)
+    isolate:     run fTetWild in a forked process so that a crash in it is a MeshingError
     """
     t0 = time.perf_counter()
     if order not in (1, 2):
@@ -354,7 +391,7 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
             sizing = sizing_field(lo - pad, hi + pad, h, refinement)
         what = f"edge {h:.3g} mm, epsilon {e:.3g} mm, stop energy {se:g}"
         try:
-            points, cells = _tetwild(verts, faces, h, e, se, sizing, threads)
+            points, cells = _tetwild(verts, faces, h, e, se, sizing, threads, isolate)
         except Exception as exc:  # fTetWild reports failures as generic C++ exceptions
             log.append(f"{what}: fTetWild failed ({type(exc).__name__}: {exc})")
             continue
@@ -397,16 +434,16 @@ def mesh_bodies(bodies: Mapping[str, Body] | Sequence[Body],
     return mesh_bodies_detailed(bodies, facet_sets, **kw).mesh
 
 
-def mesh_part_detailed(part: Any, **kw: Any) -> MeshResult:
-    """Mesh ``part.mesh_bodies()`` of ``part.build()`` with the part's facet sets and
-    refinement spheres (added to any ``refinement`` given)."""
+def mesh_part_detailed(part: Any, *, refine: bool = True, **kw: Any) -> MeshResult:
+    """Mesh ``part.mesh_bodies()`` of ``part.build()`` with the part's facet sets and, with
+    ``refine``, its refinement spheres (added to any ``refinement`` given)."""
     built = part.build()
     try:
         bodies = [built[name] for name in part.mesh_bodies()]
     except KeyError as exc:
         raise MeshingError(f"part {type(part).__name__} names mesh body {exc} that build() "
                            f"does not return (has {', '.join(built)})") from None
-    refinement = list(part.refinement()) + list(kw.pop("refinement", ()))
+    refinement = (list(part.refinement()) if refine else []) + list(kw.pop("refinement", ()))
     return mesh_bodies_detailed(bodies, part.facet_sets(), refinement=refinement, **kw)
 
 
