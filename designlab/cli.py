@@ -200,7 +200,8 @@ def flexure(preset: str = typer.Option("visiflex", "--preset",
         K_fem, fem_info = fem.K_centre_si, fem.summary()
     report = fr.flexure_report(spring, frame=frame, K_fem_spring_si=K_fem, paper=paper)
     report["fem_info"] = fem_info
-    console.print(fr.report_table(report))
+    for table in fr.report_tables(report):
+        console.print(table)
     r = report["ratios"]
     console.print("ratios (closed form vs paper theory): " + ", ".join(
         f"{k} {r['closed_form'][k]:.4g} vs {r['paper_theory'][k]:.4g} ({v:+.2f} %)"

@@ -219,17 +219,12 @@ def write_json(path: str | Path, report: dict) -> Path:
     return path
 
 
-def report_table(report: dict):
-    """A rich Table of the report rows: paper theory/measured, closed form, FEM, % errors."""
+def report_tables(report: dict) -> list:
+    """Two rich Tables of the report rows: values (paper theory/measured, closed form,
+    Timoshenko, FEM) and % errors with which model is closer to the measurement."""
     from rich.table import Table
 
     has_fem = report["fem"] is not None
-    t = Table(title=f"Visiflex flexure stiffness, {report['frame']} frame ({report['units']})",
-              caption_justify="left")
-    cols = ["entry", "paper", "meas.", "closed", "Timosh."] + (["FEM"] if has_fem else [])
-    cols += ["cl/pap%", "cl/meas%", "Ti/meas%"] + (["FEM/meas%", "closer"] if has_fem else [])
-    for c in cols:
-        t.add_column(c, justify="left" if c in ("entry", "closer") else "right")
 
     def num(v):
         return "-" if v is None else (f"{v:.0f}" if abs(v) >= 100 else f"{v:.3g}")
@@ -237,18 +232,28 @@ def report_table(report: dict):
     def pct(v):
         return "-" if v is None else f"{v:+.1f}"
 
+    values = Table(title=f"Visiflex flexure stiffness, {report['frame']} frame ({report['units']})",
+                   caption_justify="left")
+    for c in ["entry", "paper theory", "paper meas.", "closed form", "Timoshenko"] + (
+            ["FEM"] if has_fem else []):
+        values.add_column(c, justify="left" if c == "entry" else "right", no_wrap=True)
+    errors = Table(title="% error: closed form vs paper theory, then each model vs paper measured",
+                   caption_justify="left")
+    cols = ["entry", "closed/paper", "closed/meas", "Tim./meas"]
+    cols += ["FEM/meas", "closer"] if has_fem else []
+    for c in cols:
+        errors.add_column(c, justify="left" if c in ("entry", "closer") else "right",
+                          no_wrap=True)
     for r in report["rows"]:
-        cells = [r["entry"], num(r["paper_theory"]), num(r["paper_measured"]), num(r["closed_form"]),
-                 num(r["closed_form_timoshenko"])]
-        cells += [num(r["fem"])] if has_fem else []
-        cells += [pct(r["closed_form_vs_theory_pct"]), pct(r["closed_form_vs_measured_pct"]),
-                  pct(r["closed_form_timoshenko_vs_measured_pct"])]
+        values.add_row(r["entry"], num(r["paper_theory"]), num(r["paper_measured"]),
+                       num(r["closed_form"]), num(r["closed_form_timoshenko"]),
+                       *([num(r["fem"])] if has_fem else []))
+        cells = [r["entry"], pct(r["closed_form_vs_theory_pct"]),
+                 pct(r["closed_form_vs_measured_pct"]), pct(r["closed_form_timoshenko_vs_measured_pct"])]
         if has_fem:
             cells += [pct(r["fem_vs_measured_pct"]),
-                      {"fem": "FEM", "closed_form": "closed"}.get(r["closer_to_measured"], "-")]
-        t.add_row(*cells)
+                      {"fem": "FEM", "closed_form": "closed form"}.get(r["closer_to_measured"], "-")]
+        errors.add_row(*cells)
     c = report["condition_numbers"]
-    t.caption = ("paper = paper theory, meas. = paper measured, closed = our zero-pitch closed form, "
-                 "Timosh. = with the column length; cond(K): "
-                 + ", ".join(f"{k} {v:.4g}" for k, v in c.items() if v is not None))
-    return t
+    errors.caption = "cond(K): " + ", ".join(f"{k} {v:.4g}" for k, v in c.items() if v is not None)
+    return [values, errors]
