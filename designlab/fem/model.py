@@ -373,6 +373,18 @@ class Model:
         self._system = None
         return ref
 
+    def free_body(self, name: str, ref_point) -> RefPoint:
+        """A rigid body with its own 6-dof master at ``ref_point`` (mm) and no mesh nodes: a
+        bought rigid part (e.g. the steel ball of seed 001) held only by springs and beams."""
+        if name in self.refs:
+            raise ParameterError("name", name, "a new reference point name")
+        idx = sum(r.kind == "rigid" for r in self.refs.values())
+        ref = RefPoint(name, np.asarray(ref_point, float), "rigid", np.zeros(0, np.int64),
+                       np.zeros(0), idx)
+        self.refs[name] = ref
+        self._system = None
+        return ref
+
     def twist_map(self, ref: RefPoint) -> sp.csr_matrix:
         """(6, n_dofs) map u -> (v, w) of the reference point (translation, rotation)."""
         n = self.n_dofs

@@ -1,0 +1,299 @@
+"""Virtual hanging-weight test of the seed 001 cantilever fingertip (Section III, Tables II-III).
+
+The FEM model (mm, N, MPa, s):
+
+* meshed, printed ABS: the base and the bottom cap (they share nodes at their interface);
+* the steel ball: a rigid 6-dof master at the ball centre (a free rigid body held by the sensors
+  and the bolt); the detachable fingertip is rigidly seated on it and touches nothing else, so
+  it passes the wrench of a load to the ball whatever its own compliance: it is not meshed for
+  the readings (``mesh_fingertip=True`` meshes it and couples its seat to the ball);
+* the three Honeywell FSS015 sensors: stiff springs between a point of the ball (the contact,
+  ``-r_ball * axis``) and the floor of their well (distributing coupling), along the sensor axis
+  45 deg from the vertical; the spring force is the reading (compression positive);
+* the M2.5 cantilever bolt: a Timoshenko steel beam from the bolt-head seat under the cap (rigid
+  coupling) to the point where it enters the ball; the threaded part is rigid with the ball;
+* the cap's outer bottom (``cap_mount``) is fixed to the robot.
+
+The fingertip passes the load to the ball and nothing else, so every sensor reading is a linear
+function of the wrench at the ball centre: the test runs six unit-wrench load cases through the
+load history once and combines them for every load point, height/radius and rotation (exact for
+linear viscoelasticity).
+
+Readings follow the paper: each weight is held ``hold_s``, the reading is the mean over the
+``read_window_s`` before the next weight. Hysteresis: eq. (1) per sensor, averaged over the
+sensors whose span is at least 10 % of the largest at that location (the paper notes that a
+tension-side sensor with a tiny span inflates eq. (1)), then over the rotations.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from designlab.calibration.calibration_matrix import (condition_number, cross_talk_percent,
+                                                      fit_calibration_matrix, geometric_matrix,
+                                                      linearity_percent)
+from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
+from designlab.calibration.protocols import HangingWeightTest
+from designlab.params import rng, validate
+
+#: Honeywell FSS015WNSX: "low deflection, approximately 30 microns typical at full scale" (FSS
+#: series datasheet) over the 15 N range -> about 500 N/mm.
+FSS015_STIFFNESS_N_PER_MM = 15.0 / 0.030
+#: sensor output, V per N of button force: 2.4 mV/V/N x 5 V supply x amplifier gain 5 (Table I)
+FSS015_V_PER_N = 2.4e-3 * 5.0 * 5.0
+
+WRENCH = ("f_x", "f_y", "f_z", "m_x", "m_y", "m_z")
+
+
+@dataclass(frozen=True)
+class FingertipModelSettings:
+    """FEM settings of the fingertip test."""
+
+    edge_length: float = field(default=2.5, metadata=rng(0.2, 10, unit="mm"))
+    mesh_quality: str = field(default="coarse", metadata=rng(choices=("coarse", "default", "fine"),
+                              doc="meshing preset: scales the part's local refinement"))
+    order: int = field(default=2, metadata=rng(choices=(1, 2)))
+    cap_support: str = field(default="rim", metadata=rng(
+        choices=("rim", "face"), doc="how the bottom cap sits on the robot: on its outer rim "
+        "(ring of width cap_rim_width; the cap bends under the bolt) or on its whole bottom face "
+        "around the bolt head (the cap is rigid)"))
+    cap_rim_width: float = field(default=1.5, metadata=rng(0.2, 10, unit="mm"))
+    mesh_fingertip: bool = False
+    refine: bool = False
+    sensor_stiffness: float = field(default=FSS015_STIFFNESS_N_PER_MM,
+                                    metadata=rng(1, 1e7, unit="N/mm"))
+    bolt_minor_diameter: float = field(default=2.0, metadata=rng(0.5, 6, unit="mm",
+                                       doc="M2.5 coarse thread: minor diameter ~2.0 mm"))
+    bolt: bool = True
+    solver: str = field(default="direct", metadata=rng(choices=("auto", "direct", "cholmod", "amg")))
+    rotations_deg: tuple[float, ...] = (0.0, 60.0, 120.0, 180.0, 240.0, 300.0)
+
+    def __post_init__(self):
+        validate(self)
+
+
+def mesh_fingertip(part, settings: FingertipModelSettings):
+    """TET10 mesh of the bodies the readings depend on (base, cap; optionally the fingertip),
+    with the part's facet sets (and its local refinement when ``settings.refine``)."""
+    from designlab.geometry.meshing import mesh_bodies
+
+    built = part.build()
+    names = [n for n in part.mesh_bodies() if settings.mesh_fingertip or n != "fingertip"]
+    sets = {k: v for k, v in part.facet_sets().items()
+            if settings.mesh_fingertip or not (k == "ball_seat" or k.startswith("load_"))}
+    return mesh_bodies([built[n] for n in names], sets, order=settings.order,
+                       edge_length=settings.edge_length, quality=settings.mesh_quality,
+                       refinement=part.refinement() if settings.refine else ())
+
+
+def wrench_at_ball(point: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """(f_x, f_y, f_z, m_x, m_y, m_z) at the ball centre (origin) of a unit force ``direction``
+    applied at ``point`` (mm): N and N mm."""
+    d = np.asarray(direction, float)
+    return np.r_[d, np.cross(np.asarray(point, float), d)]
+
+
+def build_model(part, mesh, settings: FingertipModelSettings, materials=None):
+    """The FEM :class:`~designlab.fem.Model` with ball, sensors, bolt, fixed cap, and the six
+    unit-wrench load cases ``f_x``..``m_z`` at the ball centre. Returns (model, names)."""
+    from designlab.fem import Model
+    from designlab.fem.beam import beam_stiffness, circular_section
+    from designlab.fem.materials import get_material
+
+    model = Model(mesh, materials)
+    if "ball_seat" in mesh.facet_sets:
+        ball = model.rigid("ball", "ball_seat", ref_point=(0.0, 0.0, 0.0))
+    else:
+        ball = model.free_body("ball", (0.0, 0.0, 0.0))
+    # the cap's bottom sits on the robot around the bolt head (never under it)
+    mount = np.setdiff1d(model.nodes("cap_mount"), model.nodes("bolt_head"))
+    if settings.cap_support == "rim":
+        rho = np.hypot(*mesh.points[mount, :2].T)
+        mount = mount[rho >= part.base_radius - settings.cap_rim_width - 1e-9]
+    model.fix(mount)
+    axes, contacts = part.sensor_axes()
+    sensors = []
+    for k in range(3):
+        well = model.distributing_coupling(f"well_{k + 1}", f"sensor_well_{k + 1}")
+        sensors.append(model.spring(f"sensor_{k + 1}", a=(ball, contacts[k]), b=well,
+                                    k=settings.sensor_stiffness, axis=-axes[k]))
+    if settings.bolt:
+        steel = get_material("steel")
+        head = model.rigid("bolt_head", "bolt_head",
+                           ref_point=(0.0, 0.0, part.cap_z[0]))
+        entry = np.array([0.0, 0.0, -part.ball_radius])
+        K = beam_stiffness(head.x, entry, steel.E, steel.G,
+                           **circular_section(settings.bolt_minor_diameter))
+        model.beam("bolt", (head, head.x), (ball, entry), K)
+    unit = np.eye(6)
+    for i, name in enumerate(WRENCH):
+        model.force(ball, force=unit[i, :3], moment=unit[i, 3:], case=name)
+    return model, {"ball": ball, "sensors": [s.name for s in sensors]}
+
+
+@dataclass
+class FingertipPrediction:
+    """Results of the virtual test (forces N, readings V, times s)."""
+
+    t: np.ndarray
+    load: np.ndarray                      # hanging load history, N
+    unit_readings: np.ndarray             # (n_t, 6, 3) sensor force per unit wrench, N per (N|N mm)
+    report: dict[str, Any]
+
+
+def step_responses(model, sensors, tau_max: float, dt: float, t_end: float,
+                   solver: str = "direct", settle: float = 7.0) -> np.ndarray:
+    """(n_h, 6, 3) sensor forces after a unit step of each unit wrench at t = 0, on a grid of
+    ``dt`` up to ``settle * tau_max`` (after that the response is constant to exp(-settle),
+    0.1 %, of the relaxing part) or ``t_end``, whichever is shorter."""
+    from designlab.fem.viscoelastic import History, solve_history
+
+    t_h = np.arange(0.0, min(t_end, settle * tau_max) + dt, dt)
+    res = solve_history(model, History(t_h, {c: np.ones(len(t_h)) for c in WRENCH}),
+                        batch=True, solver=solver)
+    return np.moveaxis(np.stack([res.spring_force(s) for s in sensors], axis=-1), 0, 1)
+
+
+def superpose_steps(H: np.ndarray, dt: float, t: np.ndarray, load: np.ndarray) -> np.ndarray:
+    """Response per unit wrench (n_t, 6, 3), normalised by ``load``, of the piecewise-constant
+    ``load(t)`` from the unit step responses ``H`` (Boltzmann superposition: exact for linear
+    viscoelasticity)."""
+    jumps = np.flatnonzero(np.diff(np.r_[0.0, load]))
+    out = np.zeros((len(t),) + H.shape[1:])
+    for j in jumps:
+        dP = load[j] - (load[j - 1] if j > 0 else 0.0)
+        lag = np.clip(np.rint((t[j:] - t[j]) / dt).astype(int), 0, len(H) - 1)
+        out[j:] += dP * H[lag]
+    return out / np.where(load > 0, load, 1.0)[:, None, None]
+
+
+def _readings_for(unit: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(n_t, 3) sensor forces for wrench ``w`` per unit load (N) times the load amplitude."""
+    return np.einsum("tcs,c->ts", unit, w)
+
+
+def run(part, protocol: HangingWeightTest | None = None,
+        settings: FingertipModelSettings | None = None, *, materials=None, mesh=None,
+        progress: Callable[[str], None] | None = None) -> FingertipPrediction:
+    """Mesh (unless given), build, run the load history, and evaluate the metrics."""
+    from designlab.fem.viscoelastic import History, solve_history
+    from designlab.fem import solve_static
+
+    protocol = protocol or HangingWeightTest()
+    settings = settings or FingertipModelSettings()
+    timings: dict[str, float] = {}
+    say = progress or (lambda s: None)
+    t0 = time.perf_counter()
+    if mesh is None:
+        say("meshing")
+        mesh = mesh_fingertip(part, settings)
+    timings["mesh"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    say("assembling")
+    model, names = build_model(part, mesh, settings, materials)
+    timings["assemble"] = time.perf_counter() - t0
+
+    t, load, step = protocol.time_history()
+    t0 = time.perf_counter()
+    taus = [tau for m in model.region_materials.values() if m.prony is not None
+            for tau in (*m.prony.tau, *m.prony.k_tau)]
+    if taus:
+        say("viscoelastic step responses")
+        H = step_responses(model, names["sensors"], max(taus), protocol.dt_s, t[-1],
+                           settings.solver)
+        unit = superpose_steps(H, protocol.dt_s, t, load)
+    else:
+        say("static solve")
+        res = solve_static(model, solver=settings.solver)
+        per = np.array([[res.spring_force(s, c) for s in names["sensors"]] for c in WRENCH])
+        unit = np.broadcast_to(per, (len(t), 6, 3)).copy()
+    timings["solve"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    report = evaluate(part, protocol, settings, t, load, step, unit)
+    timings["metrics"] = time.perf_counter() - t0
+    report["timings_s"] = timings
+    report["mesh"] = {"points": int(mesh.n_points), "cells": int(mesh.n_cells),
+                      "order": int(mesh.order), "dofs": int(model.n_dofs)}
+    report["viscoelastic"] = bool(taus)
+    report["material_relaxation"] = {m.name: m.source for m in model.region_materials.values()}
+    return FingertipPrediction(t, load, unit, report)
+
+
+def evaluate(part, protocol: HangingWeightTest, settings: FingertipModelSettings, t, load, step,
+             unit: np.ndarray) -> dict[str, Any]:
+    """Hysteresis per location, calibration matrix, condition numbers, sensitivity."""
+    masks = protocol.read_masks(t, step)
+    seq = protocol.sequence_g
+    locs = {"G1": protocol.g1_locations, "G2": protocol.g2_locations}
+    by_location: dict[str, float] = {}
+    group_mean: dict[str, float] = {}
+    S_rows, P_rows, loop_data = [], [], {}
+    response: dict[str, list[float]] = {}
+    for group, names in locs.items():
+        vals = []
+        for name in names:
+            hs = []
+            for rot in settings.rotations_deg:
+                pts = part.load_points(rot)
+                if name not in pts:
+                    break
+                p, d = pts[name]
+                w = wrench_at_ball(p, d)
+                force = _readings_for(unit, w) * load[:, None]                # (n_t, 3) N
+                reading = FSS015_V_PER_N * force                              # V
+                S = np.array([reading[m].mean(axis=0) for m in masks])       # (steps, 3)
+                lu, su, ld, sd = loop_from_steps(seq, S)
+                span = np.abs(su[-1] - su[0])
+                keep = span >= 0.1 * span.max()
+                h = hysteresis_percent(lu, su, ld, sd)
+                hs.append(float(np.mean(h[keep])))
+                # calibration load set: applied force vector vs reading change at max weight
+                k = int(np.argmax(seq))
+                P_rows.append(d * (load[masks[k]].mean() - load[masks[0]].mean()))
+                S_rows.append(S[k] - S[0])
+                if rot == settings.rotations_deg[0]:
+                    loop_data[name] = {"weights_g": seq.tolist(), "readings_V": S.tolist()}
+                    response[name] = (S[k] - S[0]).tolist()
+            if hs:
+                by_location[name] = float(np.mean(hs))
+                vals.append(by_location[name])
+        if vals:
+            group_mean[group] = float(np.mean(vals))
+    S_all, P_all = np.array(S_rows), np.array(P_rows)
+    A, fit = fit_calibration_matrix(S_all, P_all)
+    P_est = S_all @ A.T
+    G = geometric_matrix()
+    kmax = int(np.argmax(seq))
+    lin = []
+    for name, ld in loop_data.items():
+        S = np.array(ld["readings_V"])[: kmax + 1]
+        for ch in range(3):
+            if np.ptp(S[:, ch]) > 0:
+                lin.append(linearity_percent(seq[: kmax + 1], S[:, ch]))
+    sens = np.linalg.pinv(A)            # V per N along x, y, z (rows: sensors)
+    overall = float(np.mean(list(by_location.values()))) if by_location else float("nan")
+    return {
+        "hysteresis_percent": {"overall": overall, "by_group": group_mean,
+                               "by_location": by_location},
+        "calibration_matrix": A.tolist(),
+        "calibration_units": "N per V (P = A S)",
+        "condition_number": condition_number(A),
+        "geometric_matrix": G.tolist(),
+        "geometric_condition_number": condition_number(G),
+        "calibration_fit": fit,
+        "sensitivity": {"V_per_N": {ax: float(np.linalg.norm(sens[:, i]))
+                                    for i, ax in enumerate("xyz")},
+                        "matrix_V_per_N": sens.tolist()},
+        "linearity_percent_span": float(max(lin)) if lin else float("nan"),
+        "cross_talk_percent": cross_talk_percent(P_all, P_est).tolist(),
+        "loops": loop_data,
+        "response_at_max_V": response,
+        "peak_sensor_force_N": float(np.abs(np.array(S_rows)).max() / FSS015_V_PER_N)
+        if S_rows else 0.0,
+        "applied_vs_estimated": {"applied_N": P_all.tolist(), "estimated_N": P_est.tolist()},
+    }
