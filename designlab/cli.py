@@ -540,7 +540,9 @@ def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure")
 def main(argv: Optional[List[str]] = None) -> None:
     """Console-script entry point: run the app, map user errors to one line + exit 2."""
     try:
-        app(args=argv, standalone_mode=False)
+        rc = app(args=argv, standalone_mode=False)
+        if isinstance(rc, int) and rc:
+            sys.exit(rc)
     except DesignlabError as exc:
         err_console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
         sys.exit(2)
