@@ -143,6 +143,8 @@ class FingertipPrediction:
     load: np.ndarray                      # hanging load history, N
     unit_readings: np.ndarray             # (n_t, 6, 3) sensor force per unit wrench, N per (N|N mm)
     report: dict[str, Any]
+    mesh: Any = None                      # the FEM mesh and its displacement (n_points, 3) mm
+    displacement: Any = None              # under the largest load at the first G1 location
 
 
 def step_responses(model, sensors, tau_max: float, dt: float, t_end: float,
@@ -155,7 +157,8 @@ def step_responses(model, sensors, tau_max: float, dt: float, t_end: float,
     t_h = np.arange(0.0, min(t_end, settle * tau_max) + dt, dt)
     res = solve_history(model, History(t_h, {c: np.ones(len(t_h)) for c in WRENCH}),
                         batch=True, solver=solver)
-    return np.moveaxis(np.stack([res.spring_force(s) for s in sensors], axis=-1), 0, 1)
+    H = np.moveaxis(np.stack([res.spring_force(s) for s in sensors], axis=-1), 0, 1)
+    return H, res.displacement(-1)
 
 
 def superpose_steps(H: np.ndarray, dt: float, t: np.ndarray, load: np.ndarray) -> np.ndarray:
@@ -204,14 +207,15 @@ def run(part, protocol: HangingWeightTest | None = None,
             for tau in (*m.prony.tau, *m.prony.k_tau)]
     if taus:
         say("viscoelastic step responses")
-        H = step_responses(model, names["sensors"], max(taus), protocol.dt_s, t[-1],
-                           settings.solver)
+        H, U_unit = step_responses(model, names["sensors"], max(taus), protocol.dt_s, t[-1],
+                                   settings.solver)
         unit = superpose_steps(H, protocol.dt_s, t, load)
     else:
         say("static solve")
         res = solve_static(model, solver=settings.solver)
         per = np.array([[res.spring_force(s, c) for s in names["sensors"]] for c in WRENCH])
         unit = np.broadcast_to(per, (len(t), 6, 3)).copy()
+        U_unit = np.stack([res.displacement(c) for c in WRENCH])
     timings["solve"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     report = evaluate(part, protocol, settings, t, load, step, unit)
@@ -221,7 +225,14 @@ def run(part, protocol: HangingWeightTest | None = None,
                       "order": int(mesh.order), "dofs": int(model.n_dofs)}
     report["viscoelastic"] = bool(taus)
     report["material_relaxation"] = {m.name: m.source for m in model.region_materials.values()}
-    return FingertipPrediction(t, load, unit, report)
+    first = protocol.g1_locations[0] if protocol.g1_locations else protocol.g2_locations[0]
+    pts = part.load_points(settings.rotations_deg[0])
+    u = None
+    if first in pts:
+        w = wrench_at_ball(*pts[first]) * float(load.max())
+        u = np.einsum("c,cpk->pk", w, U_unit)
+        report["vtu_load"] = {"location": first, "load_N": float(load.max())}
+    return FingertipPrediction(t, load, unit, report, mesh, u)
 
 
 def evaluate(part, protocol: HangingWeightTest, settings: FingertipModelSettings, t, load, step,

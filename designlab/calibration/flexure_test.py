@@ -111,6 +111,8 @@ class FlexurePrediction:
     K_true: np.ndarray          # 6x6, designlab units
     K_design: np.ndarray
     report: dict[str, Any]
+    mesh: Any = None            # FEM mesh and displacement (n_points, 3) mm under the largest
+    displacement: Any = None    # axial force of the protocol (None without the FEM)
 
 
 def run(part=None, protocol: FlexureWrenchTest | None = None,
@@ -134,6 +136,7 @@ def run(part=None, protocol: FlexureWrenchTest | None = None,
     fem_info = None
     K_fem = None
     model = None
+    u_vtu = None
     if settings.truth == "fem" or mesh is not None:
         t0 = time.perf_counter()
         if mesh is None:
@@ -154,6 +157,7 @@ def run(part=None, protocol: FlexureWrenchTest | None = None,
 
         res = solve_static(model, solver=settings.solver)
         C = np.column_stack([res.twist(ref, name) for name in WRENCH])
+        u_vtu = res.displacement("f_z") * protocol.max_force_N
         timings["solve"] = time.perf_counter() - t0
         asym = float(np.linalg.norm(C - C.T) / np.linalg.norm(C))
         try:
@@ -219,7 +223,7 @@ def run(part=None, protocol: FlexureWrenchTest | None = None,
                         "E_MPa": spring.E, "G_MPa": spring.G, "length_mm": float(part.length)}
     report["timings_s"] = timings
     report["notes"] = notes
-    return FlexurePrediction(W, X, W_est, K_true, K_design, report)
+    return FlexurePrediction(W, X, W_est, K_true, K_design, report, mesh, u_vtu)
 
 
 def evaluate(W: np.ndarray, X: np.ndarray, W_est: np.ndarray, K_true: np.ndarray,

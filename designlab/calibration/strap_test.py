@@ -259,6 +259,8 @@ class StrapPrediction:
     voltage: np.ndarray         # (n_t, 2) divider output, V
     dV: np.ndarray              # (n_t, 2) change from the unloaded state, V
     report: dict[str, Any]
+    mesh: Any = None            # the worn mesh and its displacement (n_points, 3) mm at the
+    displacement: Any = None    # peak normal force, for the VTU of the deformed sensor
 
 
 def run(part=None, protocol: StrapLoadTest | None = None,
@@ -296,12 +298,14 @@ def run(part=None, protocol: StrapLoadTest | None = None,
         res = solve_history(model, History(t, {"F_n": fn, "F_x": fx}), solver=settings.solver)
         strain = np.column_stack([gauges[c].strain(res.U) for c in CHANNELS])
         unit = None
+        u_peak = res.displacement(int(np.argmax(fn)))
     else:
         say("static solve")
         res = solve_static(model, solver=settings.solver)
         U = res.U[:, [res.system.case_index(c) for c in CASES]]
         unit = np.array([gauges[c].strain(U) for c in CHANNELS])       # (channel, case)
         strain = np.column_stack([fn, fx]) @ unit.T
+        u_peak = res.displacement(CASES[0]) * float(fn.max())
     timings["solve"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -333,7 +337,7 @@ def run(part=None, protocol: StrapLoadTest | None = None,
     if not viscous:
         report["notes"] = ["materials have no Prony series: elastic response, hysteresis is "
                            "0 by construction (not a measurement of the printed part)"]
-    return StrapPrediction(t, fn, fx, strain, voltage, dV, report)
+    return StrapPrediction(t, fn, fx, strain, voltage, dV, report, mesh, u_peak)
 
 
 # ------------------------------------------------------------------------------------ metrics

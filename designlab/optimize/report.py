@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from designlab.optimize.space import SweepConfig
-from designlab.optimize.store import atomic_write_bytes
+from designlab.atomic import atomic_write_bytes
 
 
 def _fig_png(fig) -> bytes:

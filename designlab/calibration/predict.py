@@ -1,0 +1,245 @@
+"""``designlab predict``: the virtual test of a design, before it is printed.
+
+:func:`predict` builds the part from parameters, runs its protocol's virtual test (fingertip:
+hanging weights, seed 001; strap: fingertip loads, seed 000; flexure: wrenches, seed 002) and
+returns one JSON-able prediction with the keys every caller relies on::
+
+    {"design": {...}, "hysteresis_percent": {"overall": x, "by_location": {...}},
+     "calibration_matrix": [[...]], "condition_number": x, "geometric_condition_number": x,
+     "sensitivity": {...}, "K_f": [[...]] (flexure), "timings_s": {...}, ...}
+
+:func:`write_prediction` writes ``prediction.json``, the PNG plots and a VTU of the deformed
+sensor, each atomically.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+import warnings
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from designlab import __version__
+from designlab.calibration.protocols import load_protocol
+from designlab.errors import ParameterError
+
+#: seed 001: measured condition number of A_opt (../shared/data/papers/fingertip_xu2014.json)
+PAPER_CONDITION_NUMBER = 34.92
+
+
+def _settings(part: str, values: dict[str, Any] | None):
+    from designlab.params import with_overrides
+
+    if part == "fingertip":
+        from designlab.calibration.fingertip_test import FingertipModelSettings as S
+    elif part == "strap":
+        from designlab.calibration.strap_test import StrapModelSettings as S
+    else:
+        from designlab.calibration.flexure_test import FlexureModelSettings as S
+    values = {k: (tuple(v) if isinstance(v, list) else v) for k, v in (values or {}).items()}
+    try:
+        return with_overrides(S, values)
+    except ParameterError as exc:
+        raise ParameterError(f"settings.{exc.name}", exc.value, exc.allowed) from None
+
+
+def protocol_from(part: str, path: str | Path | None = None,
+                  values: dict[str, Any] | None = None):
+    """The part's protocol: defaults, a TOML file, and/or a dict of overrides (sweeps)."""
+    proto = load_protocol(part, path)
+    if values:
+        data = dict(values)
+        preset = data.pop("preset", None)
+        if preset is not None:
+            proto = type(proto).preset(preset)
+        data = {k: (tuple(v) if isinstance(v, list) else v) for k, v in data.items()}
+        names = {f.name for f in dataclasses.fields(proto)}
+        for k in data:
+            if k not in names:
+                raise ParameterError(f"protocol.{k}", data[k], "one of " + ", ".join(sorted(names)))
+        proto = dataclasses.replace(proto, **data)
+    return proto
+
+
+def run_virtual_test(part_name: str, part, protocol, settings, progress=None):
+    if part_name == "fingertip":
+        from designlab.calibration import fingertip_test as mod
+    elif part_name == "strap":
+        from designlab.calibration import strap_test as mod
+    else:
+        from designlab.calibration import flexure_test as mod
+    return mod, mod.run(part, protocol, settings, progress=progress)
+
+
+def _fingertip_extras(report: dict[str, Any], prediction, part, protocol) -> None:
+    """Paper comparison and what drives the condition number (seed 001 Section IV)."""
+    from designlab.calibration.fingertip_test import WRENCH
+
+    unit = prediction.unit_readings[-1]                       # (6 wrench, 3 sensors), N per N
+    axes, _ = part.sensor_axes()
+    # share of each applied force component carried by the three sensors (rest: bolt + cap)
+    share = {ax: float(np.abs(axes[:, i] @ (-unit[i]))) for i, ax in enumerate("xyz")}
+    cond = report["condition_number"]
+    report["load_paths"] = {
+        "share_through_sensors": share,
+        "share_through_bolt_and_cap": {k: 1.0 - v for k, v in share.items()},
+        "unit_wrench_sensor_forces_N": {w: unit[i].tolist() for i, w in enumerate(WRENCH)},
+    }
+    report["paper_comparison"] = {
+        "condition_number_paper": PAPER_CONDITION_NUMBER,
+        "condition_number_predicted": cond,
+        "geometric_condition_number": report["geometric_condition_number"],
+        "explanation": (
+            f"The ideal rigid geometry of eq. 8 gives {report['geometric_condition_number']:.3f}. "
+            f"In the model only {100 * share['z']:.1f} % of an axial force P_z reaches the sensors "
+            f"(radial: {100 * share['x']:.0f} % / {100 * share['y']:.0f} %); the rest goes through "
+            "the preloaded M2.5 bolt and the printed bottom cap in parallel, so the axial "
+            f"sensitivity is {share['x'] / max(share['z'], 1e-12):.0f}x lower than the radial one "
+            f"and cond(A) rises to {cond:.1f} (paper: {PAPER_CONDITION_NUMBER}). The paper blames "
+            "the same path (the bolt pushed out by P_z, the elastic bottom cap). What the model "
+            "leaves out: contact compliance and friction at the ball/sensor contacts, the bolt's "
+            "preload state, printing anisotropy; the cap support (setting cap_support) moves the "
+            "share of P_z most."),
+    }
+    peak = report.get("peak_sensor_force_N", 0.0)
+    protocol.check_sensor_range(peak, "FSS015 sensor")
+
+
+def predict(part_name: str, overrides: dict[str, Any] | None = None, *,
+            protocol_path: str | Path | None = None, protocol: dict[str, Any] | None = None,
+            settings: dict[str, Any] | None = None,
+            progress: Callable[[str], None] | None = None) -> tuple[dict[str, Any], Any, Any]:
+    """Run the virtual test of one design: (prediction dict, the test module, its raw result)."""
+    from designlab.geometry.parts import PARTS, make_part
+    from designlab.params import as_dict
+
+    if part_name not in PARTS:
+        raise ParameterError("part", part_name, "one of " + ", ".join(PARTS))
+    t0 = time.perf_counter()
+    part = make_part(part_name, overrides or {})
+    proto = protocol_from(part_name, protocol_path, protocol)
+    sett = _settings(part_name, settings)
+    t_cad = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    part.build()
+    t_cad += time.perf_counter() - t0
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        mod, result = run_virtual_test(part_name, part, proto, sett, progress)
+        report = dict(result.report)
+        if part_name == "fingertip":
+            _fingertip_extras(report, result, part, proto)
+    report.setdefault("geometric_condition_number", None)
+    report["timings_s"] = {"cad": t_cad, **report.get("timings_s", {})}
+    report["timings_s"]["total"] = float(sum(v for v in report["timings_s"].values()
+                                             if isinstance(v, (int, float))))
+    out = {"design": {"part": part_name, "params": as_dict(part)},
+           "protocol": {k: (list(v) if isinstance(v, tuple) else v)
+                        for k, v in as_dict(proto).items()},
+           "settings": {k: (list(v) if isinstance(v, tuple) else v)
+                        for k, v in as_dict(sett).items()},
+           "designlab": __version__, "warnings": [str(w.message) for w in caught], **report}
+    return out, mod, result
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _jsonable(x.tolist())
+    if isinstance(x, (np.floating, np.integer, np.bool_)):
+        return x.item()
+    if isinstance(x, float) and not np.isfinite(x):
+        return None
+    return x
+
+
+def fingertip_plots(result, report: dict[str, Any], out: Path) -> list[Path]:
+    """Hysteresis loops, reading vs weight per location, applied vs estimated (seed 001 Fig. 9)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    import io
+
+    from designlab.atomic import atomic_write_bytes
+
+    def save(fig, name):
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
+        plt.close(fig)
+        atomic_write_bytes(out / name, buf.getvalue())
+        return out / name
+
+    files = []
+    loops = report["loops"]
+    names = list(loops)
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4))
+    for k, ax in enumerate(axes):
+        for n in names:
+            w = np.array(loops[n]["weights_g"])
+            s = np.array(loops[n]["readings_V"])[:, k]
+            ax.plot(w, 1e3 * (s - s[0]), ".-", label=n)
+        ax.set_title(f"sensor {'rgb'[k]} (azimuth {(270, 30, 150)[k]} deg)")
+        ax.set_xlabel("hanging weight, g")
+        ax.set_ylabel("reading change, mV")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7, ncol=2)
+    fig.suptitle("hysteresis loops: loading and unloading (rotation 0)")
+    files.append(save(fig, "hysteresis_loops.png"))
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    h = report["hysteresis_percent"]["by_location"]
+    ax.bar(list(h), list(h.values()))
+    ax.set_ylabel("hysteresis, % (eq. 1)")
+    ax.set_title(f"mean over sensors and rotations; overall "
+                 f"{report['hysteresis_percent']['overall']:.3g} %")
+    files.append(save(fig, "hysteresis_by_location.png"))
+
+    ae = report["applied_vs_estimated"]
+    P, E = np.array(ae["applied_N"]), np.array(ae["estimated_N"])
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.8))
+    for i, ax in enumerate(axes):
+        ax.plot(P[:, i], E[:, i], "o", ms=3)
+        lim = [min(P[:, i].min(), E[:, i].min()), max(P[:, i].max(), E[:, i].max())]
+        ax.plot(lim, lim, "k--", lw=0.8)
+        ax.set_xlabel(f"applied P_{'xyz'[i]}, N")
+        ax.set_ylabel(f"estimated P_{'xyz'[i]}, N")
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"calibration (seed 001 Fig. 9): cond(A) = {report['condition_number']:.1f}")
+    files.append(save(fig, "applied_vs_estimated.png"))
+    return files
+
+
+def write_prediction(prediction: dict[str, Any], mod, result, out: str | Path) -> list[Path]:
+    """prediction.json, the plots, and deformed.vtu (+ deformed.png) in ``out``."""
+    from designlab.atomic import atomic_write_bytes
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    files: list[Path] = []
+    part = prediction["design"]["part"]
+    if part == "fingertip":
+        files += fingertip_plots(result, prediction, out)
+    else:
+        files += list(mod.plots(result, out))
+    mesh, u = getattr(result, "mesh", None), getattr(result, "displacement", None)
+    if mesh is not None and u is not None:
+        from designlab.fem.output import write_png, write_vtu
+
+        files.append(write_vtu(out / "deformed.vtu", mesh, point_data={"displacement": u}))
+        try:
+            files.append(Path(write_png(out / "deformed.png", mesh, np.asarray(u))))
+        except Exception as exc:  # rendering is a convenience; the VTU is the result
+            prediction.setdefault("warnings", []).append(f"deformed.png not rendered: {exc}")
+    atomic_write_bytes(out / "prediction.json",
+                       json.dumps(_jsonable(prediction), indent=1).encode())
+    files.append(out / "prediction.json")
+    return files
