@@ -342,8 +342,10 @@ def test_default_parts_mesh(name):
     res = mesh_part_detailed(part, quality="coarse", order=2, refine=False)
     m = res.mesh
     assert set(m.region_names.values()) == set(part.mesh_bodies())
+    # against the exact B-rep volume; the thin helix loses most to its faceted surface
+    rtol = 0.05 if name == "flexure" else 0.02
     for body, vol in res.body_volumes.items():
-        assert res.region_volumes()[body] == pytest.approx(vol, rel=0.03), body
+        assert res.region_volumes()[body] == pytest.approx(vol, rel=rtol), body
     for k in part.facet_sets():
         assert len(m.facet_sets[k]) > 0, k
     assert (m.corner_volumes > 0).all()
