@@ -48,9 +48,12 @@ def _settings(part: str, values: dict[str, Any] | None):
 
 
 def protocol_from(part: str, path: str | Path | None = None,
-                  values: dict[str, Any] | None = None):
-    """The part's protocol: defaults, a TOML file, and/or a dict of overrides (sweeps)."""
+                  values: dict[str, Any] | None = None, design=None):
+    """The part's protocol: defaults, a TOML file, and/or a dict of overrides (sweeps). For the
+    fingertip the default follows the design's load table (II: tested, III: optimized)."""
     proto = load_protocol(part, path)
+    if path is None and part == "fingertip" and getattr(design, "load_table", "II") == "III":
+        proto = type(proto).preset("optimized")
     if values:
         data = dict(values)
         preset = data.pop("preset", None)
@@ -121,7 +124,7 @@ def predict(part_name: str, overrides: dict[str, Any] | None = None, *,
         raise ParameterError("part", part_name, "one of " + ", ".join(PARTS))
     t0 = time.perf_counter()
     part = make_part(part_name, overrides or {})
-    proto = protocol_from(part_name, protocol_path, protocol)
+    proto = protocol_from(part_name, protocol_path, protocol, design=part)
     sett = _settings(part_name, settings)
     t_cad = time.perf_counter() - t0
     t0 = time.perf_counter()

@@ -1,0 +1,71 @@
+"""What a sweep measures of one design: geometry (printed volume, printability, thinnest wall)
+plus its virtual-test prediction; and the export of a chosen design.
+
+Task settings (the sweep config's ``[settings]`` table)::
+
+    model = { edge_length = 3.0 }       # the virtual test's model settings (see predict)
+    K_f_target_N_per_m = 4000.0         # flexure: adds K_f_target_error (max relative error
+                                        # of the three translational stiffnesses)
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+def geometry_metrics(part_name: str, part) -> dict[str, Any]:
+    """Printed volume (mm^3), printable (all printed bodies pass), thinnest wall (mm)."""
+    from designlab.geometry.printability import check_part
+
+    reports = [r for r in check_part(part_name, part.build()) if r.printed]
+    walls = [r.min_wall_mm for r in reports if np.isfinite(r.min_wall_mm)]
+    return {"printed_volume_mm3": float(sum(r.volume_mm3 for r in reports)),
+            "printable": bool(all(r.ok for r in reports)),
+            "min_wall_mm": float(min(walls)) if walls else float("nan"),
+            "printability_problems": [f"{r.body}: {p}" for r in reports for p in r.problems]}
+
+
+def evaluate_design(task: dict[str, Any]) -> dict[str, Any]:
+    """One design of a sweep -> flat-ish metrics dict (see module docstring)."""
+    from designlab.calibration.predict import predict
+    from designlab.geometry.parts import make_part
+
+    part_name, params = task["part"], task["params"]
+    settings = dict(task.get("settings") or {})
+    part = make_part(part_name, params)
+    out = geometry_metrics(part_name, part)
+    pred, _, _ = predict(part_name, params, protocol=task.get("protocol") or None,
+                         settings=settings.get("model"))
+    keep = ("hysteresis_percent", "condition_number", "geometric_condition_number",
+            "sensitivity", "linearity_percent_span", "timings_s", "warnings")
+    out.update({k: pred[k] for k in keep if k in pred})
+    if pred.get("K_f") is not None:
+        K = np.asarray(pred["K_f"])
+        out["K_f"] = K.tolist()
+        lin = np.diag(K)[3:]
+        out["k_x_N_per_m"], out["k_y_N_per_m"], out["k_z_N_per_m"] = map(float, lin)
+        target = settings.get("K_f_target_N_per_m")
+        if target is not None:
+            out["K_f_target_error"] = float(np.max(np.abs(lin - target) / target))
+    if pred.get("load_paths"):
+        out["axial_share_through_sensors"] = pred["load_paths"]["share_through_sensors"]["z"]
+    return out
+
+
+def export_design(part_name: str, params: dict[str, Any], out: str | Path, *,
+                  formats: str = "stl,3mf,step", settings: dict[str, Any] | None = None,
+                  protocol: dict[str, Any] | None = None) -> list[Path]:
+    """Export the chosen design for printing and write its full prediction report."""
+    from designlab.calibration.predict import predict, write_prediction
+    from designlab.geometry.export import export_parts
+    from designlab.geometry.parts import make_part
+
+    out = Path(out)
+    part = make_part(part_name, params)
+    res = export_parts({part_name: part}, out, formats=formats, png=True)
+    pred, mod, result = predict(part_name, params, protocol=protocol or None,
+                                settings=(settings or {}).get("model"))
+    return list(res.files) + write_prediction(pred, mod, result, out / "prediction")

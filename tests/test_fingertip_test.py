@@ -1,0 +1,121 @@
+"""Seed 001 virtual test: the metrics on exact lumped cases, Boltzmann superposition against a
+full history, and the predict command on the real part (slow)."""
+
+import json
+import sys
+
+import numpy as np
+import pytest
+
+from designlab.calibration.fingertip_test import (WRENCH, FingertipModelSettings, evaluate,
+                                                  step_responses, superpose_steps)
+from designlab.calibration.protocols import HangingWeightTest
+from designlab.fem import Material, Model, solve_static
+from designlab.fem.prony import Prony
+from designlab.fem.viscoelastic import History, solve_history
+from designlab.geometry.fingertip import CantileverFingertip
+from designlab.geometry.mesh import box_tet_mesh
+
+
+def _ball_on_sensors(part, prony=None):
+    """A ball held only by the three FSS springs (to ground) with its rotations fixed: the
+    ideal frictionless hard-finger model of seed 001 eqs. 2-8."""
+    mesh = box_tet_mesh(2, 2, 2, 1, 1, 1, origin=(20, 20, 20))
+    model = Model(mesh, {"block": Material("m", 1000.0, 0.3, prony=prony)})
+    model.fix(np.arange(mesh.n_points))
+    ball = model.free_body("ball", (0.0, 0.0, 0.0))
+    model.fix(ball, "rx")
+    model.fix(ball, "ry")
+    model.fix(ball, "rz")
+    axes, contacts = part.sensor_axes()
+    for k in range(3):
+        model.spring(f"sensor_{k + 1}", a=(ball, contacts[k]), k=500.0, axis=-axes[k])
+    for i, name in enumerate(WRENCH):
+        model.force(ball, force=np.eye(6)[i, :3], moment=np.eye(6)[i, 3:], case=name)
+    return model
+
+
+def test_ideal_rigid_geometry_gives_eq8_condition_number():
+    part = CantileverFingertip()
+    model = _ball_on_sensors(part)
+    res = solve_static(model)
+    per = np.array([[res.spring_force(f"sensor_{k + 1}", c) for k in range(3)] for c in WRENCH])
+    protocol = HangingWeightTest.preset("optimized")
+    t, load, step = protocol.time_history()
+    unit = np.broadcast_to(per, (len(t), 6, 3)).copy()
+    settings = FingertipModelSettings(rotations_deg=(0.0, 120.0))
+    rep = evaluate(part, protocol, settings, t, load, step, unit)
+    assert abs(rep["condition_number"] - np.sqrt(2)) < 1e-9
+    assert abs(rep["geometric_condition_number"] - 1.41421356) < 1e-6
+    # A is the geometric matrix (eq. 8) up to the sensor output scale and sign convention
+    A = np.array(rep["calibration_matrix"])
+    G = np.array(rep["geometric_matrix"])
+    np.testing.assert_allclose(A / A[0, 1], G / G[0, 1], atol=1e-9)
+    assert rep["hysteresis_percent"]["overall"] < 1e-9          # elastic: no hysteresis
+
+
+def test_superposition_of_step_responses_equals_full_history():
+    part = CantileverFingertip()
+    prony = Prony(g=(0.3,), tau=(2.0,))
+    mesh = box_tet_mesh(10, 4, 4, 4, 2, 2, origin=(-5, -2, -12))
+    model = Model(mesh, {"block": Material("m", 50.0, 0.3, prony=prony)})
+    model.fix("zmin")
+    ball = model.rigid("ball", "zmax", ref_point=(0.0, 0.0, 0.0))
+    axes, contacts = part.sensor_axes()
+    for k in range(3):
+        model.spring(f"sensor_{k + 1}", a=(ball, contacts[k]), k=20.0, axis=-axes[k])
+    for i, name in enumerate(WRENCH):
+        model.force(ball, force=np.eye(6)[i, :3], moment=np.eye(6)[i, 3:], case=name)
+    protocol = HangingWeightTest(weights_g=(0.0, 50.0, 150.0), hold_s=4.0, read_window_s=1.0,
+                                 dt_s=0.5)
+    t, load, _ = protocol.time_history()
+    sensors = [f"sensor_{k + 1}" for k in range(3)]
+    H, _ = step_responses(model, sensors, 2.0, protocol.dt_s, t[-1])
+    fast = superpose_steps(H, protocol.dt_s, t, load)
+    # the full history with true jumps (a repeated time is a jump) at every weight change
+    jumps = np.flatnonzero(np.diff(load)) + 1
+    t2 = np.insert(t, jumps, t[jumps])
+    load2 = np.insert(load, jumps, load[jumps - 1])
+    keep = np.delete(np.arange(len(t2)), jumps + np.arange(len(jumps)))
+    full = solve_history(model, History(t2, {c: load2 for c in WRENCH}), batch=True)
+    ref = np.moveaxis(np.stack([full.spring_force(s) for s in sensors], -1), 0, 1)[keep]
+    ref = ref / np.where(load > 0, load, 1.0)[:, None, None]
+    # exact up to the truncation of the step response after 7 tau (exp(-7) of the relaxing part)
+    assert np.abs(fast - ref).max() <= 2e-3 * np.abs(ref).max()
+    assert np.abs(fast - ref)[t < 14.0].max() <= 1e-9 * np.abs(ref).max()
+
+
+def test_predict_bad_input_is_one_line_exit_2(tmp_path, capsys):
+    from designlab.cli import main
+
+    for argv, needle in ((["predict", "wing", "--out", str(tmp_path / "a")], "part"),
+                         (["predict", "fingertip", "--setting", "edge_length=-1", "--out",
+                           str(tmp_path / "b")], "settings.edge_length"),
+                         (["predict", "fingertip", "--set", "r=12", "--out",
+                           str(tmp_path / "c")], "r=12")):
+        with pytest.raises(SystemExit) as e:
+            main(argv)
+        assert e.value.code == 2
+        err = capsys.readouterr().err
+        assert needle in err and "Traceback" not in err
+    assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.slow
+def test_predict_fingertip_end_to_end(tmp_path):
+    from designlab.cli import main
+
+    main(["predict", "fingertip", "--setting", "edge_length=3.0", "--out", str(tmp_path)])
+    pred = json.loads((tmp_path / "prediction.json").read_text())
+    for key in ("design", "hysteresis_percent", "calibration_matrix", "condition_number",
+                "geometric_condition_number", "sensitivity", "timings_s"):
+        assert key in pred
+    assert set(pred["hysteresis_percent"]["by_location"]) == {
+        *(f"h{i}" for i in range(1, 7)), *(f"r{i}" for i in range(1, 7))}
+    # the bolt and cap carry most of P_z: the axial sensitivity is far below the radial one
+    share = pred["load_paths"]["share_through_sensors"]
+    assert share["z"] < 0.5 * min(share["x"], share["y"])
+    assert 1.5 < pred["condition_number"] < 200
+    assert abs(pred["geometric_condition_number"] - 1.41421) < 1e-4
+    for f in ("hysteresis_loops.png", "applied_vs_estimated.png", "deformed.vtu"):
+        assert (tmp_path / f).stat().st_size > 1000
