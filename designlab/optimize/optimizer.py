@@ -25,7 +25,8 @@ from designlab.errors import ParameterError
 from designlab.optimize.executors import LocalExecutor
 from designlab.optimize.space import Dimension, SweepConfig, feasible, objective_value
 from designlab.optimize.store import ResultStore, design_key, flatten_metrics
-from designlab.optimize.sweep import SweepResult, _row, default_evaluator, run_sweep
+from designlab.optimize.sweep import (SweepResult, _row, default_evaluator, materials_fingerprint,
+                                      run_sweep)
 
 METHODS = ("auto", "surrogate", "de", "pareto")
 
@@ -43,7 +44,8 @@ class OptimizeResult:
 def _evaluate_one(config: SweepConfig, params: dict[str, float], evaluator, store: ResultStore
                   ) -> dict[str, Any]:
     full = {**config.fixed, **params}
-    key = design_key(config.part, full, config.settings, config.protocol)
+    key = design_key(config.part, full, config.settings, config.protocol,
+                     {"materials": materials_fingerprint()})
     task = {"part": config.part, "params": full, "swept": params, "settings": config.settings,
             "protocol": config.protocol, "key": key}
     if store.has_row(key):

@@ -53,13 +53,25 @@ class SweepResult:
     table_path: Path
 
 
+def materials_fingerprint() -> str:
+    """Hash of the material library (moduli, Prony terms, gauge factors): a changed material
+    invalidates cached predictions."""
+    import hashlib
+
+    from designlab.fem.materials import MATERIALS
+
+    return hashlib.sha256(repr(sorted(MATERIALS.items())).encode()).hexdigest()[:16]
+
+
 def tasks_of(config: SweepConfig) -> list[dict[str, Any]]:
+    materials = materials_fingerprint()
     out = []
     for swept in config.designs():
         params = {**config.fixed, **swept}
         out.append({"part": config.part, "params": params, "swept": swept,
                     "settings": config.settings, "protocol": config.protocol,
-                    "key": design_key(config.part, params, config.settings, config.protocol)})
+                    "key": design_key(config.part, params, config.settings, config.protocol,
+                                      {"materials": materials})})
     return out
 
 
