@@ -114,7 +114,7 @@ def main() -> None:
         table.add_column(c, justify="left" if c in ("part", "setting") else "right")
     for r in rows:
         table.add_row(*[f"{r[c]:.3g}" if isinstance(r[c], float) else str(r[c]) for c in cols])
-    Console().print(table)
+    Console(width=170).print(table)
 
 
 if __name__ == "__main__":
