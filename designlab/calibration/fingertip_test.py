@@ -183,7 +183,6 @@ def run(part, protocol: HangingWeightTest | None = None,
         settings: FingertipModelSettings | None = None, *, materials=None, mesh=None,
         progress: Callable[[str], None] | None = None) -> FingertipPrediction:
     """Mesh (unless given), build, run the load history, and evaluate the metrics."""
-    from designlab.fem.viscoelastic import History, solve_history
     from designlab.fem import solve_static
 
     protocol = protocol or HangingWeightTest()

@@ -21,8 +21,6 @@ estimated wrench.
 
 from __future__ import annotations
 
-import os
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,8 +28,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from designlab.calibration.calibration_matrix import condition_number
 from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
+from designlab.atomic import atomic_savefig
 from designlab.calibration.protocols import FlexureWrenchTest
 from designlab.calibration.stiffness_fit import fit_stiffness
 from designlab.errors import ModelError
@@ -309,16 +307,7 @@ def _hysteresis(model, protocol: FlexureWrenchTest, settings: FlexureModelSettin
 # ------------------------------------------------------------------------------------ plots
 
 def _save(fig, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=120)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    return atomic_savefig(fig, path, dpi=120)
 
 
 def plots(prediction: FlexurePrediction, out_dir: str | Path) -> list[Path]:

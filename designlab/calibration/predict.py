@@ -15,7 +15,6 @@ sensor, each atomically.
 from __future__ import annotations
 
 import dataclasses
-import json
 import time
 import warnings
 from pathlib import Path
@@ -149,20 +148,6 @@ def predict(part_name: str, overrides: dict[str, Any] | None = None, *,
     return out, mod, result
 
 
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, np.integer, np.bool_)):
-        return x.item()
-    if isinstance(x, float) and not np.isfinite(x):
-        return None
-    return x
-
-
 def fingertip_plots(result, report: dict[str, Any], out: Path) -> list[Path]:
     """Hysteresis loops, reading vs weight per location, applied vs estimated (seed 001 Fig. 9)."""
     import matplotlib
@@ -170,16 +155,10 @@ def fingertip_plots(result, report: dict[str, Any], out: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    import io
-
-    from designlab.atomic import atomic_write_bytes
+    from designlab.atomic import atomic_savefig
 
     def save(fig, name):
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
-        plt.close(fig)
-        atomic_write_bytes(out / name, buf.getvalue())
-        return out / name
+        return atomic_savefig(fig, out / name, dpi=110)
 
     files = []
     loops = report["loops"]
@@ -223,7 +202,7 @@ def fingertip_plots(result, report: dict[str, Any], out: Path) -> list[Path]:
 
 def write_prediction(prediction: dict[str, Any], mod, result, out: str | Path) -> list[Path]:
     """prediction.json, the plots, and deformed.vtu (+ deformed.png) in ``out``."""
-    from designlab.atomic import atomic_write_bytes
+    from designlab.atomic import atomic_write_json
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -242,7 +221,6 @@ def write_prediction(prediction: dict[str, Any], mod, result, out: str | Path) -
             files.append(Path(write_png(out / "deformed.png", mesh, np.asarray(u))))
         except Exception as exc:  # rendering is a convenience; the VTU is the result
             prediction.setdefault("warnings", []).append(f"deformed.png not rendered: {exc}")
-    atomic_write_bytes(out / "prediction.json",
-                       json.dumps(_jsonable(prediction), indent=1).encode())
+    atomic_write_json(out / "prediction.json", prediction)
     files.append(out / "prediction.json")
     return files

@@ -36,8 +36,6 @@ protocol; with Prony series: the whole history through
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,6 +46,7 @@ import numpy as np
 from designlab.calibration.calibration_matrix import (condition_number, fit_calibration_matrix,
                                                       linearity_percent)
 from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
+from designlab.atomic import atomic_savefig
 from designlab.calibration.protocols import StrapLoadTest
 from designlab.errors import ParameterError
 from designlab.params import rng, validate
@@ -440,16 +439,7 @@ def evaluate(protocol: StrapLoadTest, settings: StrapModelSettings, t, fn, fx, d
 # ------------------------------------------------------------------------------------ plots
 
 def _save(fig, path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, dpi=120)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    return atomic_savefig(fig, path, dpi=120)
 
 
 def plots(prediction: StrapPrediction, out_dir: str | Path) -> list[Path]:

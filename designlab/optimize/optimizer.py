@@ -13,7 +13,7 @@ multi-objective choice from the Pareto front.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
@@ -23,8 +23,8 @@ from scipy.optimize import differential_evolution
 
 from designlab.errors import ParameterError
 from designlab.optimize.executors import LocalExecutor
-from designlab.optimize.space import Dimension, SweepConfig, feasible, objective_value
-from designlab.optimize.store import ResultStore, design_key, flatten_metrics
+from designlab.optimize.space import Dimension, SweepConfig, objective_value
+from designlab.optimize.store import ResultStore, design_key
 from designlab.optimize.sweep import (SweepResult, _row, default_evaluator, materials_fingerprint,
                                       run_sweep)
 

@@ -24,19 +24,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from designlab import __version__
-from designlab.atomic import atomic_write_bytes
-
-
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, np.integer, np.bool_)):
-        return x.item()
-    return x
+from designlab.atomic import atomic_write_bytes, jsonable as _jsonable
 
 
 def design_key(part: str, params: dict[str, Any], settings: dict[str, Any] | None = None,
