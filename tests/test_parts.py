@@ -172,8 +172,11 @@ def test_strap_facet_sets():
                                                                rel=2e-2)
     slot = math.pi * p.slot_width ** 2 / 4 + (p.slot_length - p.slot_width) * p.slot_width
     tabs = 2 * (p.tab_length * p.strap_width - p.slot_count * slot)
-    # triangles that straddle the arch foot are split by their centroid: a few % either way
-    assert area[sets["nail_plate"] & (n[:, 2] < -0.9)].sum() == pytest.approx(tabs, rel=0.03)
+    # big planar triangles straddle the arch foot (and the tessellation depends on what else
+    # meshed the cached shape before): measure the tab area with uniform surface samples
+    cs, ns, a_s = facets(b, p.mesh_bodies(), samples=100_000)
+    tab = p.facet_sets()["nail_plate"](cs, ns) & (ns[:, 2] < -0.9)
+    assert a_s[tab].sum() == pytest.approx(tabs, rel=0.03)
     assert not (sets["nail_plate"] & sets["finger_contact"]).any()
     for center, radius, edge in p.refinement():
         assert center.shape == (3,) and radius > 0 and 0 < edge <= p.trace_thickness * 1.5
