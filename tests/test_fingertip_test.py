@@ -119,3 +119,7 @@ def test_predict_fingertip_end_to_end(tmp_path):
     assert abs(pred["geometric_condition_number"] - 1.41421) < 1e-4
     for f in ("hysteresis_loops.png", "applied_vs_estimated.png", "deformed.vtu"):
         assert (tmp_path / f).stat().st_size > 1000
+    from designlab.calibration.loop import load_model
+
+    model = load_model(tmp_path / "model.json")        # the loop's starting point
+    assert model.outputs == ["sensor_1", "sensor_2", "sensor_3"]

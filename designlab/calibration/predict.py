@@ -200,8 +200,48 @@ def fingertip_plots(result, report: dict[str, Any], out: Path) -> list[Path]:
     return files
 
 
+def sensor_model(prediction: dict[str, Any], result) -> "SensorModel":
+    """The virtual test as a measured-data model (``designlab-model`` JSON, the loop's format):
+    a linear base from the loads to the sensor outputs with the FEM's long-time gains, so that
+    ``designlab loop --base DIR/model.json`` simulates a measured test with the prediction and
+    looks for what the model lacks in the residual.
+
+    fingertip: inputs f_x, f_y, f_z (N) and m_x, m_y, m_z (N mm) at the ball centre -> outputs
+    sensor_1..3 (V); strap: F_n, F_x (N) -> Ch1, Ch2 (V, change from unloaded); flexure:
+    m_x..f_z (N mm, N) -> twist w_x..v_z (rad, mm) through the compliance K_f^-1."""
+    from designlab.calibration.base_models import Base
+    from designlab.calibration.loop import SensorModel
+
+    part = prediction["design"]["part"]
+    if part == "fingertip":
+        from designlab.calibration.fingertip_test import FSS015_V_PER_N, WRENCH
+
+        G = FSS015_V_PER_N * result.unit_readings[-1]               # (6 wrench, 3 sensors)
+        outs = {f"sensor_{k + 1}": {w: float(G[i, k]) for i, w in enumerate(WRENCH)}
+                for k in range(3)}
+        units = {o: "V" for o in outs}
+    elif part == "strap":
+        sens = prediction["sensitivity"]["V_per_N"]
+        outs = {ch: {"F_n": float(sens[ch]["F_n"]), "F_x": float(sens[ch]["F_x"])}
+                for ch in ("Ch1", "Ch2")}
+        units = {o: "V" for o in outs}
+    else:
+        from designlab.calibration.flexure_test import WRENCH
+
+        C = np.linalg.inv(result.K_true)                                 # designlab units
+        twist = ("w_x", "w_y", "w_z", "v_x", "v_y", "v_z")
+        outs = {tw: {w: float(C[i, j]) for j, w in enumerate(WRENCH)} for i, tw in enumerate(twist)}
+        units = {o: ("rad" if o.startswith("w") else "mm") for o in outs}
+    base = Base("linear", {o: tuple(g) for o, g in outs.items()},
+                {o: {"intercept": 0.0, "gains": g} for o, g in outs.items()})
+    return SensorModel(base, {}, units, {},
+                       {"source": f"designlab predict {part}", "design": prediction["design"],
+                        "designlab": __version__})
+
+
 def write_prediction(prediction: dict[str, Any], mod, result, out: str | Path) -> list[Path]:
-    """prediction.json, the plots, and deformed.vtu (+ deformed.png) in ``out``."""
+    """prediction.json, model.json (:func:`sensor_model`), the plots, and deformed.vtu
+    (+ deformed.png) in ``out``."""
     from designlab.atomic import atomic_write_json
 
     out = Path(out)
@@ -221,6 +261,8 @@ def write_prediction(prediction: dict[str, Any], mod, result, out: str | Path) -
             files.append(Path(write_png(out / "deformed.png", mesh, np.asarray(u))))
         except Exception as exc:  # rendering is a convenience; the VTU is the result
             prediction.setdefault("warnings", []).append(f"deformed.png not rendered: {exc}")
+    sensor_model(prediction, result).save(out / "model.json")
+    files.append(out / "model.json")
     atomic_write_json(out / "prediction.json", prediction)
     files.append(out / "prediction.json")
     return files
