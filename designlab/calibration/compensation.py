@@ -23,8 +23,6 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import json
-import os
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,6 +30,7 @@ from typing import Callable, Protocol, Sequence
 
 import numpy as np
 
+from designlab.atomic import atomic_path
 from designlab.calibration import linear_fit, mpl, narx
 from designlab.calibration.linear_fit import as_2d
 from designlab.calibration.metrics import ncc, rmse, wilcoxon
@@ -352,14 +351,8 @@ def records_from_card(path: str | Path, inputs: Sequence[str], outputs: Sequence
 
 
 def _atomic_write(path: Path, write: Callable[[str], None]) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_path(path) as tmp:
+        write(str(tmp))
 
 
 def _json_default(o):

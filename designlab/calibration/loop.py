@@ -31,14 +31,13 @@ from __future__ import annotations
 import io
 import json
 import math
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
+from designlab.atomic import atomic_write_bytes
 from designlab.calibration import effects as fx
 from designlab.calibration.base_models import Base, fit_base
 from designlab.calibration.base_models import predict as base_predict
@@ -93,7 +92,7 @@ class SensorModel:
 
     def save(self, path: str | Path) -> None:
         """Write the model as JSON, atomically."""
-        atomic_write(Path(path), json.dumps(self.to_json(), indent=1, default=_json_default)
+        atomic_write_bytes(Path(path), json.dumps(self.to_json(), indent=1, default=_json_default)
                      .encode())
 
 
@@ -120,20 +119,6 @@ def load_model(path: str | Path) -> SensorModel:
 
 
 # --------------------------------------------------------------------------- helpers
-
-
-def atomic_write(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file and ``os.replace``."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def _json_default(o: Any) -> Any:
@@ -429,7 +414,7 @@ def write_outputs(result: LoopResult, out: str | Path) -> list[Path]:
     result.model.save(p)
     written.append(p)
     p = out / "loop.json"
-    atomic_write(p, json.dumps(result.report, indent=1, default=_json_default).encode())
+    atomic_write_bytes(p, json.dumps(result.report, indent=1, default=_json_default).encode())
     written.append(p)
     return written
 
@@ -437,7 +422,7 @@ def write_outputs(result: LoopResult, out: str | Path) -> list[Path]:
 def _savefig(fig, path: Path) -> Path:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
-    atomic_write(path, buf.getvalue())
+    atomic_write_bytes(path, buf.getvalue())
     return path
 
 
