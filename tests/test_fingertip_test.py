@@ -85,14 +85,28 @@ def test_superposition_of_step_responses_equals_full_history():
     assert np.abs(fast - ref)[t < 14.0].max() <= 1e-9 * np.abs(ref).max()
 
 
+def test_unknown_load_point_is_an_error():
+    from designlab.calibration.fingertip_test import check_locations
+    from designlab.errors import ParameterError
+
+    part = CantileverFingertip()                       # Table III: h1..h6, r1..r6
+    check_locations(part, HangingWeightTest.preset("optimized"))
+    with pytest.raises(ParameterError, match="g1_locations='h7'.*h1, h2"):
+        check_locations(part, HangingWeightTest())     # Table II names h7..h9
+
+
 def test_predict_bad_input_is_one_line_exit_2(tmp_path, capsys):
     from designlab.cli import main
 
+    proto = tmp_path.parent / f"{tmp_path.name}-p.toml"
+    proto.write_text('preset = "optimized"\ng2_locations = ["r1", "r9"]\n')
     for argv, needle in ((["predict", "wing", "--out", str(tmp_path / "a")], "part"),
                          (["predict", "fingertip", "--setting", "edge_length=-1", "--out",
                            str(tmp_path / "b")], "settings.edge_length"),
                          (["predict", "fingertip", "--set", "r=12", "--out",
-                           str(tmp_path / "c")], "r=12")):
+                           str(tmp_path / "c")], "r=12"),
+                         (["predict", "fingertip", "--protocol", str(proto),
+                           "--out", str(tmp_path / "d")], "g2_locations='r9'")):
         with pytest.raises(SystemExit) as e:
             main(argv)
         assert e.value.code == 2

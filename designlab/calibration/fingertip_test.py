@@ -38,6 +38,7 @@ from designlab.calibration.calibration_matrix import (condition_number, cross_ta
                                                       linearity_percent)
 from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
 from designlab.calibration.protocols import HangingWeightTest
+from designlab.errors import ParameterError
 from designlab.params import rng, validate
 
 #: Honeywell FSS015WNSX: "low deflection, approximately 30 microns typical at full scale" (FSS
@@ -187,6 +188,7 @@ def run(part, protocol: HangingWeightTest | None = None,
 
     protocol = protocol or HangingWeightTest()
     settings = settings or FingertipModelSettings()
+    check_locations(part, protocol)
     timings: dict[str, float] = {}
     say = progress or (lambda s: None)
     t0 = time.perf_counter()
@@ -234,12 +236,24 @@ def run(part, protocol: HangingWeightTest | None = None,
     return FingertipPrediction(t, load, unit, report, mesh, u)
 
 
+def check_locations(part, protocol: HangingWeightTest) -> None:
+    """Every load point the protocol names must exist on this design (no silent skipping)."""
+    known = part.load_points(0.0)
+    for field_name, names in (("g1_locations", protocol.g1_locations),
+                              ("g2_locations", protocol.g2_locations)):
+        for name in names:
+            if name not in known:
+                raise ParameterError(field_name, name, "a load point of this design: "
+                                     + ", ".join(known))
+
+
 def evaluate(part, protocol: HangingWeightTest, settings: FingertipModelSettings, t, load, step,
              unit: np.ndarray) -> dict[str, Any]:
     """Hysteresis per location, calibration matrix, condition numbers, sensitivity."""
     masks = protocol.read_masks(t, step)
     seq = protocol.sequence_g
     locs = {"G1": protocol.g1_locations, "G2": protocol.g2_locations}
+    check_locations(part, protocol)
     by_location: dict[str, float] = {}
     group_mean: dict[str, float] = {}
     S_rows, P_rows, loop_data = [], [], {}
@@ -249,10 +263,7 @@ def evaluate(part, protocol: HangingWeightTest, settings: FingertipModelSettings
         for name in names:
             hs = []
             for rot in settings.rotations_deg:
-                pts = part.load_points(rot)
-                if name not in pts:
-                    break
-                p, d = pts[name]
+                p, d = part.load_points(rot)[name]
                 w = wrench_at_ball(p, d)
                 force = _readings_for(unit, w) * load[:, None]                # (n_t, 3) N
                 reading = FSS015_V_PER_N * force                              # V
