@@ -540,6 +540,7 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure"),
             config: Optional[Path] = typer.Option(None, "--config", help="TOML with the part's parameters."),
             protocol: Optional[Path] = typer.Option(None, "--protocol", help="Protocol TOML (defaults: the papers')."),
             setting: Optional[List[str]] = typer.Option(None, "--setting", help="Model setting NAME=VALUE, e.g. edge_length=2.5."),
+            model: Optional[Path] = typer.Option(None, "--model", help="A loop's model.json: add its learned effects (strap)."),
             out: Path = typer.Option(..., "--out", help="Output directory.")):
     """Virtual test of a design before printing: hysteresis, calibration matrix, condition number, K_f."""
     from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
@@ -562,6 +563,7 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure"),
                   console=console, transient=True) as prog:
         task = prog.add_task(f"predict {part}: building", total=None)
         pred, mod, result = run_predict(part, overrides, protocol_path=protocol, settings=settings,
+                                        model_path=model,
                                         progress=lambda s: prog.update(task, description=f"predict {part}: {s}"))
         prog.update(task, description=f"predict {part}: writing")
         files = write_prediction(pred, mod, result, out)

@@ -35,3 +35,41 @@ def test_strap_prediction_becomes_a_loop_base(tmp_path):
     names = [e["name"] for e in rep["effects"]]
     assert names and names[0] == "drift"
     assert rep["error_after"] < 0.5 * rep["error_before"]
+
+
+def test_loop_model_corrects_a_new_design_prediction(tmp_path):
+    """loop -> predict: effects learned on a measured strap are added to another design's
+    virtual-test channels and the metrics are evaluated again."""
+    from types import SimpleNamespace
+
+    from designlab.calibration import strap_test
+    from designlab.calibration.loop import run_loop
+    from designlab.calibration.predict import apply_learned_effects
+    from designlab.calibration.protocols import StrapLoadTest
+
+    rng = np.random.default_rng(1)
+    n = 3000
+    t = np.arange(n) * 0.1
+    fn = 2.5 * (1 - np.cos(2 * np.pi * t / 7.0)) + rng.uniform(0, 1, n)
+    fx = 0.5 * np.sin(2 * np.pi * t / 11.0)
+    measured = {ch: g["F_n"] * fn + g["F_x"] * fx + 2e-4 * t + rng.normal(0, 2e-3, n)
+                for ch, g in GAINS.items()}
+    data = from_arrays(t, {"F_n": fn, "F_x": fx}, measured,
+                       role=np.where(t < 0.6 * t[-1], "train", "validate"),
+                       units={"F_n": "N", "F_x": "N", "Ch1": "V", "Ch2": "V"})
+    sensor_model(_strap_prediction(), None).save(tmp_path / "base.json")
+    learned = run_loop(data, load_model(tmp_path / "base.json")).model
+    learned.save(tmp_path / "learned.json")
+
+    # a "new design": other gains, the strap protocol, an elastic virtual test
+    prot, settings = StrapLoadTest(), strap_test.StrapModelSettings()
+    tt, Fn, Fx = prot.time_history()
+    new = {"Ch1": {"F_n": 0.02, "F_x": 0.015}, "Ch2": {"F_n": 0.02, "F_x": -0.015}}
+    dV = np.column_stack([new[c]["F_n"] * Fn + new[c]["F_x"] * Fx for c in ("Ch1", "Ch2")])
+    result = SimpleNamespace(t=tt, F_n=Fn, F_x=Fx, dV=dV, strain=dV)
+    before = strap_test.evaluate(prot, settings, tt, Fn, Fx, dV, dV)
+    pred = {"design": {"part": "strap"}, "sensitivity": {"V_per_N": new}}
+    after = apply_learned_effects(pred, result, tmp_path / "learned.json", prot, settings)
+    assert after["learned_effects"]["Ch1"][0] == "drift"
+    assert before["hysteresis_percent"]["overall"] < 1e-9
+    assert after["hysteresis_percent"]["overall"] > 0.1     # the drift opens the loop

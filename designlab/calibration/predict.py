@@ -18,13 +18,16 @@ import dataclasses
 import time
 import warnings
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
 from designlab import __version__
 from designlab.calibration.protocols import load_protocol
 from designlab.errors import ParameterError
+
+if TYPE_CHECKING:
+    from designlab.calibration.loop import SensorModel
 
 #: seed 001: measured condition number of A_opt (../shared/data/papers/fingertip_xu2014.json)
 PAPER_CONDITION_NUMBER = 34.92
@@ -111,11 +114,51 @@ def _fingertip_extras(report: dict[str, Any], prediction, part, protocol) -> Non
     protocol.check_sensor_range(peak, "FSS015 sensor")
 
 
+def apply_learned_effects(prediction: dict[str, Any], result, model_path: str | Path, protocol,
+                          settings) -> dict[str, Any]:
+    """The loop -> predict direction (strap): the effects a measured-data loop learned on a
+    printed strap (``model.json`` of ``designlab loop``) are added to this design's virtual-test
+    channels (their base is this design's FEM, not the measured one), and the metrics are
+    evaluated again on the corrected channels. Returns the corrected report."""
+    from designlab.calibration import strap_test
+    from designlab.calibration.dataset import from_arrays
+    from designlab.calibration.loop import SensorModel, load_model
+
+    if prediction["design"]["part"] != "strap":
+        raise ParameterError("--model", str(model_path),
+                             "a loop model applies to the strap's channel time series only "
+                             "(fingertip and flexure: not yet)")
+    learned = load_model(model_path)
+    missing = [o for o in ("Ch1", "Ch2") if o not in learned.outputs]
+    if missing:
+        raise ParameterError("--model", str(model_path),
+                             f"a model with outputs Ch1 and Ch2 (it has {', '.join(learned.outputs)})")
+    base = sensor_model(prediction, result)
+    # transfer the mechanisms, not the measured sensor's refit of its own affine base
+    def mechanism(f):
+        return dataclasses.replace(f, nuisance=(), alpha=(0.0,) * int(bool(f.effect.intercept)))
+
+    model = SensorModel(base.base, {o: [mechanism(f) for f in learned.effects.get(o, [])]
+                                    for o in ("Ch1", "Ch2")},
+                        base.units, learned.inputs, learned.provenance)
+    data = from_arrays(result.t, {"F_n": result.F_n, "F_x": result.F_x},
+                       {"Ch1": result.dV[:, 0], "Ch2": result.dV[:, 1]},
+                       units={"F_n": "N", "F_x": "N", "Ch1": "V", "Ch2": "V"})
+    dV = np.column_stack([model.predict(data, o) for o in ("Ch1", "Ch2")])
+    report = strap_test.evaluate(protocol, settings, result.t, result.F_n, result.F_x, dV,
+                                 result.strain)
+    report["learned_effects"] = {o: [f.effect.name for f in model.effects[o]]
+                                 for o in ("Ch1", "Ch2")}
+    report["learned_from"] = str(model_path)
+    return report
+
+
 def predict(part_name: str, overrides: dict[str, Any] | None = None, *,
             protocol_path: str | Path | None = None, protocol: dict[str, Any] | None = None,
-            settings: dict[str, Any] | None = None,
+            settings: dict[str, Any] | None = None, model_path: str | Path | None = None,
             progress: Callable[[str], None] | None = None) -> tuple[dict[str, Any], Any, Any]:
-    """Run the virtual test of one design: (prediction dict, the test module, its raw result)."""
+    """Run the virtual test of one design: (prediction dict, the test module, its raw result).
+    ``model_path``: a loop's model.json whose learned effects correct the virtual test (strap)."""
     from designlab.geometry.parts import PARTS, make_part
     from designlab.params import as_dict
 
@@ -125,6 +168,14 @@ def predict(part_name: str, overrides: dict[str, Any] | None = None, *,
     part = make_part(part_name, overrides or {})
     proto = protocol_from(part_name, protocol_path, protocol, design=part)
     sett = _settings(part_name, settings)
+    if model_path is not None:
+        if part_name != "strap":
+            raise ParameterError("--model", str(model_path),
+                                 "a loop model applies to the strap only (fingertip, flexure: "
+                                 "not yet)")
+        from designlab.calibration.loop import load_model
+
+        load_model(model_path)
     t_cad = time.perf_counter() - t0
     t0 = time.perf_counter()
     part.build()
@@ -135,6 +186,11 @@ def predict(part_name: str, overrides: dict[str, Any] | None = None, *,
         report = dict(result.report)
         if part_name == "fingertip":
             _fingertip_extras(report, result, part, proto)
+    if model_path is not None:
+        report["uncorrected"] = {k: report[k] for k in ("hysteresis_percent", "condition_number",
+                                                        "calibration_matrix") if k in report}
+        report.update(apply_learned_effects({"design": {"part": part_name}, **report}, result,
+                                            model_path, proto, sett))
     report.setdefault("geometric_condition_number", None)
     report["timings_s"] = {"cad": t_cad, **report.get("timings_s", {})}
     report["timings_s"]["total"] = float(sum(v for v in report["timings_s"].values()
