@@ -137,3 +137,17 @@ def test_predict_fingertip_end_to_end(tmp_path):
 
     model = load_model(tmp_path / "model.json")        # the loop's starting point
     assert model.outputs == ["sensor_1", "sensor_2", "sensor_3"]
+
+
+def test_default_protocol_keeps_the_load_points_a_design_has():
+    from designlab.calibration.predict import protocol_from
+
+    short = CantileverFingertip(h=0.0, r=6.0)          # top at 6 mm: no h1..h3 of Table III
+    p = protocol_from("fingertip", design=short)
+    assert p.g1_locations == ("h4", "h5", "h6") and len(p.g2_locations) == 6
+    from designlab.calibration.fingertip_test import check_locations
+    from designlab.errors import ParameterError
+
+    explicit = protocol_from("fingertip", values={"g1_locations": ["h1"]}, design=short)
+    with pytest.raises(ParameterError, match="g1_locations='h1'"):
+        check_locations(short, explicit)               # asked for explicitly: an error

@@ -56,6 +56,14 @@ def protocol_from(part: str, path: str | Path | None = None,
     proto = load_protocol(part, path)
     if path is None and part == "fingertip" and getattr(design, "load_table", "II") == "III":
         proto = type(proto).preset("optimized")
+    if path is None and part == "fingertip" and design is not None and not (
+            values and {"g1_locations", "g2_locations"} & set(values)):
+        # default locations: the table's points that lie on this design (a short fingertip
+        # has no h1); the omitted ones are listed in the prediction
+        known = design.load_points(0.0)
+        proto = dataclasses.replace(
+            proto, g1_locations=tuple(n for n in proto.g1_locations if n in known),
+            g2_locations=tuple(n for n in proto.g2_locations if n in known))
     if values:
         data = dict(values)
         preset = data.pop("preset", None)
@@ -186,6 +194,12 @@ def predict(part_name: str, overrides: dict[str, Any] | None = None, *,
         report = dict(result.report)
         if part_name == "fingertip":
             _fingertip_extras(report, result, part, proto)
+            table = load_protocol("fingertip")
+            if part.load_table == "III":
+                table = type(table).preset("optimized")
+            report["locations_omitted"] = [
+                n for n in (*table.g1_locations, *table.g2_locations)
+                if n not in (*proto.g1_locations, *proto.g2_locations)]
     if model_path is not None:
         report["uncorrected"] = {k: report[k] for k in ("hysteresis_percent", "condition_number",
                                                         "calibration_matrix") if k in report}
