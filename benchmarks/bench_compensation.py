@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -113,33 +112,14 @@ def part1() -> None:
     print()
 
 
-CARD = """columns = ["Ro", "Ri", "tR", "P", "tP", "F", "tF"]
-[[files]]
-path = "{d}/multisine_600s_1.csv"
-role = "train"
-[[files]]
-path = "{d}/multisine_300s_2.csv"
-role = "validate"
-[[files]]
-path = "{d}/2_7-5_4Epin_rand_sawtooth.csv"
-role = "validate"
-[time]
-column = {{ Ri = "tR", F = "tF" }}
-unit = "s"
-[outputs]
-force = {{ column = "F", unit = "N" }}
-resistance = {{ column = "Ri", unit = "ohm", sign = "auto" }}
-"""
+CARD = ROOT / "examples" / "cards" / "stretch_compensation.toml"
 
 
 def part2() -> None:
     if not STRETCH.is_dir():
         print(f"(no real data: {STRETCH} missing)")
         return
-    with tempfile.TemporaryDirectory() as tmp:
-        card = Path(tmp) / "stretch.toml"
-        card.write_text(CARD.format(d=STRETCH.as_posix()))
-        train, val = comp.records_from_card(card, ["resistance"], ["force"])
+    train, val = comp.records_from_card(CARD, ["resistance"], ["force"])
     print(f"## real stretch data: F (N) from Ri (ohm), {train[0].u.shape[0]} training samples at "
           f"{1 / train[0].dt:.2f} Hz\n")
     runs = [("linear", "linear", comp.CompensationOptions()),

@@ -2,6 +2,8 @@
 
 import json
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -98,30 +100,12 @@ def test_records_check_their_input():
         comp.fit_compensator("kalman", [a])
 
 
-STRETCH_CARD = """columns = ["Ro", "Ri", "tR", "P", "tP", "F", "tF"]
-[[files]]
-path = "{d}/multisine_600s_1.csv"
-role = "train"
-[[files]]
-path = "{d}/multisine_300s_2.csv"
-role = "validate"
-[[files]]
-path = "{d}/2_7-5_4Epin_rand_sawtooth.csv"
-role = "validate"
-[time]
-column = {{ Ri = "tR", F = "tF" }}
-unit = "s"
-[outputs]
-force = {{ column = "F", unit = "N" }}
-resistance = {{ column = "Ri", unit = "ohm", sign = "auto" }}
-"""
 
 
 @pytest.fixture
-def stretch_card(shared, tmp_path):
-    card = tmp_path / "stretch.toml"
-    card.write_text(STRETCH_CARD.format(d=(shared / "data" / "stretch").resolve().as_posix()))
-    return card
+def stretch_card(shared):
+    """The example card (paths relative to it reach ../shared/data/stretch)."""
+    return Path(__file__).resolve().parents[1] / "examples" / "cards" / "stretch_compensation.toml"
 
 
 def test_real_stretch_data_mpl_and_narx_beat_linear(stretch_card):
