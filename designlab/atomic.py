@@ -15,13 +15,21 @@ from typing import Iterator
 
 @contextlib.contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
-    """Yield a temporary path in the target's directory; on success it replaces ``path``."""
+    """Yield a temporary path in the target's directory (same suffix, so writers that pick the
+    format from it work); on success it replaces ``path`` with the usual file permissions.
+    An empty result is an error (a writer that failed silently)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix="." + path.name, suffix=".tmp")
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix="." + path.stem + ".",
+                               suffix=".tmp" + path.suffix)
     os.close(fd)
+    umask = os.umask(0)
+    os.umask(umask)
     try:
+        os.chmod(tmp, 0o666 & ~umask)
         yield Path(tmp)
+        if os.path.getsize(tmp) == 0:
+            raise OSError(f"writing {path} produced an empty file")
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

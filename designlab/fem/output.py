@@ -9,16 +9,12 @@ boundary is drawn instead.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 
+from designlab.atomic import atomic_path
 from designlab.geometry.mesh import TetMesh
-
-
-def _tmp(path: Path) -> Path:
-    return path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
 
 
 def write_vtu(path, mesh: TetMesh, point_data: dict | None = None,
@@ -34,13 +30,8 @@ def write_vtu(path, mesh: TetMesh, point_data: dict | None = None,
     out = meshio.Mesh(np.asarray(mesh.points, float), [(kind, np.asarray(mesh.cells))],
                       point_data={k: np.asarray(v, float) for k, v in (point_data or {}).items()},
                       cell_data=cd)
-    tmp = _tmp(path)
-    try:
+    with atomic_path(path) as tmp:
         meshio.write(tmp, out, file_format="vtu")
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return path
 
 
@@ -91,16 +82,11 @@ def write_png(path, mesh: TetMesh, u: np.ndarray, scale: float | str = "auto",
     u = np.asarray(u, float).reshape(-1, 3)
     k = auto_scale(mesh, u) if scale == "auto" else float(scale)
     label = f"{title + '  ' if title else ''}displacement magnitude (mm), warp x{k:.3g}"
-    tmp = _tmp(path)
-    try:
+    with atomic_path(path) as tmp:
         if ensure_display():
             _png_pyvista(tmp, mesh, u, k, label, size)
         else:
             _png_matplotlib(tmp, mesh, u, k, label, size)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return path
 
 

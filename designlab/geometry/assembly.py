@@ -7,12 +7,11 @@ included, bought parts (ball, bolt, sensors) too.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import cadquery as cq
 
+from designlab.atomic import atomic_path
 from designlab.geometry.body import Body
 
 
@@ -30,22 +29,9 @@ def assembly(part, name: str | None = None) -> cq.Assembly:
 
 
 def _atomic(path: str | Path, write) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    umask = os.umask(0)
-    os.umask(umask)
-    try:
-        os.chmod(tmp, 0o666 & ~umask)
-        write(tmp)
-        if os.path.getsize(tmp) == 0:
-            raise OSError(f"writing {path} produced an empty file")
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    with atomic_path(path) as tmp:
+        write(str(tmp))
+    return Path(path)
 
 
 def save_assembly_step(assy: cq.Assembly, path: str | Path) -> Path:
