@@ -1,4 +1,4 @@
-"""Result files: VTU fields (meshio) and a PNG of the deformed shape (pyvista off screen).
+"""Result files: VTU fields (pyvista, via geometry.mesh_io) and a PNG of the deformed shape (pyvista off screen).
 
 Both writers are atomic (temporary file in the target folder, then ``os.replace``). TET10 cells
 are written as VTK quadratic tetrahedra (same node order as C3D10). PNG rendering needs an X
@@ -19,20 +19,11 @@ from designlab.geometry.mesh import TetMesh
 
 def write_vtu(path, mesh: TetMesh, point_data: dict | None = None,
               cell_data: dict | None = None) -> Path:
-    """Write ``mesh`` with point/cell arrays ((n, ...) / (m, ...)) to a .vtu file atomically."""
-    import meshio
+    """Write ``mesh`` with point/cell arrays ((n, ...) / (m, ...)) to a .vtu file atomically
+    (:func:`designlab.geometry.mesh_io.write_vtu`: regions, facet sets and names included)."""
+    from designlab.geometry.mesh_io import write_vtu as write_mesh_vtu
 
-    path = Path(path)
-    kind = "tetra10" if mesh.order == 2 else "tetra"
-    cd = {"region": [np.asarray(mesh.region, np.int32)]}
-    for k, v in (cell_data or {}).items():
-        cd[k] = [np.asarray(v, float)]
-    out = meshio.Mesh(np.asarray(mesh.points, float), [(kind, np.asarray(mesh.cells))],
-                      point_data={k: np.asarray(v, float) for k, v in (point_data or {}).items()},
-                      cell_data=cd)
-    with atomic_path(path) as tmp:
-        meshio.write(tmp, out, file_format="vtu")
-    return path
+    return write_mesh_vtu(mesh, path, point_data, cell_data)
 
 
 def result_fields(result, which=None) -> tuple[dict, dict]:

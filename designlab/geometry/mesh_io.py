@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from designlab.atomic import atomic_path
 from designlab.errors import DataError
 from designlab.geometry.mesh import TetMesh
 
@@ -53,28 +53,23 @@ def to_pyvista(mesh: TetMesh, facets: bool = True):
     return grid
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def write_vtu(mesh: TetMesh, path: str | os.PathLike) -> Path:
-    """Write ``mesh`` to a binary, compressed ``.vtu`` file atomically; returns the path."""
+def write_vtu(mesh: TetMesh, path: str | os.PathLike, point_data: dict | None = None,
+              cell_data: dict | None = None) -> Path:
+    """Write ``mesh`` (with optional point arrays (n_points, ...) and cell arrays
+    (n_cells, ...), e.g. FEM fields) to a binary ``.vtu`` file atomically; returns the path.
+    Facet-set triangles carry NaN in the extra cell arrays."""
     path = Path(path)
     if path.suffix != ".vtu":
         raise DataError(f"mesh file {path} must end in .vtu")
     grid = to_pyvista(mesh)
-    fd, tmp = tempfile.mkstemp(suffix=".vtu", prefix=f".{path.stem}.", dir=path.parent)
-    os.close(fd)
-    try:
+    for k, v in (point_data or {}).items():
+        grid.point_data[k] = np.asarray(v, float)
+    n_extra = grid.n_cells - mesh.n_cells
+    for k, v in (cell_data or {}).items():
+        v = np.asarray(v, float)
+        grid.cell_data[k] = np.concatenate([v, np.full((n_extra,) + v.shape[1:], np.nan)])
+    with atomic_path(path) as tmp:
         grid.save(tmp, binary=True)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
     return path
 
 

@@ -86,20 +86,14 @@ def save_mesh(result: MeshResult, out_dir: str | Path) -> tuple[Path, Path]:
     """Write ``mesh.vtu`` and ``mesh.json`` (:meth:`MeshResult.report`) into ``out_dir``; the
     report is written only after the mesh, each atomically."""
     import json
-    import os
-    import tempfile
 
-    from designlab.geometry.mesh_io import _umask, write_vtu
+    from designlab.atomic import atomic_write_bytes
+    from designlab.geometry.mesh_io import write_vtu
 
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     text = json.dumps(result.report(), indent=2)
     vtu = write_vtu(result.mesh, out / "mesh.vtu")
-    fd, tmp = tempfile.mkstemp(suffix=".json", prefix=".mesh.", dir=out)
-    with os.fdopen(fd, "w") as fh:
-        fh.write(text)
-    os.chmod(tmp, 0o666 & ~_umask())
-    os.replace(tmp, out / "mesh.json")
+    atomic_write_bytes(out / "mesh.json", text.encode())
     return vtu, out / "mesh.json"
 
 
