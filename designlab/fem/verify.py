@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from pathlib import Path
 from typing import Callable
 
@@ -325,18 +323,11 @@ def _finite(obj):
 
 def write_report(cases: list[dict], path: str | Path) -> Path:
     """Write ``{"cases": [...], "passed": bool}`` as JSON atomically (temp file + replace)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    from designlab.atomic import atomic_write_bytes
+
     payload = {"cases": cases, "passed": all(c["passed"] for c in cases)}
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".verify-", suffix=".json")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            json.dump(_finite(payload), fh, indent=2, allow_nan=False)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return atomic_write_bytes(path, json.dumps(_finite(payload), indent=2,
+                                               allow_nan=False).encode())
 
 
 __all__ = ["case", "distorted_box", "patch_test", "stiffness_symmetry", "rigid_body_modes",
