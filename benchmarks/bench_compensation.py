@@ -12,7 +12,7 @@ Jacobian; the scan simulation against the forward-Euler time loop and a plain Py
 Part 2 -- real stretch data (../shared/data/stretch): estimate the load-cell force F (N) from
 the 4-wire resistance Ri; train on multisine_600s_1, validate on multisine_300s_2 and the random
 sawtooth; linear vs mPL vs NARX (input-output net of seed 000) vs NARX with 50 fed-back output
-delays (closed loop). Loaded through a dataset card (designlab.calibration.dataset).
+delays (closed loop). Loaded through a dataset card (designlab.measured.dataset).
 
 Run from the project root:  OMP_NUM_THREADS=1 python benchmarks/bench_compensation.py
 """
@@ -28,8 +28,8 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from designlab.calibration import compensation as comp  # noqa: E402
-from designlab.calibration import mpl, narx  # noqa: E402
+from designlab.measured import compensation as comp  # noqa: E402
+from designlab.measured import mpl, narx  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 STRETCH = ROOT.parent / "shared" / "data" / "stretch"

@@ -24,7 +24,7 @@ import numpy as np
 from designlab.fem import Material, Model, solve_static
 from designlab.fem.assembly import block_pattern, cell_basis, stiffness
 from designlab.fem.prony import Prony
-from designlab.geometry.mesh import box_tet_mesh
+from designlab.mesh.tetmesh import box_tet_mesh
 
 MAT = Material("ABS-like", E=2200.0, nu=0.35)
 

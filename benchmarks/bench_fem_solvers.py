@@ -16,7 +16,7 @@ from designlab.fem.assembly import block_pattern, cell_basis, stiffness
 from designlab.fem.prony import Prony
 
 from designlab.fem.viscoelastic import History, solve_history
-from designlab.geometry.mesh import box_tet_mesh
+from designlab.mesh.tetmesh import box_tet_mesh
 
 
 def clock(f):

@@ -4,7 +4,7 @@ Peer in the same run: our tessellation (OpenCascade BRepMesh with an *absolute* 
 read into numpy, one trimesh merge) against build123d's own ``Shape.tessellate`` followed by the
 same merge, both asked for 0.01 mm / 0.2 rad from an un-meshed shape. build123d passes the tolerance
 as *relative* to edge size, so its mesh is coarser: the table gives time and the largest relative
-volume error against the exact B-rep volume (OpenCascade GProp) over the printed bodies. ``mesh`` is :func:`designlab.geometry.meshing.mesh_part`
+volume error against the exact B-rep volume (OpenCascade GProp) over the printed bodies. ``mesh`` is :func:`designlab.mesh.meshing.mesh_part`
 with the part's defaults (fTetWild), when that module is available.
 
     OMP_NUM_THREADS=1 python benchmarks/bench_geometry.py [--no-mesh] [--parts strap,fingertip]
@@ -49,7 +49,7 @@ def main() -> None:
     ap.add_argument("--no-mesh", action="store_true", help="skip tetrahedral meshing")
     args = ap.parse_args()
     try:
-        from designlab.geometry.meshing import mesh_part
+        from designlab.mesh.meshing import mesh_part
     except ImportError:
         mesh_part = None
     head = ("part", "bodies", "print tris", "build", "tessellate (vol err)",

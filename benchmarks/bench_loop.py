@@ -18,9 +18,9 @@ from pathlib import Path
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-from designlab.calibration import base_models  # noqa: E402
-from designlab.calibration.dataset import load_card  # noqa: E402
-from designlab.calibration.loop import run_loop, write_outputs  # noqa: E402
+from designlab.loop import base_models  # noqa: E402
+from designlab.measured.dataset import load_card  # noqa: E402
+from designlab.loop.loop import run_loop, write_outputs  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 CARD = ROOT / "examples" / "stretch_card.toml"

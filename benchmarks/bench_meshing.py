@@ -26,8 +26,8 @@ import numpy as np  # noqa: E402
 from rich.console import Console  # noqa: E402
 from rich.table import Table  # noqa: E402
 
-from designlab.geometry.mesh_quality import mesh_quality  # noqa: E402
-from designlab.geometry.meshing import mesh_part_detailed  # noqa: E402
+from designlab.mesh.quality import mesh_quality  # noqa: E402
+from designlab.mesh.meshing import mesh_part_detailed  # noqa: E402
 from designlab.geometry.parts import make_part  # noqa: E402
 
 

@@ -7,7 +7,7 @@ for the default design, with the time split by stage. Goal: under 60 s on a 2-co
 import sys
 import time
 
-from designlab.calibration.predict import predict
+from designlab.sensors.predict import predict
 
 
 def main(edges) -> None:

@@ -173,8 +173,8 @@ def flexure(preset: str = typer.Option("visiflex", "--preset",
             paper_json: Optional[Path] = typer.Option(None, "--paper-json",
                                                       help="Seed 002 JSON (default ../shared/data/papers/visiflex_flexure.json).")):
     """Seed 002 spring flexure 6x6 stiffness: closed form, FEM, paper theory and measurement (SI)."""
-    from designlab.calibration import flexure_report as fr
-    from designlab.fem.spring import preset as spring_preset
+    from designlab.sensors.flexure import report as fr
+    from designlab.sensors.flexure.spring import preset as spring_preset
     from designlab.params import parse_sets, with_overrides
 
     if frame not in fr.FRAMES:
@@ -187,7 +187,7 @@ def flexure(preset: str = typer.Option("visiflex", "--preset",
     if not no_fem:
         from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-        from designlab.fem.flexure_fem import fem_stiffness
+        from designlab.sensors.flexure.helix_fem import fem_stiffness
 
         with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TimeElapsedColumn(),
                       console=console, transient=True) as prog:
@@ -329,7 +329,7 @@ def compensate(model: Optional[List[str]] = typer.Option(
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
     from rich.table import Table
 
-    from designlab.calibration import compensation as comp
+    from designlab.measured import compensation as comp
     from designlab.errors import ParameterError
 
     models = _names(model) or list(comp.MODELS)
@@ -396,8 +396,8 @@ def loop_cmd(
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
     from rich.table import Table
 
-    from designlab.calibration.dataset import load_card
-    from designlab.calibration.loop import load_model, run_loop, write_outputs
+    from designlab.measured.dataset import load_card
+    from designlab.loop.loop import load_model, run_loop, write_outputs
 
     ds = load_card(data)
     start = load_model(base) if base.endswith(".json") else base
@@ -504,7 +504,7 @@ def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure")
     from rich.table import Table
 
     from designlab.errors import ParameterError
-    from designlab.geometry.meshing import mesh_part_detailed, save_mesh
+    from designlab.mesh.meshing import mesh_part_detailed, save_mesh
     from designlab.geometry.parts import PARTS, make_part
     from designlab.params import load_toml, parse_sets
 
@@ -546,7 +546,7 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure"),
     from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
     from rich.table import Table
 
-    from designlab.calibration.predict import predict as run_predict, write_prediction
+    from designlab.sensors.predict import predict as run_predict, write_prediction
     from designlab.params import load_toml, parse_sets
 
     if part not in PART_NAMES:

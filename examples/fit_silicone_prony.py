@@ -11,7 +11,7 @@ stand-in relaxation of the conductive TPU, same physics per ../shared/data/READM
 
 from pathlib import Path
 
-from designlab.calibration.dataset import load_card
+from designlab.measured.dataset import load_card
 from designlab.fem.prony_fit import fit_prony_history
 
 LENGTH_MM, AREA_MM2 = 40.0, 10.0 * 4.0

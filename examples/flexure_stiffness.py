@@ -17,9 +17,9 @@ import sys
 
 import numpy as np
 
-from designlab.calibration.flexure_report import camera_offset, load_paper, to_frame
+from designlab.sensors.flexure.report import camera_offset, load_paper, to_frame
 from designlab.calibration.stiffness_fit import fit_stiffness, force_error_stats, wrench_from_twist
-from designlab.fem.spring import VISIFLEX_CATALOG, stiffness_ratios, stiffness_zero_pitch, to_si
+from designlab.sensors.flexure.spring import VISIFLEX_CATALOG, stiffness_ratios, stiffness_zero_pitch, to_si
 
 np.set_printoptions(precision=4, suppress=True, linewidth=120)
 paper = load_paper()
@@ -64,7 +64,7 @@ for a in "xyz":
 
 # 4. FEM (optional, takes a minute)
 if "--fem" in sys.argv:
-    from designlab.fem.flexure_fem import fem_stiffness
+    from designlab.sensors.flexure.helix_fem import fem_stiffness
 
     fem = fem_stiffness(VISIFLEX_CATALOG)
     print(f"FEM {fem.n_nodes} nodes, asymmetry {fem.asymmetry:.1e}; K at the centre (SI):\n",

@@ -6,7 +6,7 @@ import pytest
 from conftest import require_tool
 from designlab.errors import DesignlabError, ModelError, ParameterError
 from designlab.fem import calculix
-from designlab.geometry.mesh import box_tet_mesh
+from designlab.mesh.tetmesh import box_tet_mesh
 
 
 def traction_forces(mesh, facet_set, traction):

@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from designlab.calibration import compensation as comp
-from designlab.calibration import linear_fit, mpl
+from designlab.measured import compensation as comp
+from designlab.measured import linear_fit
+from designlab.measured import mpl
 from designlab.cli import main
 from designlab.errors import DataError, ParameterError
 

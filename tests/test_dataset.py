@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from designlab.calibration.dataset import (find_dropouts, find_spikes, from_arrays, load_card,
+from designlab.measured.dataset import (find_dropouts, find_spikes, from_arrays, load_card,
                                            lowpass)
 from designlab.errors import DataError
 

@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from designlab.calibration import effects as fx
-from designlab.calibration.dataset import from_arrays
-from designlab.calibration.loop import load_model, run_loop, write_outputs
+from designlab.loop import effects as fx
+from designlab.measured.dataset import from_arrays
+from designlab.loop.loop import load_model, run_loop, write_outputs
 
 DT = 0.1
 

@@ -11,7 +11,7 @@ from designlab.fem import Material, Model, solve_static
 from designlab.fem.assembly import cell_basis, stiffness
 from designlab.fem.facets import area_weights, facet_basis
 from designlab.fem.solvers import factorize
-from designlab.geometry.mesh import TetMesh, box_tet_mesh
+from designlab.mesh.tetmesh import TetMesh, box_tet_mesh
 
 NU0 = Material("nu0", E=1000.0, nu=0.0)
 SOFT = Material("soft", E=10.0, nu=0.3)

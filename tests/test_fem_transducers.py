@@ -13,7 +13,7 @@ from designlab.fem.prony import Prony
 from designlab.fem.transducers import (ForceButton, ReactionWrench, RigidPose, StrainGauge,
                                        divider_voltage)
 from designlab.fem.viscoelastic import History, solve_history
-from designlab.geometry.mesh import TetMesh, box_tet_mesh
+from designlab.mesh.tetmesh import TetMesh, box_tet_mesh
 
 
 def two_region_block() -> TetMesh:

@@ -9,7 +9,7 @@ from designlab.errors import ParameterError
 from designlab.fem import Material, Model
 from designlab.fem.prony import Prony
 from designlab.fem.viscoelastic import History, solve_history
-from designlab.geometry.mesh import box_tet_mesh
+from designlab.mesh.tetmesh import box_tet_mesh
 
 L, W = 10.0, 2.0
 E0 = 12.0

@@ -7,14 +7,14 @@ import sys
 import numpy as np
 import pytest
 
-from designlab.calibration.fingertip_test import (WRENCH, FingertipModelSettings, evaluate,
+from designlab.sensors.fingertip import (WRENCH, FingertipModelSettings, evaluate,
                                                   step_responses, superpose_steps)
-from designlab.calibration.protocols import HangingWeightTest
+from designlab.sensors.protocols import HangingWeightTest
 from designlab.fem import Material, Model, solve_static
 from designlab.fem.prony import Prony
 from designlab.fem.viscoelastic import History, solve_history
 from designlab.geometry.fingertip import CantileverFingertip
-from designlab.geometry.mesh import box_tet_mesh
+from designlab.mesh.tetmesh import box_tet_mesh
 
 
 def _ball_on_sensors(part, prony=None):
@@ -86,7 +86,7 @@ def test_superposition_of_step_responses_equals_full_history():
 
 
 def test_unknown_load_point_is_an_error():
-    from designlab.calibration.fingertip_test import check_locations
+    from designlab.sensors.fingertip import check_locations
     from designlab.errors import ParameterError
 
     part = CantileverFingertip()                       # Table III: h1..h6, r1..r6
@@ -133,19 +133,19 @@ def test_predict_fingertip_end_to_end(tmp_path):
     assert abs(pred["geometric_condition_number"] - 1.41421) < 1e-4
     for f in ("hysteresis_loops.png", "applied_vs_estimated.png", "deformed.vtu"):
         assert (tmp_path / f).stat().st_size > 1000
-    from designlab.calibration.loop import load_model
+    from designlab.loop.loop import load_model
 
     model = load_model(tmp_path / "model.json")        # the loop's starting point
     assert model.outputs == ["sensor_1", "sensor_2", "sensor_3"]
 
 
 def test_default_protocol_keeps_the_load_points_a_design_has():
-    from designlab.calibration.predict import protocol_from
+    from designlab.sensors.predict import protocol_from
 
     short = CantileverFingertip(h=0.0, r=6.0)          # top at 6 mm: no h1..h3 of Table III
     p = protocol_from("fingertip", design=short)
     assert p.g1_locations == ("h4", "h5", "h6") and len(p.g2_locations) == 6
-    from designlab.calibration.fingertip_test import check_locations
+    from designlab.sensors.fingertip import check_locations
     from designlab.errors import ParameterError
 
     explicit = protocol_from("fingertip", values={"g1_locations": ["h1"]}, design=short)

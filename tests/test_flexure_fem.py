@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from designlab.fem import get_material
-from designlab.fem.flexure_fem import stiffness_6x6
-from designlab.geometry.frames import transform, transform_stiffness
-from designlab.geometry.mesh import box_tet_mesh
+from designlab.sensors.flexure.helix_fem import stiffness_6x6
+from designlab.frames import transform, transform_stiffness
+from designlab.mesh.tetmesh import box_tet_mesh
 
 
 @pytest.fixture(scope="module")
@@ -57,8 +57,8 @@ def test_missing_sets_raise_model_error(bar):
 
 def test_report_shows_which_model_is_closer_to_the_measurement(shared):
     """Entry by entry: an FEM matrix equal to the measurement wins every non-zero entry."""
-    from designlab.calibration import flexure_report as fr
-    from designlab.fem.spring import VISIFLEX_CATALOG
+    from designlab.sensors.flexure import report as fr
+    from designlab.sensors.flexure.spring import VISIFLEX_CATALOG
 
     paper = fr.load_paper(shared / "data/papers/visiflex_flexure.json")
     h = fr.camera_offset(paper)
@@ -80,8 +80,8 @@ def test_report_shows_which_model_is_closer_to_the_measurement(shared):
 def test_flexure_geometry_from_spring():
     pytest.importorskip("build123d")
     from designlab.errors import ParameterError
-    from designlab.fem.flexure_fem import flexure_from_spring, spring_material
-    from designlab.fem.spring import VISIFLEX_AS_PRINTED, VISIFLEX_CATALOG, HelicalSpring
+    from designlab.sensors.flexure.helix_fem import flexure_from_spring, spring_material
+    from designlab.sensors.flexure.spring import VISIFLEX_AS_PRINTED, VISIFLEX_CATALOG, HelicalSpring
 
     f = flexure_from_spring(VISIFLEX_CATALOG)
     assert f.ends == "closed_ground" and f.active_coils == 1.75 and f.wire_radius == 1.015
@@ -98,8 +98,8 @@ def test_small_pitch_helix_axial_stiffness_matches_closed_form():
     """Meshed helix (5 plain coils, pitch angle 0.08 rad, spring index 5) vs the zero-pitch
     closed form: axial stiffness within 10 % (the flat end footprints clamped on the discs
     shorten the free wire by ~0.35 turn, so the FEM is ~7 % stiffer); takes minutes (fTetWild)."""
-    from designlab.fem.flexure_fem import fem_stiffness
-    from designlab.fem.spring import HelicalSpring, stiffness_zero_pitch
+    from designlab.sensors.flexure.helix_fem import fem_stiffness
+    from designlab.sensors.flexure.spring import HelicalSpring, stiffness_zero_pitch
 
     s = HelicalSpring(wire_radius=2.0, mean_diameter=20.0, coils=5.0, pitch_angle=0.08)
     fem = fem_stiffness(s, edge_length=2.0, quality="coarse")

@@ -9,14 +9,14 @@ import json
 import numpy as np
 import pytest
 
-from designlab.calibration import flexure_test as ft
-from designlab.calibration.protocols import FlexureWrenchTest
+from designlab.sensors.flexure import virtual as ft
+from designlab.sensors.protocols import FlexureWrenchTest
 from designlab.fem.materials import get_material
 from designlab.fem.prony import Prony
-from designlab.fem.spring import (VISIFLEX_CATALOG, stiffness_timoshenko, stiffness_zero_pitch,
+from designlab.sensors.flexure.spring import (VISIFLEX_CATALOG, stiffness_timoshenko, stiffness_zero_pitch,
                                   to_si)
 from designlab.geometry.flexure import SpringFlexure
-from designlab.geometry.mesh import box_tet_mesh
+from designlab.mesh.tetmesh import box_tet_mesh
 
 PART = SpringFlexure()
 TIM = ft.FlexureModelSettings(truth="timoshenko")
@@ -84,8 +84,8 @@ BOX = ft.FlexureModelSettings(truth="fem", base_set="zmin", tip_set="zmax")
 
 
 def test_fem_truth_on_a_given_mesh_matches_the_6x6_routine():
-    """The FEM path (any mesh with base/tip sets) agrees with designlab.fem.flexure_fem."""
-    from designlab.fem.flexure_fem import stiffness_6x6
+    """The FEM path (any mesh with base/tip sets) agrees with designlab.sensors.flexure.helix_fem."""
+    from designlab.sensors.flexure.helix_fem import stiffness_6x6
 
     mesh = _prism()
     p = ft.run(PART, FlexureWrenchTest(steps=1), BOX, mesh=mesh)

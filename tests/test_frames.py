@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from designlab.geometry import frames as fr
+from designlab import frames as fr
 
 
 def _random_twist(rng, scale=1.0):

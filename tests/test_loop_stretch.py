@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from designlab.calibration.base_models import specimen_stiffness_factor
-from designlab.calibration.dataset import load_card
-from designlab.calibration.loop import run_loop
+from designlab.loop.base_models import specimen_stiffness_factor
+from designlab.measured.dataset import load_card
+from designlab.loop.loop import run_loop
 
 ROOT = Path(__file__).resolve().parents[1]
 CARD = ROOT / "examples" / "stretch_card.toml"

@@ -12,13 +12,13 @@ from build123d import Box, Cylinder, Pos
 from scipy.spatial import cKDTree
 
 from designlab.errors import MeshingError, ParameterError
-from designlab.geometry import meshing
+from designlab.mesh import meshing
 from designlab.geometry.body import Body
-from designlab.geometry.mesh import TET10_EDGES, TRI6_EDGES, box_tet_mesh
-from designlab.geometry.mesh_facets import cell_faces, interface_facets
-from designlab.geometry.mesh_io import read_vtu, write_vtu
-from designlab.geometry.mesh_quality import dihedral_angles, mesh_quality, radius_ratios
-from designlab.geometry.meshing import (MeshResult, _solid_angle_sum, mesh_bodies,
+from designlab.mesh.tetmesh import TET10_EDGES, TRI6_EDGES, box_tet_mesh
+from designlab.mesh.facets import cell_faces, interface_facets
+from designlab.mesh.io import read_vtu, write_vtu
+from designlab.mesh.quality import dihedral_angles, mesh_quality, radius_ratios
+from designlab.mesh.meshing import (MeshResult, _solid_angle_sum, mesh_bodies,
                                         mesh_bodies_detailed, save_mesh, winding_number)
 
 # a 16 x 6 x 0.6 mm strap with a 0.2 mm thick meander trace embedded at mid-thickness
@@ -335,7 +335,7 @@ def test_cli_rejects_unknown_part(tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["strap", "fingertip", "flexure"])
 def test_default_parts_mesh(name):
-    from designlab.geometry.meshing import mesh_part_detailed
+    from designlab.mesh.meshing import mesh_part_detailed
     from designlab.geometry.parts import make_part
 
     part = make_part(name)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from designlab.calibration import mpl
+from designlab.measured import mpl
 from designlab.errors import DataError, ModelError, ParameterError
 
 

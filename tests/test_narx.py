@@ -3,7 +3,9 @@
 import numpy as np
 import pytest
 
-from designlab.calibration import linear_fit, mpl, narx
+from designlab.measured import linear_fit
+from designlab.measured import mpl
+from designlab.measured import narx
 from designlab.errors import DataError, ParameterError
 
 

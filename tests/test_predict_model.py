@@ -3,9 +3,9 @@ loop starts from; an effect the FEM lacks is found in the residual on held-out d
 
 import numpy as np
 
-from designlab.calibration.dataset import from_arrays
-from designlab.calibration.loop import load_model, run_loop
-from designlab.calibration.predict import sensor_model
+from designlab.measured.dataset import from_arrays
+from designlab.loop.loop import load_model, run_loop
+from designlab.sensors.predict import sensor_model
 
 GAINS = {"Ch1": {"F_n": 0.030, "F_x": 0.020}, "Ch2": {"F_n": 0.029, "F_x": -0.013}}
 
@@ -42,10 +42,10 @@ def test_loop_model_corrects_a_new_design_prediction(tmp_path):
     virtual-test channels and the metrics are evaluated again."""
     from types import SimpleNamespace
 
-    from designlab.calibration import strap_test
-    from designlab.calibration.loop import run_loop
-    from designlab.calibration.predict import apply_learned_effects
-    from designlab.calibration.protocols import StrapLoadTest
+    from designlab.sensors import strap as strap_test
+    from designlab.loop.loop import run_loop
+    from designlab.sensors.predict import apply_learned_effects
+    from designlab.sensors.protocols import StrapLoadTest
 
     rng = np.random.default_rng(1)
     n = 3000

@@ -141,7 +141,7 @@ def test_fitted_material_reproduces_creep_data_in_the_fem(nu_fit):
     from designlab.fem.materials import Material
     from designlab.fem.model import Model
     from designlab.fem.viscoelastic import History, solve_history
-    from designlab.geometry.mesh import box_tet_mesh
+    from designlab.mesh.tetmesh import box_tet_mesh
 
     rng = np.random.default_rng(6)
     t = np.linspace(0.0, 60.0, 121)

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from designlab.calibration.protocols import (FlexureWrenchTest, HangingWeightTest, StrapLoadTest,
+from designlab.sensors.protocols import (FlexureWrenchTest, HangingWeightTest, StrapLoadTest,
                                              load_protocol)
 from designlab.errors import ParameterError
 

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from designlab.calibration import flexure_report as fr
+from designlab.sensors.flexure import report as fr
 from designlab.errors import DataError, ParameterError
-from designlab.fem import spring as sp
-from designlab.geometry.frames import transform, transform_stiffness
+from designlab.sensors.flexure import spring as sp
+from designlab.frames import transform, transform_stiffness
 
 
 @pytest.fixture(scope="module")

@@ -8,8 +8,8 @@ import json
 import numpy as np
 import pytest
 
-from designlab.calibration import strap_test as st
-from designlab.calibration.protocols import StrapLoadTest
+from designlab.sensors import strap as st
+from designlab.sensors.protocols import StrapLoadTest
 from designlab.errors import ParameterError
 from designlab.geometry.strap import ArchStrap
 

@@ -1,1 +1,1 @@
-"""Virtual tests, metrics, calibration and stiffness fits, compensation models, measured data, the residual -> effect loop."""
+"""Metrics of a calibration (sensor-free): hysteresis (eq. 1 of seed 001), the least-squares calibration matrix and its condition number, the 6x6 stiffness fit, error metrics (RMSE, NCC, Wilcoxon)."""

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from designlab.errors import DataError
-from designlab.geometry.frames import adjoint, rotation_about, transform
+from designlab.frames import adjoint, rotation_about, transform
 
 #: (row, col) of the 21 unknowns, row-major over the upper triangle
 UPPER = np.array([(i, j) for i in range(6) for j in range(i, 6)])

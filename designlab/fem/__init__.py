@@ -3,7 +3,7 @@
 API summary (stable names)::
 
     from designlab.fem import Model, solve_static
-    from designlab.geometry.mesh import box_tet_mesh
+    from designlab.mesh.tetmesh import box_tet_mesh
 
     mesh = box_tet_mesh(100, 10, 10, 20, 4, 4, material="ABS").quadratic()   # TET10
     model = Model(mesh)                      # materials: mesh.materials {body: name}, or

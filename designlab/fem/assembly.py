@@ -19,7 +19,7 @@ import scipy.sparse as sp
 
 from designlab.errors import ModelError
 from designlab.fem.elements import Element, Quadrature, tet_element, tet_quadrature
-from designlab.geometry.mesh import TetMesh
+from designlab.mesh.tetmesh import TetMesh
 
 _CHUNK = 4096          # cells per batch: small temporaries stay in cache and are reused (first call
 #                        with 32k-cell chunks paid ~3 s of page faults at 108k DOF)

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from designlab.errors import DesignlabError, ModelError, ParameterError
-from designlab.geometry.mesh import TetMesh
+from designlab.mesh.tetmesh import TetMesh
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from typing import Callable
 
 import numpy as np
 
-from designlab.geometry.mesh import TET10_EDGES, TRI6_EDGES
+from designlab.mesh.tetmesh import TET10_EDGES, TRI6_EDGES
 
 
 def _bary_grad(dim: int) -> np.ndarray:

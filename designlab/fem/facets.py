@@ -14,7 +14,7 @@ import numpy as np
 
 from designlab.errors import ModelError
 from designlab.fem.elements import Element, tri_element
-from designlab.geometry.mesh import TetMesh
+from designlab.mesh.tetmesh import TetMesh
 
 #: local faces of a tetrahedron, face k is opposite local node k
 _TET_FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])

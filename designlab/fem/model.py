@@ -1,6 +1,6 @@
 """Model definition: materials per region, constraints, loads, couplings and springs.
 
-A :class:`Model` wraps a :class:`~designlab.geometry.mesh.TetMesh` and collects definitions;
+A :class:`Model` wraps a :class:`~designlab.mesh.tetmesh.TetMesh` and collects definitions;
 :meth:`Model.build` turns them into a :class:`System` (plain sparse arrays) that the static and
 viscoelastic solvers share. Everything is linear, so loads live in named *load cases* that a
 solver solves together (factor once) and a history can scale independently.
@@ -24,7 +24,7 @@ from designlab.errors import ModelError, ParameterError
 from designlab.fem.assembly import CellBasis, body_load, cell_basis, stiffness, strain_operator
 from designlab.fem.facets import area_weights, facet_basis, pressure_load, traction_load
 from designlab.fem.materials import Material, get_material
-from designlab.geometry.mesh import TetMesh
+from designlab.mesh.tetmesh import TetMesh
 
 _COMP = {"x": 0, "y": 1, "z": 2, "rx": 3, "ry": 4, "rz": 5}
 

@@ -1,4 +1,4 @@
-"""Result files: VTU fields (pyvista, via geometry.mesh_io) and a PNG of the deformed shape (pyvista off screen).
+"""Result files: VTU fields (pyvista, via mesh.io) and a PNG of the deformed shape (pyvista off screen).
 
 Both writers are atomic (temporary file in the target folder, then ``os.replace``). TET10 cells
 are written as VTK quadratic tetrahedra (same node order as C3D10). PNG rendering needs an X
@@ -14,14 +14,14 @@ from pathlib import Path
 import numpy as np
 
 from designlab.atomic import atomic_path
-from designlab.geometry.mesh import TetMesh
+from designlab.mesh.tetmesh import TetMesh
 
 
 def write_vtu(path, mesh: TetMesh, point_data: dict | None = None,
               cell_data: dict | None = None) -> Path:
     """Write ``mesh`` with point/cell arrays ((n, ...) / (m, ...)) to a .vtu file atomically
-    (:func:`designlab.geometry.mesh_io.write_vtu`: regions, facet sets and names included)."""
-    from designlab.geometry.mesh_io import write_vtu as write_mesh_vtu
+    (:func:`designlab.mesh.io.write_vtu`: regions, facet sets and names included)."""
+    from designlab.mesh.io import write_vtu as write_mesh_vtu
 
     return write_mesh_vtu(mesh, path, point_data, cell_data)
 

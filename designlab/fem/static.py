@@ -138,7 +138,7 @@ def p1_prolongation(system: System):
     mesh = model.mesh
     if mesh.order != 2:
         return None
-    from designlab.geometry.mesh import TET10_EDGES
+    from designlab.mesh.tetmesh import TET10_EDGES
 
     npts, n = model.n_points, system.n_dofs
     corners = np.unique(mesh.cells[:, :4])

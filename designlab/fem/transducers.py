@@ -22,7 +22,7 @@ import scipy.sparse as sp
 from designlab.errors import ModelError, ParameterError
 from designlab.fem.model import Model, RefPoint
 
-#: seed 000 readout (../shared/data/papers/fingertip_strap_tpu.json: "readout", "strap")
+#: seed 000 readout (../shared/data/papers/fingertip_strap_tpu.json, tables readout and strap)
 DIVIDER_OHM = 2200.0
 SUPPLY_V = 5.0
 GAUGE_OHM = 1800.0

@@ -23,7 +23,7 @@ from designlab.fem.materials import Material
 from designlab.fem.model import Model
 from designlab.fem.prony import Prony
 from designlab.fem.static import solve_static
-from designlab.geometry.mesh import TetMesh, box_tet_mesh
+from designlab.mesh.tetmesh import TetMesh, box_tet_mesh
 
 #: the elastic material of the static cases (MPa)
 ELASTIC = Material("verify", E=2000.0, nu=0.3)

@@ -1,1 +1,1 @@
-"""Parametric CAD of the sensors, assemblies, printable export and tetrahedral meshing (mm)."""
+"""Parametric CAD of the sensors (mm): parts as parameter objects, assemblies, printable export (STL/3MF/STEP/glTF), printability checks, tessellation and renders."""

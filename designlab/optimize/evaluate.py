@@ -30,7 +30,7 @@ def geometry_metrics(part_name: str, part) -> dict[str, Any]:
 
 def evaluate_design(task: dict[str, Any]) -> dict[str, Any]:
     """One design of a sweep -> flat-ish metrics dict (see module docstring)."""
-    from designlab.calibration.predict import predict
+    from designlab.sensors.predict import predict
     from designlab.geometry.parts import make_part
 
     part_name, params = task["part"], task["params"]
@@ -59,7 +59,7 @@ def export_design(part_name: str, params: dict[str, Any], out: str | Path, *,
                   formats: str = "stl,3mf,step", settings: dict[str, Any] | None = None,
                   protocol: dict[str, Any] | None = None) -> list[Path]:
     """Export the chosen design for printing and write its full prediction report."""
-    from designlab.calibration.predict import predict, write_prediction
+    from designlab.sensors.predict import predict, write_prediction
     from designlab.geometry.export import export_parts
     from designlab.geometry.parts import make_part
 

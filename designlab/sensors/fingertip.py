@@ -37,7 +37,7 @@ from designlab.calibration.calibration_matrix import (condition_number, cross_ta
                                                       fit_calibration_matrix, geometric_matrix,
                                                       linearity_percent)
 from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
-from designlab.calibration.protocols import HangingWeightTest
+from designlab.sensors.protocols import HangingWeightTest
 from designlab.errors import ParameterError
 from designlab.params import rng, validate
 
@@ -80,7 +80,7 @@ class FingertipModelSettings:
 def mesh_fingertip(part, settings: FingertipModelSettings):
     """TET10 mesh of the bodies the readings depend on (base, cap; optionally the fingertip),
     with the part's facet sets (and its local refinement when ``settings.refine``)."""
-    from designlab.geometry.meshing import mesh_bodies
+    from designlab.mesh.meshing import mesh_bodies
 
     built = part.build()
     names = [n for n in part.mesh_bodies() if settings.mesh_fingertip or n != "fingertip"]

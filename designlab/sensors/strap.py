@@ -47,7 +47,7 @@ from designlab.calibration.calibration_matrix import (condition_number, fit_cali
                                                       linearity_percent)
 from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
 from designlab.atomic import atomic_savefig
-from designlab.calibration.protocols import StrapLoadTest
+from designlab.sensors.protocols import StrapLoadTest
 from designlab.errors import ParameterError
 from designlab.params import rng, validate
 
@@ -129,7 +129,7 @@ def wrap_points(part, x: np.ndarray, finger_radius: float) -> np.ndarray:
 
 def worn_mesh(part, mesh, finger_radius: float):
     """The flat mesh mapped by :func:`wrap_points` (same cells, sets and regions)."""
-    from designlab.geometry.mesh import TetMesh
+    from designlab.mesh.tetmesh import TetMesh
 
     pts = wrap_points(part, mesh.points, finger_radius)
     return TetMesh(pts, mesh.cells, mesh.region, dict(mesh.region_names), dict(mesh.materials),
@@ -163,7 +163,7 @@ def pad_frame(part, settings: StrapModelSettings) -> dict[str, np.ndarray]:
 
 def mesh_strap(part, settings: StrapModelSettings):
     """Flat TET mesh of the strap and traces with the part's facet sets (see the settings)."""
-    from designlab.geometry.meshing import mesh_bodies_detailed
+    from designlab.mesh.meshing import mesh_bodies_detailed
 
     built = part.build()
     bodies = [built[n] for n in part.mesh_bodies()]
@@ -193,7 +193,7 @@ def gauge_cells(part, flat_mesh, region: str) -> np.ndarray:
 def inner_face_nodes(part, flat_mesh) -> tuple[np.ndarray, np.ndarray]:
     """Corner nodes of the inner (finger-side) face outside the pad contact and the tabs, and
     their lumped areas (mm^2): where the finger supports the strap."""
-    from designlab.geometry.mesh_facets import centroids_normals
+    from designlab.mesh.facets import centroids_normals
 
     tri = flat_mesh.boundary_facets()
     cen, nrm = centroids_normals(flat_mesh.points, tri)

@@ -10,12 +10,12 @@ segments of a task, and between tasks by segment index (seed 000 paired by subje
 Models (inputs u = sensor channels, outputs y = reference forces):
 
 * ``linear`` -- first-order fit per output of its channel (seed 000: Ch1 + Ch2 -> F_n,
-  Ch1 - Ch2 -> F_x), :mod:`designlab.calibration.linear_fit`;
+  Ch1 - Ch2 -> F_x), :mod:`designlab.measured.linear_fit`;
 * ``mpl``    -- one mPL model per output, fitted as a compensator (input: the linear estimate of
   that output, an affine map of seed 000's sum/difference channel; output: the reference),
-  :mod:`designlab.calibration.mpl`;
+  :mod:`designlab.measured.mpl`;
 * ``narx``   -- a 10-neuron network on 50 input delays (seed 000), all inputs -> all outputs,
-  :mod:`designlab.calibration.narx`; closed-loop when output delays are fed back.
+  :mod:`designlab.measured.narx`; closed-loop when output delays are fed back.
 """
 
 from __future__ import annotations
@@ -31,8 +31,10 @@ from typing import Callable, Protocol, Sequence
 import numpy as np
 
 from designlab.atomic import atomic_path
-from designlab.calibration import linear_fit, mpl, narx
-from designlab.calibration.linear_fit import as_2d
+from designlab.measured import linear_fit
+from designlab.measured import mpl
+from designlab.measured import narx
+from designlab.measured.linear_fit import as_2d
 from designlab.calibration.metrics import ncc, rmse, wilcoxon
 from designlab.errors import DataError, ParameterError
 from designlab.params import rng, validate
@@ -292,7 +294,7 @@ def load_record(path: str | Path, inputs: Sequence[str], outputs: Sequence[str],
     if (time is None) == (dt is None):
         raise ParameterError("--time/--dt", f"time={time!r}, dt={dt!r}",
                              "exactly one of a time column or a sample period")
-    from designlab.calibration.dataset import read_table
+    from designlab.measured.dataset import read_table
 
     cols = list(inputs) + list(outputs) + ([time] if time else [])
     table = read_table(Path(path))
@@ -320,7 +322,7 @@ def load_record(path: str | Path, inputs: Sequence[str], outputs: Sequence[str],
 
 def records_from_dataset(ds, inputs: Sequence[str], outputs: Sequence[str]
                          ) -> tuple[list[Record], list[Record]]:
-    """(train, validate) records from a :class:`~designlab.calibration.dataset.Dataset`: one
+    """(train, validate) records from a :class:`~designlab.measured.dataset.Dataset`: one
     record per run and role, channels picked by name (sensor signals -> ``inputs``, reference
     -> ``outputs``, whichever side of the card declares them)."""
     train, val = [], []
@@ -345,7 +347,7 @@ def records_from_dataset(ds, inputs: Sequence[str], outputs: Sequence[str]
 def records_from_card(path: str | Path, inputs: Sequence[str], outputs: Sequence[str]
                       ) -> tuple[list[Record], list[Record]]:
     """(train, validate) records from a dataset card (TOML), see :func:`records_from_dataset`."""
-    from designlab.calibration.dataset import load_card
+    from designlab.measured.dataset import load_card
 
     return records_from_dataset(load_card(path), inputs, outputs)
 

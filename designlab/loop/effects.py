@@ -39,7 +39,7 @@ from typing import Any, Callable
 import numpy as np
 from scipy import signal
 
-from designlab.calibration.dataset import ELECTRICAL, Dataset
+from designlab.measured.dataset import ELECTRICAL, Dataset
 from designlab.errors import ModelError
 
 # --------------------------------------------------------------------------- signal helpers

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from designlab.errors import ParameterError
-from designlab.geometry.frames import transform, transform_stiffness
+from designlab.frames import transform, transform_stiffness
 from designlab.params import rng, validate
 
 #: SS302 (ASTM A313) typical moduli, MPa: E 193 GPa, G 69 GPa (E/G = 2.797; seed 002's K_f has

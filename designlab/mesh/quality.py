@@ -10,7 +10,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from designlab.geometry.mesh import TetMesh
+from designlab.mesh.tetmesh import TetMesh
 
 #: the six edges of a tetrahedron and, for each, the two faces meeting there, named by the
 #: vertex they are opposite to: edge (i, j) lies on the faces opposite k and l

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from designlab.calibration.dataset import Dataset
+from designlab.measured.dataset import Dataset
 from designlab.errors import DataError, ModelError, ParameterError
 
 SPECIMEN = {"length": 40.0, "width": 10.0, "thickness": 4.0, "nu": 0.49}
@@ -57,7 +57,7 @@ def specimen_stiffness_factor(length: float = 40.0, width: float = 10.0, thickne
     of both grip faces held) over the closed form E A / L: > 1 because the grips stop the
     lateral contraction. Static TET10 FEM at E = 1 MPa (designlab.fem)."""
     from designlab.fem import Material, Model, solve_static
-    from designlab.geometry.mesh import box_tet_mesh
+    from designlab.mesh.tetmesh import box_tet_mesh
 
     mesh = box_tet_mesh(length, width, thickness, *divisions).quadratic()
     model = Model(mesh, materials={"block": Material("specimen", E=1.0, nu=nu)})

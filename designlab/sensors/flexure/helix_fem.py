@@ -5,7 +5,7 @@ compliance ``C`` (twist (w, v) per wrench (m, f)); ``K = C^-1``. The compliance 
 linear model is symmetric, so ``||C - C^T|| / ||C||`` measures round-off and solver error only;
 ``K`` is returned symmetrised. :func:`stiffness_6x6` works on any mesh with a base and a tip set;
 :func:`fem_stiffness` meshes a helical spring flexure (the parts helper's ``SpringFlexure``) and
-expresses the result at the spring centre, as the closed form (:mod:`designlab.fem.spring`).
+expresses the result at the spring centre, as the closed form (:mod:`designlab.sensors.flexure.spring`).
 """
 
 from __future__ import annotations
@@ -19,10 +19,10 @@ import numpy as np
 from designlab.errors import ModelError, ParameterError
 from designlab.fem.materials import Material
 from designlab.fem.model import Model
-from designlab.fem.spring import HelicalSpring, to_si
+from designlab.sensors.flexure.spring import HelicalSpring, to_si
 from designlab.fem.static import solve_static
-from designlab.geometry.frames import transform, transform_stiffness
-from designlab.geometry.mesh import TetMesh
+from designlab.frames import transform, transform_stiffness
+from designlab.mesh.tetmesh import TetMesh
 
 Progress = Callable[[str, int, int], None]
 _CASES = (("m_x", (0, 0, 0), (1, 0, 0)), ("m_y", (0, 0, 0), (0, 1, 0)), ("m_z", (0, 0, 0), (0, 0, 1)),
@@ -134,7 +134,7 @@ def fem_stiffness(spring, edge_length: float | None = None, order: int = 2,
                   progress: Progress | None = None) -> FlexureFEM:
     """FEM 6x6 of a spring flexure: mesh the helix, clamp ``flexure_base``, rigid ``flexure_tip``.
 
-    spring:      a :class:`~designlab.fem.spring.HelicalSpring` (its E, G are used for the wire)
+    spring:      a :class:`~designlab.sensors.flexure.spring.HelicalSpring` (its E, G are used for the wire)
                  or a ``SpringFlexure`` (its material name is used).
     edge_length: tet edge length, mm (default: the wire radius).
     solver:      "direct" by default: a slender wire has little fill-in (114k TET10 dofs of the
@@ -142,7 +142,7 @@ def fem_stiffness(spring, edge_length: float | None = None, order: int = 2,
     The master sits on the axis at the tip face (``z = length``); :attr:`FlexureFEM.K_centre` is
     at the spring centre ``(0, 0, length / 2)``, the closed form's frame.
     """
-    from designlab.geometry.meshing import mesh_part
+    from designlab.mesh.meshing import mesh_part
 
     step = progress or (lambda text, done, total: None)
     if isinstance(spring, HelicalSpring):

@@ -17,7 +17,7 @@ import numpy as np
 
 from designlab.atomic import atomic_path
 from designlab.errors import DataError
-from designlab.geometry.mesh import TetMesh
+from designlab.mesh.tetmesh import TetMesh
 
 _META = "designlab"
 

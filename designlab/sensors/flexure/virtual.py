@@ -4,7 +4,7 @@ The built flexure answers a wrench ``W`` at the fingertip with the pose ``X = K_
 "truth" stiffness: the FEM of the meshed helix with its real pitch and flat ground ends, base
 clamped, tip rigid to a 6-dof master, or the Timoshenko column when ``truth="timoshenko"``). The
 sensor turns the measured pose back into a wrench with the stiffness its designer computed, the
-paper's zero-pitch closed form ``K_design`` (:func:`designlab.fem.spring.stiffness_zero_pitch`):
+paper's zero-pitch closed form ``K_design`` (:func:`designlab.sensors.flexure.spring.stiffness_zero_pitch`):
 ``W_est = K_design X``. The error ``W - W_est`` over the protocol's wrenches is reported like
 seed 002 Table I (mean and standard deviation per axis), optionally with pose-estimation noise.
 
@@ -30,7 +30,7 @@ import numpy as np
 
 from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
 from designlab.atomic import atomic_savefig
-from designlab.calibration.protocols import FlexureWrenchTest
+from designlab.sensors.protocols import FlexureWrenchTest
 from designlab.calibration.stiffness_fit import fit_stiffness
 from designlab.errors import ModelError
 from designlab.params import rng, validate
@@ -75,10 +75,10 @@ class FlexureModelSettings:
 
 
 def helical_spring(part):
-    """The :class:`~designlab.fem.spring.HelicalSpring` of a ``SpringFlexure`` (active coils,
+    """The :class:`~designlab.sensors.flexure.spring.HelicalSpring` of a ``SpringFlexure`` (active coils,
     moduli of its wire material)."""
     from designlab.fem.materials import get_material
-    from designlab.fem.spring import HelicalSpring
+    from designlab.sensors.flexure.spring import HelicalSpring
 
     m = get_material(part.material)
     return HelicalSpring(wire_radius=part.wire_radius, mean_diameter=part.mean_diameter,
@@ -118,7 +118,7 @@ def run(part=None, protocol: FlexureWrenchTest | None = None,
         progress: Callable[[str], None] | None = None) -> FlexurePrediction:
     """K_f (closed form, FEM), the protocol's wrenches through the true stiffness, the sensor's
     estimate through the designer's, and the metrics."""
-    from designlab.fem.spring import stiffness_timoshenko, stiffness_zero_pitch, to_si
+    from designlab.sensors.flexure.spring import stiffness_timoshenko, stiffness_zero_pitch, to_si
     from designlab.geometry.flexure import SpringFlexure
 
     part = part or SpringFlexure()
@@ -138,7 +138,7 @@ def run(part=None, protocol: FlexureWrenchTest | None = None,
     if settings.truth == "fem" or mesh is not None:
         t0 = time.perf_counter()
         if mesh is None:
-            from designlab.geometry.meshing import mesh_part
+            from designlab.mesh.meshing import mesh_part
 
             say("meshing")
             mesh = mesh_part(part, order=settings.order, edge_length=settings.edge_length,
@@ -260,7 +260,7 @@ def evaluate(W: np.ndarray, X: np.ndarray, W_est: np.ndarray, K_true: np.ndarray
 
 
 def _si() -> np.ndarray:
-    from designlab.fem.spring import SI_SCALE
+    from designlab.sensors.flexure.spring import SI_SCALE
     return SI_SCALE
 
 

@@ -4,7 +4,7 @@ Everything here is in SI, as the paper prints it: N*m/rad (rotational), N/m (tra
 (rotation-translation couplings, equivalently N*m/m or N/rad). Frames: ``"spring"`` = {f}, the
 spring centre with z along the coil axis; ``"camera"`` = {c}, the paper's camera frame, which sits
 ``h`` below the spring centre on the same axis. ``h`` is not printed in the paper; it is recovered
-from the paper's own K_f and K_c (:func:`designlab.geometry.frames.offset_along_z`): 11.09 mm.
+from the paper's own K_f and K_c (:func:`designlab.frames.offset_along_z`): 11.09 mm.
 """
 
 from __future__ import annotations
@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 
 from designlab.errors import DataError, ParameterError
-from designlab.fem.spring import (HelicalSpring, centre_terms, stiffness_ratios,
+from designlab.sensors.flexure.spring import (HelicalSpring, centre_terms, stiffness_ratios,
                                   stiffness_timoshenko, stiffness_zero_pitch, to_si)
-from designlab.geometry.frames import offset_along_z, transform, transform_stiffness
+from designlab.frames import offset_along_z, transform, transform_stiffness
 
 PAPER_JSON = Path("shared/data/papers/visiflex_flexure.json")
 FRAMES = ("spring", "camera")

@@ -23,11 +23,11 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 
 from designlab import __version__
-from designlab.calibration.protocols import load_protocol
+from designlab.sensors.protocols import load_protocol
 from designlab.errors import ParameterError
 
 if TYPE_CHECKING:
-    from designlab.calibration.loop import SensorModel
+    from designlab.loop.loop import SensorModel
 
 #: seed 001: measured condition number of A_opt (../shared/data/papers/fingertip_xu2014.json)
 PAPER_CONDITION_NUMBER = 34.92
@@ -37,11 +37,11 @@ def _settings(part: str, values: dict[str, Any] | None):
     from designlab.params import with_overrides
 
     if part == "fingertip":
-        from designlab.calibration.fingertip_test import FingertipModelSettings as S
+        from designlab.sensors.fingertip import FingertipModelSettings as S
     elif part == "strap":
-        from designlab.calibration.strap_test import StrapModelSettings as S
+        from designlab.sensors.strap import StrapModelSettings as S
     else:
-        from designlab.calibration.flexure_test import FlexureModelSettings as S
+        from designlab.sensors.flexure.virtual import FlexureModelSettings as S
     values = {k: (tuple(v) if isinstance(v, list) else v) for k, v in (values or {}).items()}
     try:
         return with_overrides(S, values)
@@ -80,17 +80,17 @@ def protocol_from(part: str, path: str | Path | None = None,
 
 def run_virtual_test(part_name: str, part, protocol, settings, progress=None):
     if part_name == "fingertip":
-        from designlab.calibration import fingertip_test as mod
+        from designlab.sensors import fingertip as mod
     elif part_name == "strap":
-        from designlab.calibration import strap_test as mod
+        from designlab.sensors import strap as mod
     else:
-        from designlab.calibration import flexure_test as mod
+        from designlab.sensors.flexure import virtual as mod
     return mod, mod.run(part, protocol, settings, progress=progress)
 
 
 def _fingertip_extras(report: dict[str, Any], prediction, part, protocol) -> None:
     """Paper comparison and what drives the condition number (seed 001 Section IV)."""
-    from designlab.calibration.fingertip_test import WRENCH
+    from designlab.sensors.fingertip import WRENCH
 
     unit = prediction.unit_readings[-1]                       # (6 wrench, 3 sensors), N per N
     axes, _ = part.sensor_axes()
@@ -128,9 +128,9 @@ def apply_learned_effects(prediction: dict[str, Any], result, model_path: str | 
     printed strap (``model.json`` of ``designlab loop``) are added to this design's virtual-test
     channels (their base is this design's FEM, not the measured one), and the metrics are
     evaluated again on the corrected channels. Returns the corrected report."""
-    from designlab.calibration import strap_test
-    from designlab.calibration.dataset import from_arrays
-    from designlab.calibration.loop import SensorModel, load_model
+    from designlab.sensors import strap as strap_test
+    from designlab.measured.dataset import from_arrays
+    from designlab.loop.loop import SensorModel, load_model
 
     if prediction["design"]["part"] != "strap":
         raise ParameterError("--model", str(model_path),
@@ -181,7 +181,7 @@ def predict(part_name: str, overrides: dict[str, Any] | None = None, *,
             raise ParameterError("--model", str(model_path),
                                  "a loop model applies to the strap only (fingertip, flexure: "
                                  "not yet)")
-        from designlab.calibration.loop import load_model
+        from designlab.loop.loop import load_model
 
         load_model(model_path)
     t_cad = time.perf_counter() - t0
@@ -279,12 +279,12 @@ def sensor_model(prediction: dict[str, Any], result) -> "SensorModel":
     fingertip: inputs f_x, f_y, f_z (N) and m_x, m_y, m_z (N mm) at the ball centre -> outputs
     sensor_1..3 (V); strap: F_n, F_x (N) -> Ch1, Ch2 (V, change from unloaded); flexure:
     m_x..f_z (N mm, N) -> twist w_x..v_z (rad, mm) through the compliance K_f^-1."""
-    from designlab.calibration.base_models import Base
-    from designlab.calibration.loop import SensorModel
+    from designlab.loop.base_models import Base
+    from designlab.loop.loop import SensorModel
 
     part = prediction["design"]["part"]
     if part == "fingertip":
-        from designlab.calibration.fingertip_test import FSS015_V_PER_N, WRENCH
+        from designlab.sensors.fingertip import FSS015_V_PER_N, WRENCH
 
         G = FSS015_V_PER_N * result.unit_readings[-1]               # (6 wrench, 3 sensors)
         outs = {f"sensor_{k + 1}": {w: float(G[i, k]) for i, w in enumerate(WRENCH)}
@@ -296,7 +296,7 @@ def sensor_model(prediction: dict[str, Any], result) -> "SensorModel":
                 for ch in ("Ch1", "Ch2")}
         units = {o: "V" for o in outs}
     else:
-        from designlab.calibration.flexure_test import WRENCH
+        from designlab.sensors.flexure.virtual import WRENCH
 
         C = np.linalg.inv(result.K_true)                                 # designlab units
         twist = ("w_x", "w_y", "w_z", "v_x", "v_y", "v_z")

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from designlab.calibration.linear_fit import as_2d
+from designlab.measured.linear_fit import as_2d
 from designlab.errors import DataError
 from designlab.params import rng, validate
 

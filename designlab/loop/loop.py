@@ -1,8 +1,8 @@
 """Closing the loop: residual -> effect -> better model.
 
-:func:`run_loop` starts from a BASE model (:mod:`designlab.calibration.base_models`, or a saved
+:func:`run_loop` starts from a BASE model (:mod:`designlab.loop.base_models`, or a saved
 model), computes the residual ``measured - predicted`` on the training data and tries every
-applicable mechanism of the effect library (:mod:`designlab.calibration.effects`). A candidate
+applicable mechanism of the effect library (:mod:`designlab.loop.effects`). A candidate
 is accepted only when blocked time-series cross-validation on the training data (``folds``
 contiguous blocks, a guard gap around the held-out block) shows that it lowers the held-out RMSE
 by more than noise: the mean over the blocks of the relative improvement of the held-out RMSE
@@ -38,10 +38,10 @@ from typing import Any, Callable
 import numpy as np
 
 from designlab.atomic import atomic_write_bytes
-from designlab.calibration import effects as fx
-from designlab.calibration.base_models import Base, fit_base
-from designlab.calibration.base_models import predict as base_predict
-from designlab.calibration.dataset import Dataset
+from designlab.loop import effects as fx
+from designlab.loop.base_models import Base, fit_base
+from designlab.loop.base_models import predict as base_predict
+from designlab.measured.dataset import Dataset
 from designlab.calibration.metrics import rmse
 from designlab.errors import DataError, ModelError
 

@@ -29,8 +29,8 @@ import numpy as np
 
 from designlab.errors import MeshingError, ParameterError
 from designlab.geometry.body import Body, FacetSelector
-from designlab.geometry.mesh import TetMesh, box_tet_mesh
-from designlab.geometry.mesh_facets import interface_facets, select_facets
+from designlab.mesh.tetmesh import TetMesh, box_tet_mesh
+from designlab.mesh.facets import interface_facets, select_facets
 
 #: quality presets: (edge length factor, fTetWild stop energy)
 PRESETS = {"coarse": (2.0, 25.0), "default": (1.0, 15.0), "fine": (0.7, 10.0)}
@@ -61,7 +61,7 @@ class MeshResult:
 
     def report(self) -> dict:
         """JSON-ready summary: sizes, settings, quality, region volumes, facet set sizes."""
-        from designlab.geometry.mesh_quality import mesh_quality
+        from designlab.mesh.quality import mesh_quality
 
         m = self.mesh
         got = self.region_volumes()
@@ -88,7 +88,7 @@ def save_mesh(result: MeshResult, out_dir: str | Path) -> tuple[Path, Path]:
     import json
 
     from designlab.atomic import atomic_write_bytes
-    from designlab.geometry.mesh_io import write_vtu
+    from designlab.mesh.io import write_vtu
 
     out = Path(out_dir)
     text = json.dumps(result.report(), indent=2)
