@@ -9,7 +9,6 @@ from __future__ import annotations
 import sys
 import time
 
-import numpy as np
 
 from designlab.fem import Material, Model, solve_static
 from designlab.fem.assembly import block_pattern, cell_basis, stiffness

@@ -15,7 +15,7 @@ def main(edges) -> None:
           f"{'metric':>6} {'total':>7} {'wall':>7}  cond   hyst%")
     for e in edges:
         t0 = time.perf_counter()
-        pred, _, _ = predict("fingertip", {}, settings={"edge_length": e})
+        pred = predict("fingertip", {}, settings={"edge_length": e}).to_json()
         wall = time.perf_counter() - t0
         ts = pred["timings_s"]
         print(f"{e:8.2f} {pred['mesh']['dofs']:8d} {ts['cad']:6.2f} {ts['mesh']:6.2f} "

@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 from designlab.optimize.executors import LocalExecutor
-from designlab.optimize.space import load_sweep_config, sweep_config
+from designlab.optimize.space import sweep_config
 from designlab.optimize.sweep import run_sweep
 
 CONFIG = Path(__file__).resolve().parents[1] / "examples" / "sweep_fingertip_quick.toml"

@@ -12,6 +12,8 @@ import tempfile
 from pathlib import Path
 from typing import Iterator
 
+from designlab.errors import OutputError
+
 
 @contextlib.contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
@@ -29,7 +31,7 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         os.chmod(tmp, 0o666 & ~umask)
         yield Path(tmp)
         if os.path.getsize(tmp) == 0:
-            raise OSError(f"writing {path} produced an empty file")
+            raise OutputError(f"writing {path} produced an empty file")
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -62,14 +64,18 @@ def jsonable(x):
         x = x.item()
     if isinstance(x, float) and not math.isfinite(x):
         return None
+    if isinstance(x, Path):
+        return str(x)
     return x
 
 
 def atomic_write_json(path: str | Path, obj, indent: int = 1) -> Path:
-    """``obj`` as JSON (see :func:`jsonable`), written atomically."""
+    """``obj`` as JSON, written atomically: the package's one JSON writer and its one rule for
+    non-finite numbers (NaN and inf become null, see :func:`jsonable`)."""
     import json
 
-    return atomic_write_bytes(path, json.dumps(jsonable(obj), indent=indent).encode())
+    return atomic_write_bytes(path, json.dumps(jsonable(obj), indent=indent,
+                                               allow_nan=False).encode())
 
 
 def atomic_savefig(fig, path: str | Path, dpi: int = 120) -> Path:

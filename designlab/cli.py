@@ -6,6 +6,7 @@ line on stderr and exit code 2 (no traceback, nothing half-written).
 
 from __future__ import annotations
 
+import contextlib
 import sys
 from pathlib import Path
 from typing import List, Optional
@@ -21,9 +22,6 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_
 console = Console()
 err_console = Console(stderr=True)
 
-PART_NAMES = ("strap", "fingertip", "flexure")
-
-
 def _print_version(value: bool) -> None:
     if value:
         console.print(f"designlab {__version__}")
@@ -36,25 +34,63 @@ def _root(version: bool = typer.Option(False, "--version", is_eager=True, callba
     """designlab: parametric sensors -> mesh -> FEM -> virtual tests -> sweeps -> measured loop."""
 
 
-def _sweep_progress(total_hint: int | None = None):
-    """A rich progress bar with ETA for sweeps; returns (progress, callback)."""
-    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
-                               TimeElapsedColumn, TimeRemainingColumn)
+def _sensor_names(incomplete: str = "") -> list[str]:
+    """Completion choices of a PART argument: the names in ``SENSORS``."""
+    from designlab.sensors.registry import SENSORS
 
-    prog = Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-                    TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
-                    console=console, transient=False)
-    task = prog.add_task("designs", total=total_hint)
+    return [n for n in SENSORS if n.startswith(incomplete)]
+
+
+def _export_names(incomplete: str = "") -> list[str]:
+    return [n for n in (*_sensor_names(), "all") if n.startswith(incomplete)]
+
+
+class Bar:
+    """Handle of :func:`progress_bar`: ``bar(description=..., completed=..., total=...,
+    advance=...)`` updates it; ``bar.print(...)`` prints above it; ``bar.stop()`` ends it."""
+
+    def __init__(self, prog, task):
+        self._prog, self._task = prog, task
+
+    def __call__(self, description: str | None = None, **fields) -> None:
+        from rich.markup import escape
+
+        if description is not None:
+            fields["description"] = escape(description)
+        self._prog.update(self._task, **fields)
+
+    def print(self, *args, **kw) -> None:
+        self._prog.console.print(*args, **kw)
+
+    def stop(self) -> None:
+        self._prog.stop()
+
+
+@contextlib.contextmanager
+def progress_bar(description: str, total: float | None = None, *, transient: bool = True):
+    """The CLI's one progress display: what runs, a bar, done/total, elapsed time and ETA
+    (a pulsing bar while the total is unknown). Yields a :class:`Bar`."""
+    from rich.markup import escape
+    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, SpinnerColumn,
+                               TextColumn, TimeElapsedColumn, TimeRemainingColumn)
+
+    prog = Progress(SpinnerColumn(), TextColumn("[bold]{task.description}"), BarColumn(),
+                    MofNCompleteColumn(), TimeElapsedColumn(), TextColumn("ETA"),
+                    TimeRemainingColumn(), console=console, transient=transient)
+    with prog:
+        yield Bar(prog, prog.add_task(escape(description), total=total))
+
+
+def _sweep_callback(bar: Bar):
+    """Sweep/optimize progress: designs done of the total, failures printed as they happen."""
 
     def callback(done: int, total: int | None, row: dict) -> None:
-        if total is not None:
-            prog.update(task, total=total)
-        prog.update(task, completed=done)
+        bar(completed=done, **({"total": total} if total is not None else {}))
         if row.get("status") == "error":
-            prog.console.print(f"[yellow]design {row['key'][:8]} failed:[/] {row['error']}",
-                               highlight=False)
+            bar.print(f"[yellow]design {row['key'][:8]} failed:[/] {row['error']}",
+                      highlight=False)
 
-    return prog, callback
+    return callback
 
 
 def _executor(scheduler: Optional[str], workers: Optional[int]):
@@ -106,10 +142,10 @@ def sweep(config: Path = typer.Argument(..., help="Sweep config (TOML): part, pa
 
     cfg = load_sweep_config(config)
     executor = _executor(scheduler, workers)
-    prog, cb = _sweep_progress(len(cfg.designs()))
     try:
-        with prog:
-            res = run_sweep(cfg, out, executor=executor, progress=cb, retry_failed=retry_failed)
+        with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
+            res = run_sweep(cfg, out, executor=executor, progress=_sweep_callback(bar),
+                            retry_failed=retry_failed)
     except KeyboardInterrupt:
         err_console.print("interrupted: finished designs are stored; run the same command to resume")
         raise typer.Exit(130)
@@ -128,19 +164,17 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
              workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes."),
              formats: str = typer.Option("stl,3mf,step", "--format", help="Export formats of the chosen design.")):
     """Optimise a design (surrogate/DE, or Pareto for several objectives) and export the winner."""
-    import json
-
     from designlab.optimize.optimizer import optimize as run_optimize
     from designlab.optimize.report import write_report
     from designlab.optimize.space import load_sweep_config
-    from designlab.atomic import atomic_write_bytes
+    from designlab.atomic import atomic_write_json
 
     cfg = load_sweep_config(config)
     executor = _executor(scheduler, workers)
-    prog, cb = _sweep_progress(len(cfg.designs()))
     try:
-        with prog:
-            res = run_optimize(cfg, out, method=method, executor=executor, progress=cb, maxiter=maxiter)
+        with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
+            res = run_optimize(cfg, out, method=method, executor=executor,
+                               progress=_sweep_callback(bar), maxiter=maxiter)
     except KeyboardInterrupt:
         err_console.print("interrupted: finished designs are stored; run the same command to resume")
         raise typer.Exit(130)
@@ -154,7 +188,7 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
                           formats=formats, settings=cfg.settings, protocol=cfg.protocol)
     summary = {"method": res.method, "chosen_params": res.chosen_params, "chosen": res.chosen,
                "surrogate": res.surrogate, "files": [str(f) for f in files]}
-    atomic_write_bytes(out / "optimize.json", json.dumps(summary, indent=1, default=str).encode())
+    atomic_write_json(out / "optimize.json", summary)
     console.print(f"chosen ({res.method}): " + ", ".join(f"{k}={v:.4g}" for k, v in res.chosen_params.items()))
     console.print(f"exported {len(files)} files to {design_dir}")
 
@@ -185,16 +219,11 @@ def flexure(preset: str = typer.Option("visiflex", "--preset",
     K_fem = None
     fem_info = None
     if not no_fem:
-        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-
         from designlab.sensors.flexure.helix_fem import fem_stiffness
 
-        with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TimeElapsedColumn(),
-                      console=console, transient=True) as prog:
-            task = prog.add_task("FEM 6x6", total=None)
-
+        with progress_bar("FEM 6x6") as bar:
             def step(text: str, done: int, total: int) -> None:
-                prog.update(task, description=f"FEM: {text}", completed=done, total=total)
+                bar(f"FEM: {text}", completed=done, total=total)
 
             fem = fem_stiffness(spring, edge_length=edge_length, progress=step)
         K_fem, fem_info = fem.K_centre_si, fem.summary()
@@ -226,7 +255,7 @@ def _parts_from_cli(part: str, set_: Optional[List[str]], config: Optional[Path]
 
 
 @app.command()
-def export(part: str = typer.Argument(..., help="strap | fingertip | flexure | all"),
+def export(part: str = typer.Argument(..., help="strap | fingertip | flexure | all", autocompletion=_export_names),
            out: Path = typer.Option(..., "--out", help="Output directory (one folder per part)."),
            set_: Optional[List[str]] = typer.Option(None, "--set", metavar="NAME=VALUE",
                                                     help="Override a part parameter (mm); with 'all' "
@@ -239,8 +268,6 @@ def export(part: str = typer.Argument(..., help="strap | fingertip | flexure | a
            nozzle: float = typer.Option(0.4, "--nozzle", help="Nozzle diameter for the wall check, mm."),
            layer: float = typer.Option(0.1, "--layer-height", help="Layer height for the skin check, mm.")):
     """Check printability, then write STL/3MF/STEP/glTF (+PNG) of a part or of all parts."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
     from designlab.errors import ParameterError
     from designlab.geometry.export import export_parts, parse_formats
     from designlab.geometry.printability import PrintabilityError, reports_table
@@ -250,17 +277,14 @@ def export(part: str = typer.Argument(..., help="strap | fingertip | flexure | a
         if not lo <= v <= hi:
             raise ParameterError(name, v, f"{lo:g} <= value <= {hi:g} mm")
     parts = _parts_from_cli(part, set_, config)
-    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-                  TimeElapsedColumn(), console=console, transient=True) as prog:
-        task = prog.add_task("export", total=2 * len(parts))
-
+    with progress_bar("export", 2 * len(parts)) as bar:
         def step(text: str, done: int, total: int) -> None:
-            prog.update(task, description=text, completed=done, total=total)
+            bar(text, completed=done, total=total)
 
         try:
             res = export_parts(parts, out, fmts, png=png, nozzle=nozzle, layer=layer, progress=step)
         except PrintabilityError as exc:
-            prog.stop()
+            bar.stop()
             err_console.print(reports_table(exc.reports))
             raise
     console.print(reports_table(res.reports))
@@ -269,7 +293,7 @@ def export(part: str = typer.Argument(..., help="strap | fingertip | flexure | a
 
 
 @app.command()
-def show(part: str = typer.Argument(..., help="strap | fingertip | flexure"),
+def show(part: str = typer.Argument(..., help="strap | fingertip | flexure", autocompletion=_sensor_names),
          out: Path = typer.Option(..., "--out", help="PNG file to write."),
          set_: Optional[List[str]] = typer.Option(None, "--set", metavar="NAME=VALUE",
                                                   help="Override a part parameter (mm)."),
@@ -326,7 +350,6 @@ def compensate(model: Optional[List[str]] = typer.Option(
                seed: int = typer.Option(0, "--seed")):
     """Seed 000 compensation: fit linear / mPL / NARX on the training task(s), validate on the others
     (RMSE in the reference unit, NCC at zero lag, Wilcoxon between models and tasks)."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
     from rich.table import Table
 
     from designlab.measured import compensation as comp
@@ -347,16 +370,12 @@ def compensate(model: Optional[List[str]] = typer.Option(
             raise ParameterError("--train", None, "at least one training file (or --data CARD)")
         train_recs = [comp.load_record(f, inputs, outputs, time=time_col, dt=dt) for f in train]
         val_recs = [comp.load_record(f, inputs, outputs, time=time_col, dt=dt) for f in validate or []]
-    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TimeElapsedColumn(),
-                  console=console, transient=True) as prog:
-        task = prog.add_task("compensate", total=len(models) + 1)
-
+    with progress_bar("compensate", len(models) + 1) as bar:
         def step(text: str) -> None:
-            prog.update(task, description=text, advance=0 if text.startswith("fitting " + models[0])
-                        else 1)
+            bar(text, advance=0 if text.startswith("fitting " + models[0]) else 1)
 
         result = comp.compare(train_recs, val_recs, models, opts, progress=step)
-        prog.update(task, completed=len(models) + 1)
+        bar(completed=len(models) + 1)
     table = Table(title="compensation (RMSE in the reference unit)")
     for col in ("model", "task", "role", "output", "RMSE", "NCC"):
         table.add_column(col, justify="right" if col in ("RMSE", "NCC") else "left")
@@ -393,7 +412,6 @@ def loop_cmd(
     """Residual -> effect -> better model: add library effects to BASE while they lower the
     cross-validated error; report errors on the validation data."""
     from rich.markup import escape
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
     from rich.table import Table
 
     from designlab.measured.dataset import load_card
@@ -401,13 +419,9 @@ def loop_cmd(
 
     ds = load_card(data)
     start = load_model(base) if base.endswith(".json") else base
-    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TimeElapsedColumn(),
-                  console=console, transient=True) as prog:
-        task = prog.add_task("loop", total=1)
-
+    with progress_bar("loop", 1) as bar:
         def step(o: str, done: int, total: int, what: str) -> None:
-            prog.update(task, description=escape(f"{o}: {what}"), completed=done,
-                        total=max(total, 1))
+            bar(f"{o}: {what}", completed=done, total=max(total, 1))
 
         result = run_loop(ds, start, outputs=output or None, folds=folds,
                           max_effects=max_effects, n_se=n_se, min_relative=min_relative,
@@ -449,7 +463,6 @@ def verify(reference: Optional[str] = typer.Option(None, "--reference",
            threads: int = typer.Option(1, "--threads", help="Threads of the reference solver (CalculiX).")):
     """Verify the FEM: patch test, K symmetry, rigid-body modes, cantilever vs Timoshenko,
     convergence orders, viscoelastic creep/relaxation vs exact responses [, CalculiX]."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
     from rich.table import Table
 
     from designlab.fem.verify import default_cases, write_report
@@ -464,13 +477,11 @@ def verify(reference: Optional[str] = typer.Option(None, "--reference",
         ccx_path()
     groups = default_cases(reference, threads)
     results: list[dict] = []
-    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
-                  TimeElapsedColumn(), console=console, transient=True) as prog:
-        task = prog.add_task("verifying", total=len(groups))
+    with progress_bar("verifying", len(groups)) as bar:
         for title, fn in groups:
-            prog.update(task, description=f"verifying: {title}")
+            bar(f"verifying: {title}")
             results.extend(fn())
-            prog.advance(task)
+            bar(advance=1)
     table = Table(title="designlab FEM verification")
     for col in ("case", "quantity", "ours", "reference", "error", "tol", ""):
         table.add_column(col, justify="left" if col in ("case", "quantity") else "right",
@@ -488,7 +499,7 @@ def verify(reference: Optional[str] = typer.Option(None, "--reference",
 
 
 @app.command("mesh")
-def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure"),
+def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure", autocompletion=_sensor_names),
              out: Path = typer.Option(..., "--out", help="Output directory (mesh.vtu, mesh.json)."),
              set_: Optional[List[str]] = typer.Option(None, "--set", metavar="NAME=VALUE",
                                                       help="Override a part parameter (mm)."),
@@ -503,15 +514,12 @@ def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure")
     """Tetrahedral mesh of a part's FEM bodies (fTetWild): writes mesh.vtu and mesh.json."""
     from rich.table import Table
 
-    from designlab.errors import ParameterError
+    from designlab.geometry.parts import make_part
     from designlab.mesh.meshing import mesh_part_detailed, save_mesh
-    from designlab.geometry.parts import PARTS, make_part
     from designlab.params import load_toml, parse_sets
 
-    if part not in PARTS:
-        raise ParameterError("part", part, "one of " + ", ".join(PARTS))
     obj = make_part(part, parse_sets(set_), load_toml(config) if config is not None else None)
-    with console.status(f"meshing {part} (fTetWild)...", spinner="dots"):
+    with progress_bar(f"meshing {part} (fTetWild)"):
         res = mesh_part_detailed(obj, refine=refine, order=order, edge_length=edge_length,
                                  quality=quality)
         vtu, js = save_mesh(res, out)
@@ -535,7 +543,7 @@ def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure")
 
 
 @app.command()
-def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure"),
+def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", autocompletion=_sensor_names),
             set_: Optional[List[str]] = typer.Option(None, "--set", help="Design parameter NAME=VALUE (repeatable)."),
             config: Optional[Path] = typer.Option(None, "--config", help="TOML with the part's parameters."),
             protocol: Optional[Path] = typer.Option(None, "--protocol", help="Protocol TOML (defaults: the papers')."),
@@ -543,50 +551,45 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure"),
             model: Optional[Path] = typer.Option(None, "--model", help="A loop's model.json: add its learned effects (strap)."),
             out: Path = typer.Option(..., "--out", help="Output directory.")):
     """Virtual test of a design before printing: hysteresis, calibration matrix, condition number, K_f."""
-    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
     from rich.table import Table
 
     from designlab.sensors.predict import predict as run_predict, write_prediction
     from designlab.params import load_toml, parse_sets
 
-    if part not in PART_NAMES:
-        from designlab.errors import ParameterError
+    from designlab.sensors.registry import get_sensor
 
-        raise ParameterError("part", part, "one of " + ", ".join(PART_NAMES))
+    get_sensor(part)
     overrides = {}
     if config is not None:
         data = load_toml(config)
         overrides.update(data.get(part, data))
     overrides.update(parse_sets(set_))
     settings = parse_sets(setting)
-    with Progress(SpinnerColumn(), TextColumn("[bold]{task.description}"), TimeElapsedColumn(),
-                  console=console, transient=True) as prog:
-        task = prog.add_task(f"predict {part}: building", total=None)
-        pred, mod, result = run_predict(part, overrides, protocol_path=protocol, settings=settings,
-                                        model_path=model,
-                                        progress=lambda s: prog.update(task, description=f"predict {part}: {s}"))
-        prog.update(task, description=f"predict {part}: writing")
-        files = write_prediction(pred, mod, result, out)
+    with progress_bar(f"predict {part}: building") as bar:
+        prediction = run_predict(part, overrides, protocol_path=protocol, settings=settings,
+                                 model_path=model, progress=lambda s: bar(f"predict {part}: {s}"))
+        bar(f"predict {part}: writing")
+        files = write_prediction(prediction, out)
+    pred = prediction.metrics
     t = Table(title=f"{part}: virtual test")
     t.add_column("quantity")
     t.add_column("value", justify="right")
-    h = pred.get("hysteresis_percent", {})
-    t.add_row("hysteresis % (overall)", f"{h.get('overall', float('nan')):.4g}")
-    t.add_row("condition number", f"{pred.get('condition_number', float('nan')):.4g}")
+    t.add_row("hysteresis % (overall)", f"{prediction.hysteresis_percent:.4g}")
+    t.add_row("condition number", f"{prediction.condition_number:.4g}")
     if pred.get("geometric_condition_number") is not None:
         t.add_row("geometric condition number", f"{pred['geometric_condition_number']:.4g}")
     if pred.get("paper_comparison"):
         t.add_row("paper condition number", f"{pred['paper_comparison']['condition_number_paper']:.4g}")
-    if pred.get("K_f"):
+    if prediction.K_f is not None:
         import numpy as np
 
-        t.add_row("K_f diagonal (SI)", ", ".join(f"{v:.4g}" for v in np.diag(pred["K_f"])))
-    for k, v in pred.get("timings_s", {}).items():
+        t.add_row("K_f diagonal (SI)", ", ".join(f"{v:.4g}" for v in np.diag(prediction.K_f)))
+    for k, v in prediction.timings_s.items():
         t.add_row(f"time: {k}", f"{v:.2f} s")
     console.print(t)
     if pred.get("paper_comparison"):
         console.print(pred["paper_comparison"]["explanation"], highlight=False)
-    for w in pred.get("warnings", []):
+    for w in prediction.warnings:
         err_console.print(f"[yellow]warning:[/] {w}", highlight=False)
     console.print(f"wrote {len(files)} files to {out}")
 

@@ -28,3 +28,7 @@ class MeshingError(DesignlabError, RuntimeError):
 
 class ModelError(DesignlabError, ValueError):
     """An FEM model that cannot be solved as given (singular, no material, unknown set...)."""
+
+
+class OutputError(DesignlabError, OSError):
+    """A result file could not be written as asked (an exporter produced nothing)."""

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from designlab.errors import ParameterError
+
 _EPS = 1e-12
 
 
@@ -50,7 +52,7 @@ def rotation_about(axis, angle: float) -> np.ndarray:
     a = np.asarray(axis, float).reshape(3)
     n = np.linalg.norm(a)
     if n < _EPS:
-        raise ValueError("rotation axis must be non-zero")
+        raise ParameterError("axis", axis, "a non-zero rotation axis")
     return exp_so3(a / n * angle)
 
 

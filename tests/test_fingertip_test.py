@@ -2,7 +2,6 @@
 full history, and the predict command on the real part (slow)."""
 
 import json
-import sys
 
 import numpy as np
 import pytest

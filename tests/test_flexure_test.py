@@ -71,7 +71,7 @@ def test_pose_noise_adds_scatter():
 
 def test_plots(tmp_path):
     p = ft.run(PART, None, TIM)
-    paths = ft.plots(p, tmp_path)
+    paths = ft.plots(p, None, tmp_path)
     assert [q.name for q in paths] == ["flexure_wrench.png"]
     assert paths[0].stat().st_size > 1000 and len(list(tmp_path.iterdir())) == 1
 

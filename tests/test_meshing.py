@@ -8,7 +8,7 @@ import sys
 
 import numpy as np
 import pytest
-from build123d import Box, Cylinder, Pos
+from build123d import Box, Pos
 from scipy.spatial import cKDTree
 
 from designlab.errors import MeshingError, ParameterError

@@ -5,13 +5,17 @@ import numpy as np
 
 from designlab.measured.dataset import from_arrays
 from designlab.loop.loop import load_model, run_loop
-from designlab.sensors.predict import sensor_model
+from designlab.sensors.predict import sensor_model as _sensor_model
 
 GAINS = {"Ch1": {"F_n": 0.030, "F_x": 0.020}, "Ch2": {"F_n": 0.029, "F_x": -0.013}}
 
 
 def _strap_prediction():
     return {"design": {"part": "strap", "params": {}}, "sensitivity": {"V_per_N": GAINS}}
+
+
+def sensor_model(pred, result):
+    return _sensor_model(pred["design"]["part"], pred["design"], pred, result)
 
 
 def test_strap_prediction_becomes_a_loop_base(tmp_path):
@@ -44,7 +48,6 @@ def test_loop_model_corrects_a_new_design_prediction(tmp_path):
 
     from designlab.sensors import strap as strap_test
     from designlab.loop.loop import run_loop
-    from designlab.sensors.predict import apply_learned_effects
     from designlab.sensors.protocols import StrapLoadTest
 
     rng = np.random.default_rng(1)
@@ -69,7 +72,7 @@ def test_loop_model_corrects_a_new_design_prediction(tmp_path):
     result = SimpleNamespace(t=tt, F_n=Fn, F_x=Fx, dV=dV, strain=dV)
     before = strap_test.evaluate(prot, settings, tt, Fn, Fx, dV, dV)
     pred = {"design": {"part": "strap"}, "sensitivity": {"V_per_N": new}}
-    after = apply_learned_effects(pred, result, tmp_path / "learned.json", prot, settings)
+    after = strap_test.apply_model(pred, result, tmp_path / "learned.json", prot, settings)
     assert after["learned_effects"]["Ch1"][0] == "drift"
     assert before["hysteresis_percent"]["overall"] < 1e-9
     assert after["hysteresis_percent"]["overall"] > 0.1     # the drift opens the loop

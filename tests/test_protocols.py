@@ -50,14 +50,14 @@ def test_range_check_warns_then_errors():
 def test_toml_protocol(tmp_path):
     f = tmp_path / "p.toml"
     f.write_text('[protocol]\npreset = "optimized"\nhold_s = 20.0\n')
-    p = load_protocol("fingertip", f)
+    p = load_protocol(HangingWeightTest, f)
     assert p.hold_s == 20 and len(p.g2_locations) == 6
     f.write_text('weights_g = [0, 50, 20]\n')
     with pytest.raises(ParameterError, match="weights_g"):
-        load_protocol("fingertip", f)
+        load_protocol(HangingWeightTest, f)
     f.write_text('bogus = 1\n')
     with pytest.raises(ParameterError, match="bogus"):
-        load_protocol("strap", f)
+        load_protocol(StrapLoadTest, f)
 
 
 def test_strap_and_flexure_histories():

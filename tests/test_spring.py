@@ -1,6 +1,5 @@
 """Closed-form helical spring 6x6 (seed 002): textbook limits, paper ratios, the common factor."""
 
-import dataclasses
 import json
 import math
 

@@ -146,7 +146,7 @@ def test_report_contract(prediction, tmp_path):
     assert 0 < r["linearity_percent_span"]["sum"] < 5
     # channels: divider change from the unloaded state; the readout saturates gently
     assert prediction.dV[0] == pytest.approx([0, 0], abs=1e-12)
-    paths = st.plots(prediction, tmp_path)
+    paths = st.plots(prediction, None, tmp_path)
     assert [p.name for p in paths] == ["strap_time_series.png", "strap_sum_diff.png",
                                        "strap_hysteresis.png"]
     assert all(p.stat().st_size > 1000 for p in paths)

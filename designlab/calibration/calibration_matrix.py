@@ -58,11 +58,6 @@ def fit_calibration_matrix(S: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, di
                "r2_per_axis": r2.tolist(), "condition_number": condition_number(A)}
 
 
-def sensitivity(A: np.ndarray) -> np.ndarray:
-    """Readings per newton along each force axis: the rows of pinv(A) (reading units / N)."""
-    return np.linalg.pinv(np.asarray(A, float))
-
-
 def transfer_matrix(P_applied: np.ndarray, P_estimated: np.ndarray) -> np.ndarray:
     """3x3 M with P_estimated ~ P_applied M^T (least squares): identity for a perfect sensor."""
     Mt, *_ = np.linalg.lstsq(np.asarray(P_applied, float), np.asarray(P_estimated, float),

@@ -320,11 +320,7 @@ class Model:
         cells or on the body ``region``."""
         cells = None
         if region is not None:
-            try:
-                cells = self.mesh.region == self.mesh.region_id(region)
-            except KeyError:
-                raise ModelError(f"region '{region}' does not exist; available: "
-                                 f"{', '.join(self.mesh.region_names.values())}") from None
+            cells = self.mesh.region == self.mesh.region_id(region)
         f = body_load(self.basis, b, cells)
         nz = np.nonzero(f)[0]
         self._add_load(case, nz, f[nz])

@@ -10,6 +10,7 @@ right-hand sides reuse the factorisation), else amg.
 
 from __future__ import annotations
 
+import abc
 import time
 
 import numpy as np
@@ -38,7 +39,7 @@ def has_cholmod() -> bool:
     return _cholmod_cholesky is not None
 
 
-class LinearSolver:
+class LinearSolver(abc.ABC):
     """A factorised (or preconditioned) system. ``solve(F)``: F (n,) or (n, k) -> same shape.
     ``kind`` names the method, ``setup_seconds`` the factorisation time."""
 
@@ -61,8 +62,9 @@ class LinearSolver:
             raise ModelError("model is under-constrained or singular: solution is not finite")
         return U.reshape(F.shape)
 
-    def _solve(self, F):  # pragma: no cover - abstract
-        raise NotImplementedError
+    @abc.abstractmethod
+    def _solve(self, F):
+        """K^-1 F for F (n, k)."""
 
 
 class DirectSolver(LinearSolver):

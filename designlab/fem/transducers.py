@@ -69,11 +69,7 @@ class StrainGauge:
     def __post_init__(self):
         mesh = self.model.mesh
         if isinstance(self.region, str):
-            try:
-                rid = mesh.region_id(self.region)
-            except KeyError:
-                raise ModelError(f"region '{self.region}' does not exist; available: "
-                                 f"{', '.join(mesh.region_names.values())}") from None
+            rid = mesh.region_id(self.region)
             cells = np.nonzero(mesh.region == rid)[0]
             mat = self.model.region_materials[rid]
         else:

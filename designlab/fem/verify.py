@@ -8,7 +8,6 @@ writes ``verify.json`` atomically. Units: mm, N, MPa, s.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Callable
@@ -310,24 +309,12 @@ def run_cases(reference: str | None = None, threads: int = 1,
     return out
 
 
-def _finite(obj):
-    """JSON-safe copy: non-finite floats become None."""
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, list):
-        return [_finite(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
-
-
 def write_report(cases: list[dict], path: str | Path) -> Path:
     """Write ``{"cases": [...], "passed": bool}`` as JSON atomically (temp file + replace)."""
-    from designlab.atomic import atomic_write_bytes
+    from designlab.atomic import atomic_write_json
 
     payload = {"cases": cases, "passed": all(c["passed"] for c in cases)}
-    return atomic_write_bytes(path, json.dumps(_finite(payload), indent=2,
-                                               allow_nan=False).encode())
+    return atomic_write_json(path, payload, indent=2)
 
 
 __all__ = ["case", "distorted_box", "patch_test", "stiffness_symmetry", "rigid_body_modes",

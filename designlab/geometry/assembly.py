@@ -12,6 +12,7 @@ from pathlib import Path
 import cadquery as cq
 
 from designlab.atomic import atomic_path
+from designlab.errors import OutputError
 from designlab.geometry.body import Body
 
 
@@ -40,7 +41,7 @@ def save_assembly_step(assy: cq.Assembly, path: str | Path) -> Path:
 
     def write(tmp):
         if not exportAssembly(assy, tmp):
-            raise OSError(f"STEP export of {path} failed")
+            raise OutputError(f"STEP export of {path} failed")
     return _atomic(path, write)
 
 
@@ -54,5 +55,5 @@ def save_assembly_gltf(assy: cq.Assembly, path: str | Path, tolerance: float = 0
     def write(tmp):
         if not exportGLTF(assy, tmp, binary=binary, tolerance=tolerance,
                           angularTolerance=angular_tolerance):
-            raise OSError(f"glTF export of {path} failed")
+            raise OutputError(f"glTF export of {path} failed")
     return _atomic(path, write)

@@ -27,7 +27,7 @@ from typing import Any, Callable, Iterable, Mapping
 
 import trimesh
 
-from designlab.errors import ParameterError
+from designlab.errors import OutputError, ParameterError
 from designlab.geometry.body import Body
 from designlab.geometry.printability import BodyReport, PrintabilityError, check_part
 from designlab.geometry.tessellate import tessellate  # noqa: F401  (re-exported)
@@ -214,7 +214,7 @@ class _Staging:
             self.temps.append((Path(tmp), target / fname))
             writer(Path(tmp))
             if Path(tmp).stat().st_size == 0:
-                raise OSError(f"writing {fname} produced an empty file")
+                raise OutputError(f"writing {fname} produced an empty file")
 
     def commit(self) -> list[Path]:
         umask = os.umask(0)

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,7 +29,7 @@ from typing import Callable, Protocol, Sequence
 
 import numpy as np
 
-from designlab.atomic import atomic_path
+from designlab.atomic import atomic_path, atomic_write_json
 from designlab.measured import linear_fit
 from designlab.measured import mpl
 from designlab.measured import narx
@@ -357,14 +356,6 @@ def _atomic_write(path: Path, write: Callable[[str], None]) -> None:
         write(str(tmp))
 
 
-def _json_default(o):
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.generic):
-        return o.item()
-    raise TypeError(type(o).__name__)
-
-
 def write_outputs(result: CompensationResult, records: Sequence[Record],
                   out_dir: str | Path) -> list[Path]:
     """``compensation.json`` (metrics, fits, Wilcoxon tables) and ``compensation.png``
@@ -373,11 +364,7 @@ def write_outputs(result: CompensationResult, records: Sequence[Record],
     out.mkdir(parents=True, exist_ok=True)
     jpath, ppath = out / "compensation.json", out / "compensation.png"
 
-    def write_json(tmp):
-        with open(tmp, "w") as fh:
-            json.dump(result.to_json(), fh, indent=1, default=_json_default, allow_nan=True)
-
-    _atomic_write(jpath, write_json)
+    atomic_write_json(jpath, result.to_json())
     import matplotlib.pyplot as plt
 
     fig = plot(result, records)

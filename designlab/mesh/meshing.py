@@ -85,15 +85,13 @@ class MeshResult:
 def save_mesh(result: MeshResult, out_dir: str | Path) -> tuple[Path, Path]:
     """Write ``mesh.vtu`` and ``mesh.json`` (:meth:`MeshResult.report`) into ``out_dir``; the
     report is written only after the mesh, each atomically."""
-    import json
-
-    from designlab.atomic import atomic_write_bytes
+    from designlab.atomic import atomic_write_json
     from designlab.mesh.io import write_vtu
 
     out = Path(out_dir)
-    text = json.dumps(result.report(), indent=2)
+    report = result.report()
     vtu = write_vtu(result.mesh, out / "mesh.vtu")
-    atomic_write_bytes(out / "mesh.json", text.encode())
+    atomic_write_json(out / "mesh.json", report, indent=2)
     return vtu, out / "mesh.json"
 
 
@@ -268,12 +266,12 @@ def _tetwild(vertices, faces, edge_length, epsilon, stop_energy, sizing, threads
         status, payload = recv.recv()
     except EOFError:
         proc.join()
-        raise RuntimeError(f"fTetWild crashed (exit code {proc.exitcode})") from None
+        raise MeshingError(f"fTetWild crashed (exit code {proc.exitcode})") from None
     finally:
         recv.close()
     proc.join()
     if status != "ok":
-        raise RuntimeError(payload)
+        raise MeshingError(str(payload))
     return payload
 
 

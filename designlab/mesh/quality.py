@@ -10,6 +10,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from designlab.errors import MeshingError
 from designlab.mesh.tetmesh import TetMesh
 
 #: the six edges of a tetrahedron and, for each, the two faces meeting there, named by the
@@ -92,7 +93,7 @@ class MeshQuality:
 def mesh_quality(mesh: TetMesh, poor_threshold: float = 0.1, bins: int = 10) -> MeshQuality:
     """Quality report of ``mesh``: dihedral angles, radius ratios and edge lengths."""
     if mesh.n_cells == 0:
-        raise ValueError("mesh has no cells")
+        raise MeshingError("mesh has no cells")
     ang = dihedral_angles(mesh.points, mesh.cells)
     rr = radius_ratios(mesh.points, mesh.cells)
     le = edge_lengths(mesh.points, mesh.cells)

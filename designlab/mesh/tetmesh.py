@@ -68,7 +68,10 @@ class TetMesh:
         for k, v in self.region_names.items():
             if v == name:
                 return k
-        raise KeyError(name)
+        from designlab.errors import ModelError
+
+        raise ModelError(f"region '{name}' does not exist; available: "
+                         f"{', '.join(self.region_names.values())}")
 
     def quadratic(self) -> "TetMesh":
         """TET10 version of a TET4 mesh: one shared straight mid-node per edge."""

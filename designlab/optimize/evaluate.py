@@ -37,8 +37,8 @@ def evaluate_design(task: dict[str, Any]) -> dict[str, Any]:
     settings = dict(task.get("settings") or {})
     part = make_part(part_name, params)
     out = geometry_metrics(part_name, part)
-    pred, _, _ = predict(part_name, params, protocol=task.get("protocol") or None,
-                         settings=settings.get("model"))
+    pred = predict(part_name, params, protocol=task.get("protocol") or None,
+                   settings=settings.get("model")).to_json()
     keep = ("hysteresis_percent", "condition_number", "geometric_condition_number",
             "sensitivity", "linearity_percent_span", "timings_s", "warnings")
     out.update({k: pred[k] for k in keep if k in pred})
@@ -66,6 +66,6 @@ def export_design(part_name: str, params: dict[str, Any], out: str | Path, *,
     out = Path(out)
     part = make_part(part_name, params)
     res = export_parts({part_name: part}, out, formats=formats, png=True)
-    pred, mod, result = predict(part_name, params, protocol=protocol or None,
-                                settings=(settings or {}).get("model"))
-    return list(res.files) + write_prediction(pred, mod, result, out / "prediction")
+    pred = predict(part_name, params, protocol=protocol or None,
+                   settings=(settings or {}).get("model"))
+    return list(res.files) + write_prediction(pred, out / "prediction")

@@ -113,7 +113,7 @@ def run_sweep(config: SweepConfig, out: str | Path, *, evaluator: Evaluator | No
             reused += 1
         else:
             remaining.append(t)
-    n_done, n_failed = reused, 0
+    n_done = reused
     if progress:
         progress(n_done, len(tasks), {})
     for i, res, err in executor.run(_Timed(evaluator), remaining):
@@ -124,7 +124,6 @@ def run_sweep(config: SweepConfig, out: str | Path, *, evaluator: Evaluator | No
         else:
             row = _row(t, {}, err, float("nan"), config)
             store.put(t["key"], row, None)
-            n_failed += 1
         n_done += 1
         if progress:
             progress(n_done, len(tasks), row)

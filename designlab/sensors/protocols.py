@@ -174,9 +174,6 @@ class FlexureWrenchTest:
         return np.array(out)
 
 
-PROTOCOLS = {"fingertip": HangingWeightTest, "strap": StrapLoadTest, "flexure": FlexureWrenchTest}
-
-
 def _coerce(cls, values: dict[str, Any]) -> dict[str, Any]:
     names = {f.name: f for f in fields(cls)}
     out = {}
@@ -187,12 +184,10 @@ def _coerce(cls, values: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def load_protocol(part: str, path: str | Path | None = None) -> Any:
-    """The protocol for ``part`` from a TOML file (top-level keys or a ``[protocol]`` table;
-    ``preset = "optimized"`` selects Table III for the fingertip); defaults when ``path`` is None."""
-    if part not in PROTOCOLS:
-        raise ParameterError("part", part, "one of " + ", ".join(PROTOCOLS))
-    cls = PROTOCOLS[part]
+def load_protocol(cls: type, path: str | Path | None = None) -> Any:
+    """A protocol of class ``cls`` (a sensor's ``Sensor.protocol``) from a TOML file (top-level
+    keys or a ``[protocol]`` table; ``preset = "optimized"`` selects Table III of the hanging
+    weight test); the defaults when ``path`` is None."""
     if path is None:
         return cls()
     data = load_toml(path)
@@ -200,7 +195,7 @@ def load_protocol(part: str, path: str | Path | None = None) -> Any:
     preset = data.pop("preset", None) if isinstance(data, dict) else None
     base = cls.preset(preset) if preset is not None and hasattr(cls, "preset") else None
     if preset is not None and base is None:
-        raise ParameterError("preset", preset, f"no presets for the {part} protocol")
+        raise ParameterError("preset", preset, f"no presets for {cls.__name__}")
     kwargs = _coerce(cls, data)
     if base is not None:
         from dataclasses import replace

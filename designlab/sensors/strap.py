@@ -48,7 +48,9 @@ from designlab.calibration.calibration_matrix import (condition_number, fit_cali
 from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
 from designlab.atomic import atomic_savefig
 from designlab.sensors.protocols import StrapLoadTest
+from designlab.sensors.sensor import Sensor, linear_sensor_model
 from designlab.errors import ParameterError
+from designlab.fem.settings import FEMSettings
 from designlab.params import rng, validate
 
 CHANNELS = ("Ch1", "Ch2")          #: Ch1 = left gauge (x < 0), Ch2 = right gauge (x > 0)
@@ -57,7 +59,7 @@ CASES = ("F_n", "F_x")
 
 
 @dataclass(frozen=True)
-class StrapModelSettings:
+class StrapModelSettings(FEMSettings):
     """FEM settings of the strap test (mm).
 
     The mesh is made with fTetWild directly on the part's bodies and facet sets, with the part's
@@ -77,8 +79,6 @@ class StrapModelSettings:
                                    doc="edge at the gauges/pads, 0 = no refinement"))
     epsilon: float = field(default=0.05, metadata=rng(0.001, 0.2, unit="mm",
                            doc="fTetWild envelope"))
-    quality: str = field(default="coarse", metadata=rng(choices=("coarse", "default", "fine")))
-    order: int = field(default=2, metadata=rng(choices=(1, 2)))
     configuration: str = field(default="worn", metadata=rng(choices=("worn", "flat")))
     finger_radius: float = field(default=9.0, metadata=rng(3, 20, unit="mm",
                                  doc="finger radius under the strap centreline (index: ~9)"))
@@ -86,8 +86,6 @@ class StrapModelSettings:
     tissue_stiffness: float = field(default=0.02, metadata=rng(0, 10, unit="N/mm^3",
                                     doc="finger support under the strap outside the pad "
                                         "(Winkler springs normal to the inner face), 0 = none"))
-    solver: str = field(default="direct", metadata=rng(choices=("auto", "direct", "cholmod",
-                                                                "amg")))
     read_fraction: float = field(default=0.2, metadata=rng(0, 1, lo_open=True,
                                  doc="end part of each staircase hold that is averaged"))
 
@@ -171,7 +169,7 @@ def mesh_strap(part, settings: StrapModelSettings):
         if settings.refinement_edge > 0 else []
     res = mesh_bodies_detailed(bodies, part.facet_sets(), edge_length=settings.edge_length,
                                refinement=ref, epsilon=settings.epsilon,
-                               quality=settings.quality, order=settings.order)
+                               quality=settings.mesh_quality, order=settings.order)
     return res.mesh
 
 
@@ -442,14 +440,17 @@ def _save(fig, path: Path) -> Path:
     return atomic_savefig(fig, path, dpi=120)
 
 
-def plots(prediction: StrapPrediction, out_dir: str | Path) -> list[Path]:
-    """PNGs: time series, sum/difference vs F_n/F_x, hysteresis loop of the staircase."""
+def plots(prediction: StrapPrediction, report: dict[str, Any] | None, out_dir: str | Path
+          ) -> list[Path]:
+    """PNGs: time series, sum/difference vs F_n/F_x, hysteresis loop of the staircase.
+    ``report``: the prediction's metrics (default: the virtual test's own report)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     out = Path(out_dir)
-    s = prediction.report["series"]
+    report = prediction.report if report is None else report
+    s = report["series"]
     t = np.asarray(s["t_s"])
     paths = []
     fig, ax = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
@@ -485,7 +486,7 @@ def plots(prediction: StrapPrediction, out_dir: str | Path) -> list[Path]:
     paths.append(_save(fig, out / "strap_sum_diff.png"))
     plt.close(fig)
 
-    loops = prediction.report.get("loops") or {}
+    loops = report.get("loops") or {}
     if loops:
         fig, ax = plt.subplots(figsize=(5, 4))
         fnl = np.asarray(loops["F_n_N"])
@@ -494,7 +495,7 @@ def plots(prediction: StrapPrediction, out_dir: str | Path) -> list[Path]:
             y = 1e3 * np.asarray(loops["readings_V"][name])
             ax.plot(fnl[:k + 1], y[:k + 1], "o-", color=c, label=f"{name} up")
             ax.plot(fnl[k:], y[k:], "s--", color=c, mfc="none", label=f"{name} down")
-        h = prediction.report["hysteresis_percent"]["by_location"]
+        h = report["hysteresis_percent"]["by_location"]
         ax.set_title(f"staircase loop: hysteresis sum {h['sum']:.2g} %")
         ax.set_xlabel("F_n (N)")
         ax.set_ylabel("reading (mV)")
@@ -504,3 +505,57 @@ def plots(prediction: StrapPrediction, out_dir: str | Path) -> list[Path]:
         paths.append(_save(fig, out / "strap_hysteresis.png"))
         plt.close(fig)
     return paths
+
+
+# ------------------------------------------------------------------------ the loop, both ways
+
+def gains(report: dict[str, Any], prediction: StrapPrediction | None = None) -> tuple[dict, dict]:
+    """Loop base: F_n, F_x (N) -> Ch1, Ch2 (V, change from unloaded), the virtual test's
+    sensitivities."""
+    sens = report["sensitivity"]["V_per_N"]
+    outs = {ch: {"F_n": float(sens[ch]["F_n"]), "F_x": float(sens[ch]["F_x"])}
+            for ch in CHANNELS}
+    return outs, {o: "V" for o in outs}
+
+
+def apply_model(report: dict[str, Any], prediction: StrapPrediction, model_path: str | Path,
+                protocol: StrapLoadTest, settings: StrapModelSettings) -> dict[str, Any]:
+    """loop -> predict: the effects a measured-data loop learned on a printed strap
+    (``model.json`` of ``designlab loop``) are added to this design's virtual-test channels
+    (their base is this design's FEM, not the measured one), and the metrics are evaluated
+    again on the corrected channels. Returns the corrected report."""
+    import dataclasses
+
+    from designlab.loop.loop import SensorModel, load_model
+    from designlab.measured.dataset import from_arrays
+
+    learned = load_model(model_path)
+    missing = [o for o in CHANNELS if o not in learned.outputs]
+    if missing:
+        raise ParameterError("--model", str(model_path),
+                             f"a model with outputs Ch1 and Ch2 (it has {', '.join(learned.outputs)})")
+    outs, units = gains(report, prediction)
+    base = linear_sensor_model(outs, units, {})
+
+    # transfer the mechanisms, not the measured sensor's refit of its own affine base
+    def mechanism(f):
+        return dataclasses.replace(f, nuisance=(), alpha=(0.0,) * int(bool(f.effect.intercept)))
+
+    model = SensorModel(base.base, {o: [mechanism(f) for f in learned.effects.get(o, [])]
+                                    for o in CHANNELS},
+                        base.units, learned.inputs, learned.provenance)
+    data = from_arrays(prediction.t, {"F_n": prediction.F_n, "F_x": prediction.F_x},
+                       {"Ch1": prediction.dV[:, 0], "Ch2": prediction.dV[:, 1]},
+                       units={"F_n": "N", "F_x": "N", "Ch1": "V", "Ch2": "V"})
+    dV = np.column_stack([model.predict(data, o) for o in CHANNELS])
+    out = evaluate(protocol, settings, prediction.t, prediction.F_n, prediction.F_x, dV,
+                   prediction.strain)
+    out["learned_effects"] = {o: [f.effect.name for f in model.effects[o]] for o in CHANNELS}
+    out["learned_from"] = str(model_path)
+    return out
+
+
+SENSOR = Sensor(
+    name="strap", paper="seed 000 (TPU arch strap with two printed strain-gauge traces)",
+    protocol=StrapLoadTest, settings=StrapModelSettings, run=run, plots=plots, gains=gains,
+    apply_model=apply_model)

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -204,19 +202,13 @@ def flexure_report(spring: HelicalSpring, frame: str = "camera", K_fem_spring_si
 
 
 def write_json(path: str | Path, report: dict) -> Path:
-    """Write ``report`` as JSON atomically (temp file in the same folder, then os.replace)."""
+    """Write ``report`` as JSON atomically (non-finite numbers as null)."""
+    from designlab.atomic import atomic_write_json
+
     path = Path(path)
     if not path.parent.is_dir():
         raise ParameterError("--json", str(path), "a file in an existing folder")
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            json.dump(report, fh, indent=1)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return atomic_write_json(path, report)
 
 
 def report_tables(report: dict) -> list:

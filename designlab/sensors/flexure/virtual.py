@@ -31,8 +31,10 @@ import numpy as np
 from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
 from designlab.atomic import atomic_savefig
 from designlab.sensors.protocols import FlexureWrenchTest
+from designlab.sensors.sensor import Sensor
 from designlab.calibration.stiffness_fit import fit_stiffness
 from designlab.errors import ModelError
+from designlab.fem.settings import FEMSettings
 from designlab.params import rng, validate
 
 WRENCH = ("m_x", "m_y", "m_z", "f_x", "f_y", "f_z")
@@ -43,7 +45,7 @@ K_F_UNITS = ("SI: N*m/rad (rotational), N/m (translational), N (couplings); rows
 
 
 @dataclass(frozen=True)
-class FlexureModelSettings:
+class FlexureModelSettings(FEMSettings):
     """Settings of the flexure test (mm, s).
 
     ``truth="timoshenko"`` (default) needs no mesh. ``"fem"`` meshes the helix: with the
@@ -56,10 +58,6 @@ class FlexureModelSettings:
     edge_length: float = field(default=2.0, metadata=rng(0.1, 10, unit="mm"))
     epsilon: float = field(default=0.06, metadata=rng(0.001, 1, unit="mm",
                            doc="fTetWild envelope of the FEM mesh"))
-    order: int = field(default=2, metadata=rng(choices=(1, 2)))
-    quality: str = field(default="coarse", metadata=rng(choices=("coarse", "default", "fine")))
-    solver: str = field(default="direct", metadata=rng(choices=("auto", "direct", "cholmod",
-                                                                "amg")))
     base_set: str = "flexure_base"
     tip_set: str = "flexure_tip"
     pose_noise_mm: float = field(default=0.0, metadata=rng(0, 10, unit="mm",
@@ -142,7 +140,7 @@ def run(part=None, protocol: FlexureWrenchTest | None = None,
 
             say("meshing")
             mesh = mesh_part(part, order=settings.order, edge_length=settings.edge_length,
-                             quality=settings.quality, epsilon=settings.epsilon)
+                             quality=settings.mesh_quality, epsilon=settings.epsilon)
         timings["mesh"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         say("assembling")
@@ -310,8 +308,10 @@ def _save(fig, path: Path) -> Path:
     return atomic_savefig(fig, path, dpi=120)
 
 
-def plots(prediction: FlexurePrediction, out_dir: str | Path) -> list[Path]:
+def plots(prediction: FlexurePrediction, report: dict[str, Any] | None, out_dir: str | Path
+          ) -> list[Path]:
     """PNG: applied vs estimated wrench per axis (the loads along that axis)."""
+    report = prediction.report if report is None else report
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -330,8 +330,22 @@ def plots(prediction: FlexurePrediction, out_dir: str | Path) -> list[Path]:
         if i == 0:
             ax.legend(fontsize=8)
     fig.suptitle(f"flexure: wrench from pose with the closed-form K_f "
-                 f"(truth: {prediction.report.get('K_f_source')})")
+                 f"(truth: {report.get('K_f_source')})")
     fig.tight_layout()
     path = _save(fig, Path(out_dir) / "flexure_wrench.png")
     plt.close(fig)
     return [path]
+
+
+def gains(report: dict[str, Any], prediction: FlexurePrediction) -> tuple[dict, dict]:
+    """Loop base: the wrench m_x..f_z (N mm, N) -> the twist w_x..v_z (rad, mm) through the
+    compliance K_f^-1 of the built flexure (designlab units)."""
+    C = np.linalg.inv(prediction.K_true)
+    outs = {tw: {w: float(C[i, j]) for j, w in enumerate(WRENCH)} for i, tw in enumerate(TWIST)}
+    return outs, {o: ("rad" if o.startswith("w") else "mm") for o in outs}
+
+
+SENSOR = Sensor(
+    name="flexure", paper="seed 002 (fingertip on a helical spring flexure, Visiflex)",
+    protocol=FlexureWrenchTest, settings=FlexureModelSettings, run=run, plots=plots,
+    gains=gains)

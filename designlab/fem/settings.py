@@ -1,0 +1,28 @@
+"""Settings every virtual test shares: the mesh (edge length, element order, quality preset) and
+the linear solver (mm)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from designlab.fem.solvers import SOLVERS
+from designlab.mesh.meshing import PRESETS as MESH_QUALITY
+from designlab.params import rng, validate
+
+
+@dataclass(frozen=True)
+class FEMSettings:
+    """Mesh and solver settings of a virtual test. A sensor's settings class derives from this
+    one and may change the defaults (``edge_length`` of a thin strap differs from a helix)."""
+
+    edge_length: float = field(default=2.0, metadata=rng(0.1, 10, unit="mm",
+                               doc="ideal tetrahedron edge length"))
+    order: int = field(default=2, metadata=rng(choices=(1, 2), doc="1 = TET4, 2 = TET10"))
+    mesh_quality: str = field(default="coarse", metadata=rng(
+        choices=tuple(MESH_QUALITY), doc="meshing preset: scales the edge length and the "
+        "part's local refinement"))
+    solver: str = field(default="direct", metadata=rng(choices=SOLVERS,
+                        doc="linear solver (designlab.fem.solvers)"))
+
+    def __post_init__(self):
+        validate(self)

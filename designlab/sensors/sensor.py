@@ -1,0 +1,65 @@
+"""The :class:`Sensor` record: what ``predict``, ``sweep``, ``optimize`` and the CLI need to know
+of one sensor kind. Each sensor module ends with one ``SENSOR = Sensor(...)``;
+:mod:`designlab.sensors.registry` lists them in ``SENSORS``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable
+
+if TYPE_CHECKING:
+    from designlab.loop.loop import SensorModel
+
+Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """One sensor kind.
+
+    name:      registry name, also the part's name in :data:`designlab.geometry.parts.PARTS`
+    paper:     where its protocol and numbers come from
+    protocol:  the protocol dataclass (defaults: the paper's test)
+    settings:  the model-settings dataclass (derives from :class:`~designlab.fem.settings.FEMSettings`)
+    run:       ``run(part, protocol, settings, progress=...) -> result`` with ``result.report``
+    plots:     ``plots(result, report, out_dir) -> [Path]``
+    gains:     ``gains(report, result) -> ({output: {input: gain}}, {output: unit})``: the virtual
+               test as a linear model from the loads to the outputs (the loop's base)
+    finish:    ``finish(report, result, part, protocol)``: paper comparison and extra keys, in place
+    design_protocol: ``(protocol, design, overrides) -> protocol``: defaults that depend on the
+               design (the fingertip's load table), applied when no protocol file is given
+    apply_model: ``(report, result, model_path, protocol, settings) -> report``: the effects a
+               loop learned on a measured sensor added to this design's virtual test (loop ->
+               predict); None where not supported
+    """
+
+    name: str
+    paper: str
+    protocol: type
+    settings: type
+    run: Callable[..., Any]
+    plots: Callable[[Any, dict, Path], list[Path]]
+    gains: Callable[[dict, Any], tuple[dict, dict]]
+    finish: Callable[[dict, Any, Any, Any], None] | None = None
+    design_protocol: Callable[[Any, Any, dict | None], Any] | None = None
+    apply_model: Callable[..., dict] | None = None
+
+    @property
+    def part(self) -> type:
+        """The parametric part class (geometry)."""
+        from designlab.geometry.parts import PARTS
+
+        return PARTS[self.name]
+
+
+def linear_sensor_model(gains: dict[str, dict[str, float]], units: dict[str, str],
+                        provenance: dict) -> "SensorModel":
+    """A loop model (``designlab-model`` JSON) whose base is the affine map ``gains``
+    (output -> {input: gain}, zero intercept) and which has no effects yet."""
+    from designlab.loop.base_models import Base
+    from designlab.loop.loop import SensorModel
+
+    base = Base("linear", {o: tuple(g) for o, g in gains.items()},
+                {o: {"intercept": 0.0, "gains": dict(g)} for o, g in gains.items()})
+    return SensorModel(base, {}, units, {}, provenance)
