@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import json
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from designlab.errors import ModelError
 from designlab.loop import effects as fx
-from designlab.measured.dataset import from_arrays
 from designlab.loop.loop import load_model, run_loop, write_outputs
+from designlab.measured.dataset import from_arrays
 
 DT = 0.1
 
@@ -97,7 +100,110 @@ EFFECTS = ["relaxation", "piezo_relaxation", "drift", "thermal", "hysteresis", "
 
 
 def test_every_library_effect_is_covered():
-    assert set(EFFECTS) == set(fx.FEATURES)
+    assert set(EFFECTS) == set(fx.EFFECTS)
+
+
+def test_candidate_order_and_reasons():
+    """The order in which the library offers candidates (it decides ties in the greedy
+    selection): per varying drive input its per-input effects, then the others."""
+    rng = np.random.default_rng(0)
+    t = np.arange(0, 100, DT)
+    x, x2 = rng.normal(size=t.size), rng.normal(size=t.size)
+    ds = from_arrays(t, {"displacement": x, "force": np.zeros_like(t), "displacement_y": x2,
+                         "temperature": x2 + 20, "location": x},
+                     {"resistance": x + x2}, segment=(t > 50).astype(int))
+    cands, skipped = fx.library(ds, "resistance", ("displacement",))
+    assert [c.key for c in cands] == [
+        "hysteresis[displacement]", "nonlinearity[displacement]", "parallel_path[displacement]",
+        "hysteresis[displacement_y]", "nonlinearity[displacement_y]",
+        "parallel_path[displacement_y]", "cross_axis[displacement_y]", "piezo_relaxation",
+        "drift", "thermal[temperature]", "moment_arm[location]", "run_offset", "lag"]
+    assert skipped == {"relaxation[displacement]": "electrical output: see piezo_relaxation",
+                       "*[force]": "input is constant in the training data",
+                       "relaxation[displacement_y]": "electrical output: see piezo_relaxation"}
+    ds, _ = case("cross_axis")
+    cands, skipped = fx.library(ds.train(), "force", ("displacement",))
+    assert [c.key for c in cands] == [
+        "relaxation[displacement]", "hysteresis[displacement]", "nonlinearity[displacement]",
+        "parallel_path[displacement]", "relaxation[displacement_y]",
+        "hysteresis[displacement_y]", "nonlinearity[displacement_y]",
+        "parallel_path[displacement_y]", "cross_axis[displacement_y]", "drift", "lag"]
+    assert list(skipped) == ["piezo_relaxation", "thermal", "moment_arm", "run_offset"]
+
+
+def test_unknown_effect_in_a_model_is_one_line():
+    with pytest.raises(ModelError, match=r"name='creep' is not known; allowed: relaxation, "):
+        fx.Fitted.from_json({"name": "creep", "theta": {}, "beta": [], "alpha": [],
+                             "nuisance": []})
+
+
+DOC_TABLE = re.compile(r"<!-- effects table: python -m designlab.loop.effects -->\n(.*?)\n"
+                       r"<!-- end effects table -->", re.DOTALL)
+
+
+def test_docs_effect_table_is_generated_from_the_classes():
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "loop.md").read_text()
+    m = DOC_TABLE.search(doc)
+    assert m, "docs/loop.md has no effects table markers"
+    assert m.group(1) == fx.effects_table(), "run: python -m designlab.loop.effects"
+    for c in fx.EFFECTS.values():
+        assert c.summary and c.regressors_doc and c.applies_doc and c.__doc__, c.name
+
+
+@pytest.fixture
+def square_effect():
+    """A new effect is one class: ``square`` adds ``(x - x_m)^2`` of each varying drive input.
+    Removed from the registry afterwards."""
+
+    class Square(fx.Effect):
+        """Square law: ``(x - x_m)^2``, ``x_m`` the training mean (input units)."""
+
+        name = "square"
+        summary = "square law of the input"
+        regressors_doc = "`(x - x_m)^2`"
+        applies_doc = "each varying drive input"
+        per_input = True
+
+        @classmethod
+        def applies(cls, train, output, base_inputs):
+            return [cls(x) for x in fx.varying_drives(train)]
+
+        def grid(self, ctx):
+            return [{"reference": float(np.mean(ctx.data.inputs[self.channel]))}]
+
+        def features(self, ctx, theta):
+            return (ctx.data.inputs[self.channel] - theta["reference"]) ** 2
+
+    yield Square
+    del fx.EFFECTS["square"]
+
+
+def test_a_new_effect_is_one_class(square_effect):
+    assert fx.EFFECTS["square"] is square_effect
+    ds, base = case("nonlinearity")
+    train = ds.train()
+    cands, _ = fx.library(train, "force", ("displacement",))
+    keys = [c.key for c in cands]
+    assert keys == ["relaxation[displacement]", "hysteresis[displacement]",
+                    "nonlinearity[displacement]", "parallel_path[displacement]",
+                    "square[displacement]", "drift", "lag"]
+    sq = cands[4]
+    x = train.inputs["displacement"]
+    ctx = fx.Context(train, "force", 0.2 + 0.3 * x, ("displacement",), train.outputs["force"])
+    f = fx.fit(sq, ctx, train.outputs["force"] - ctx.yhat, np.ones(len(train), bool))
+    assert f.beta[0] == pytest.approx(0.02, rel=0.1)      # the truth: 0.02 (x - 5)^2
+    back = fx.Fitted.from_json(json.loads(json.dumps(f.to_json())))
+    assert type(back.effect) is square_effect and back.effect == sq
+    assert (back.theta, back.beta, back.alpha, back.nuisance) == (f.theta, f.beta, f.alpha,
+                                                                  f.nuisance)
+    np.testing.assert_array_equal(fx.contribution(back, ctx), fx.contribution(f, ctx))
+    assert back.to_json()["parameters"]["coefficients"] == list(f.beta)
+    res = run_loop(ds, base, max_effects=1)
+    assert "square[displacement]" in res.report["outputs"]["force"]["rounds"][0]["candidates"]
+
+
+def test_registry_is_clean_after_the_new_effect():
+    assert "square" not in fx.EFFECTS
 
 
 @pytest.mark.parametrize("name", EFFECTS)

@@ -2,12 +2,13 @@
 
 :func:`run_loop` starts from a BASE model (:mod:`designlab.loop.base_models`, or a saved
 model), computes the residual ``measured - predicted`` on the training data and tries every
-applicable mechanism of the effect library (:mod:`designlab.loop.effects`). A candidate
-is accepted only when blocked time-series cross-validation on the training data (``folds``
-contiguous blocks, a guard gap around the held-out block) shows that it lowers the held-out RMSE
-by more than noise: the mean over the blocks of the relative improvement of the held-out RMSE
-must exceed ``n_se`` standard errors of its block-to-block spread and ``min_relative``. The best such candidate is fitted on all the training data
-and added; repeat until nothing helps. Errors are then reported on the validation data, with
+applicable mechanism of the effect library (:mod:`designlab.loop.effects`, one class per
+mechanism). A candidate is accepted only when blocked time-series cross-validation on the
+training data (``folds`` contiguous blocks, a guard gap around the held-out block) shows that it
+lowers the held-out RMSE by more than noise: the mean over the blocks of the relative
+improvement of the held-out RMSE must exceed ``n_se`` standard errors of its block-to-block
+spread and ``min_relative``. The best such candidate is fitted on all the training data and
+added; repeat until nothing helps. Errors are then reported on the validation data, with
 how much of the residual remains unexplained and what it still correlates with.
 
 Model file (JSON, written by :meth:`SensorModel.save`, read by :func:`load_model`)::
@@ -37,13 +38,13 @@ from typing import Any, Callable
 
 import numpy as np
 
-from designlab.atomic import atomic_write_bytes
+from designlab.atomic import atomic_write_bytes, atomic_write_json
+from designlab.calibration.metrics import rmse
+from designlab.errors import DataError, ModelError
 from designlab.loop import effects as fx
 from designlab.loop.base_models import Base, fit_base
 from designlab.loop.base_models import predict as base_predict
 from designlab.measured.dataset import Dataset
-from designlab.calibration.metrics import rmse
-from designlab.errors import DataError, ModelError
 
 FORMAT = "designlab-model"
 
@@ -75,11 +76,6 @@ class SensorModel:
             y = y + fx.contribution(f, ctx)
         return y
 
-    def predict_all(self, data: Dataset, use_measured: bool = True) -> dict[str, np.ndarray]:
-        """Every output the model knows, on ``data``."""
-        return {o: self.predict(data, o, data.outputs.get(o) if use_measured else None)
-                for o in self.outputs}
-
     def to_json(self) -> dict:
         return {"format": FORMAT, "version": 1,
                 "model": {"base": self.base.to_json(),
@@ -91,9 +87,8 @@ class SensorModel:
                 "provenance": self.provenance}
 
     def save(self, path: str | Path) -> None:
-        """Write the model as JSON, atomically."""
-        atomic_write_bytes(Path(path), json.dumps(self.to_json(), indent=1, default=_json_default)
-                     .encode())
+        """Write the model as JSON, atomically (NaN/inf as null)."""
+        atomic_write_json(Path(path), self.to_json())
 
 
 def load_model(path: str | Path) -> SensorModel:
@@ -119,14 +114,6 @@ def load_model(path: str | Path) -> SensorModel:
 
 
 # --------------------------------------------------------------------------- helpers
-
-
-def _json_default(o: Any) -> Any:
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(type(o).__name__)
 
 
 def cv_blocks(n: int, folds: int, gap: int) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -311,7 +298,7 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
                        "regressor": reg, "regressor_name": reg_name})
         accepted.append({
             "name": chosen.name, "channel": chosen.channel, "key": chosen.key,
-            "parameters": fx.describe(f), "doc": _EFFECT_DOC.get(chosen.name, ""),
+            "parameters": fx.describe(f), "doc": chosen.summary,
             "evidence": {"cv": results[chosen.key], "correlation_with_residual": corr,
                          "train_error_before": rmse(y, yhat),
                          "train_error_after": rmse(y, yhat + c_tr)},
@@ -385,21 +372,6 @@ def _data_summary(data: Dataset) -> dict:
             "repaired": data.report.get("repaired_total", {})}
 
 
-_EFFECT_DOC = {
-    "relaxation": "viscoelastic relaxation/creep: Prony terms on the input history",
-    "piezo_relaxation": "piezoresistive relaxation: Prony terms on the predicted output",
-    "drift": "baseline drift in time since the run started",
-    "thermal": "temperature through a TCR",
-    "hysteresis": "direction-dependent friction hysteresis",
-    "nonlinearity": "load nonlinearity (polynomial in the input)",
-    "moment_arm": "output scales with the load location",
-    "parallel_path": "parallel load path stealing sensitivity above an engagement level",
-    "run_offset": "one offset per run (re-donning, preload)",
-    "lag": "channel lag (clock synchronisation)",
-    "cross_axis": "cross-axis coupling to an input the base does not use",
-}
-
-
 # --------------------------------------------------------------------------- outputs
 
 
@@ -414,7 +386,7 @@ def write_outputs(result: LoopResult, out: str | Path) -> list[Path]:
     result.model.save(p)
     written.append(p)
     p = out / "loop.json"
-    atomic_write_bytes(p, json.dumps(result.report, indent=1, default=_json_default).encode())
+    atomic_write_json(p, result.report)
     written.append(p)
     return written
 

@@ -1,0 +1,319 @@
+"""What every effect shares: signal helpers, the :class:`Effect` base class and its registry,
+the fitted effect (:class:`Fitted`, its JSON form) and the fit itself.
+
+An effect is an additive correction ``y += F(data, yhat; theta) @ beta`` whose regressors ``F``
+depend on the data (and, for some, on the prediction ``yhat`` made before the effect) through a
+few nonlinear settings ``theta`` (time constants, thresholds, a delay), found by a small grid
+search, while ``beta`` follows by linear least squares. Every fit also refits the base's affine
+part (intercept and the gains of the inputs the base uses: the *nuisance* columns), so an effect
+and the base are fitted jointly. Settings are chosen by AIC on the rows being fitted.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+from scipy import signal
+
+from designlab.atomic import jsonable
+from designlab.errors import ModelError
+from designlab.measured.dataset import Dataset
+
+# --------------------------------------------------------------------------- signal helpers
+
+
+def _segments(segment: np.ndarray) -> list[slice]:
+    """Contiguous runs of equal segment id as slices."""
+    if segment.size == 0:
+        return []
+    cut = np.flatnonzero(np.diff(segment)) + 1
+    edges = np.r_[0, cut, segment.size]
+    return [slice(a, b) for a, b in zip(edges[:-1], edges[1:])]
+
+
+def highpass(x: np.ndarray, tau: float, dt: float, segment: np.ndarray) -> np.ndarray:
+    """``h = int exp(-(t-s)/tau) dx(s)``: first-order high-pass of ``x`` with time constant
+    ``tau`` (s), exact for a piecewise-linear input on a uniform step ``dt``, restarted at 0 at
+    the start of every run. Units of ``x``."""
+    a = math.exp(-dt / tau)
+    c = tau * (1.0 - a) / dt
+    out = np.empty_like(x, dtype=float)
+    for s in _segments(segment):
+        xs = x[s]
+        out[s], _ = signal.lfilter([c, -c], [1.0, -a], xs, zi=[-c * xs[0]])
+    return out
+
+
+def rate(x: np.ndarray, dt: float, segment: np.ndarray) -> np.ndarray:
+    """Time derivative (units of x per s), central differences within each run."""
+    out = np.zeros_like(x, dtype=float)
+    for s in _segments(segment):
+        if s.stop - s.start > 1:
+            out[s] = np.gradient(x[s], dt)
+    return out
+
+
+def shift(y: np.ndarray, delay: float, t: np.ndarray, segment: np.ndarray) -> np.ndarray:
+    """``y(t - delay)`` (``delay`` in s) by linear interpolation within each run (edges held)."""
+    out = np.empty_like(y, dtype=float)
+    for s in _segments(segment):
+        out[s] = np.interp(t[s] - delay, t[s], y[s])
+    return out
+
+
+def play(x: np.ndarray, widths: np.ndarray, segment: np.ndarray) -> np.ndarray:
+    """Play (backlash) operators of half-widths ``widths``: the slider position ``w`` of each
+    Maxwell-slip element; returns ``x - w`` (n, m), bounded by +-width. Units of ``x``."""
+    widths = np.asarray(widths, float)
+    out = np.empty((x.size, widths.size))
+    for s in _segments(segment):
+        w = np.full(widths.size, x[s.start])
+        for k in range(s.start, s.stop):
+            w = np.minimum(np.maximum(w, x[k] - widths), x[k] + widths)
+            out[k] = x[k] - w
+    return out
+
+
+def dahl(x: np.ndarray, xc: np.ndarray, segment: np.ndarray) -> np.ndarray:
+    """Normalised Dahl friction state ``z`` in [-1, 1] (n, m): ``dz/dx = (1 - z sgn(dx)) / xc``,
+    integrated exactly per step (``z -> s + (z - s) exp(-|dx| / xc)``)."""
+    xc = np.asarray(xc, float)
+    out = np.empty((x.size, xc.size))
+    for s in _segments(segment):
+        xs = x[s]
+        dx = np.diff(xs, prepend=xs[0])
+        e = np.exp(-np.abs(dx)[:, None] / xc[None, :])
+        sg = np.sign(dx)
+        z = np.zeros(xc.size)
+        block = out[s]
+        for k in range(xs.size):
+            if sg[k] != 0.0:
+                z = sg[k] + (z - sg[k]) * e[k]
+            block[k] = z
+    return out
+
+
+def robust_range(x: np.ndarray) -> float:
+    """The 1-99 % percentile range of ``x`` (units of ``x``; at least 1e-12)."""
+    lo, hi = np.percentile(x, [1, 99])
+    return float(max(hi - lo, 1e-12))
+
+
+def drive_inputs(data: Dataset) -> list[str]:
+    """The inputs of kind ``drive`` (what was applied), in the data's order."""
+    return [n for n in data.inputs if data.kinds.get(n, "drive") == "drive"]
+
+
+def varying_drives(data: Dataset) -> list[str]:
+    """The drive inputs that are not constant in ``data``."""
+    return [n for n in drive_inputs(data) if np.ptp(data.inputs[n]) != 0]
+
+
+# --------------------------------------------------------------------------- the base class
+
+
+@dataclass
+class Context:
+    """What an effect sees: the data, the output's name, the prediction before the effect and
+    (when known) the measured output, and the inputs the base uses (nuisance columns)."""
+
+    data: Dataset
+    output: str
+    yhat: np.ndarray
+    base_inputs: tuple[str, ...]
+    measured: np.ndarray | None = None
+    cache: dict = field(default_factory=dict)       # regressors of the data alone
+    pred_cache: dict = field(default_factory=dict)  # regressors of this yhat
+
+
+#: every effect class by its ``name``, filled by :meth:`Effect.__init_subclass__`
+EFFECTS: dict[str, type[Effect]] = {}
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One mechanism acting on one channel (``channel`` is None for time/run effects).
+
+    A mechanism is one subclass in one module of this package; defining it registers it in
+    :data:`EFFECTS` under its ``name``. It sets the class attributes below and implements
+    :meth:`applies`, :meth:`grid` and :meth:`features`; :meth:`describe` and
+    :meth:`regressor` have generic defaults."""
+
+    channel: str | None = None
+
+    name: ClassVar[str] = ""
+    summary: ClassVar[str] = ""          # one line, shown with an accepted effect in loop.json
+    regressors_doc: ClassVar[str] = ""   # docs table: the regressors added to the prediction
+    settings_doc: ClassVar[str] = "-"    # docs table: the nonlinear settings (grid)
+    applies_doc: ClassVar[str] = ""      # docs table: when the library offers it
+    uses_prediction: ClassVar[bool] = False   # regressors depend on yhat (not cached)
+    fixed_coefficients: ClassVar[bool] = False  # regressors enter with coefficient 1 (lag)
+    intercept: ClassVar[bool] = True     # nuisance intercept (off when regressors hold offsets)
+    per_input: ClassVar[bool] = False    # one instance per varying drive input, offered input
+    #                                      by input before the other effects
+    rank: ClassVar[int] = 1000           # position in the candidate order (ties: registration
+    #                                      order); the order changes the greedy selection
+
+    def __init_subclass__(cls, **kw):
+        super().__init_subclass__(**kw)
+        name = cls.__dict__.get("name")
+        if name:
+            if name in EFFECTS:
+                raise TypeError(f"effect name {name!r} is taken by {EFFECTS[name].__qualname__}")
+            EFFECTS[name] = cls
+
+    @property
+    def key(self) -> str:
+        return f"{self.name}[{self.channel}]" if self.channel else self.name
+
+    # ---- what a mechanism defines
+
+    @classmethod
+    def applies(cls, train: Dataset, output: str, base_inputs: tuple[str, ...]
+                ) -> list[Effect] | str:
+        """The instances that apply to ``output`` of the training data, or why none does.
+        A ``per_input`` effect returns instances on :func:`varying_drives` only."""
+        raise NotImplementedError
+
+    def grid(self, ctx: Context) -> list[dict]:
+        """The nonlinear settings to try, from the training data in ``ctx``."""
+        raise NotImplementedError
+
+    def features(self, ctx: Context, theta: dict) -> np.ndarray:
+        """The regressors for settings ``theta``: (n,) or (n, k)."""
+        raise NotImplementedError
+
+    def describe(self, f: Fitted) -> dict:
+        """Parameters of the fitted effect under their physical names."""
+        return {"theta": dict(f.theta), "coefficients": list(f.beta)}
+
+    def regressor(self, f: Fitted, ctx: Context) -> tuple[np.ndarray, str]:
+        """The variable that best shows the effect (for plots) and its label."""
+        return self.columns(ctx, f.theta) @ np.asarray(f.beta), self.key
+
+    def extra(self, f: Fitted, ctx: Context, partial: np.ndarray) -> np.ndarray | None:
+        """What the effect adds beyond its fitted regressors (None: nothing)."""
+        return None
+
+    # ---- shared machinery
+
+    def columns(self, ctx: Context, theta: dict) -> np.ndarray:
+        """:meth:`features` as an (n, k) float array; cached per data set and settings unless
+        they depend on the prediction."""
+        if not self.uses_prediction:
+            ck = (id(ctx.data), self.key, repr(sorted(theta.items())))
+            hit = ctx.cache.get(ck)
+            if hit is not None:
+                return hit
+        f = np.asarray(self.features(ctx, theta), float)
+        f = f.reshape(f.shape[0], -1)
+        if not self.uses_prediction:
+            ctx.cache[ck] = f
+        return f
+
+    def input_axis(self, ctx: Context) -> tuple[np.ndarray, str]:
+        """The effect's input channel and its label with unit (a :meth:`regressor`)."""
+        d = ctx.data
+        return d.inputs[self.channel], f"{self.channel} ({d.units.get(self.channel, '')})"
+
+
+def ordered() -> list[type[Effect]]:
+    """The registered effect classes in candidate order: ``per_input`` ones by ``rank``, then
+    the others by ``rank`` (ties: registration order)."""
+    return sorted(EFFECTS.values(), key=lambda c: (not c.per_input, c.rank))
+
+
+# --------------------------------------------------------------------------- fitting
+
+
+@dataclass(frozen=True)
+class Fitted:
+    """An effect with its settings ``theta``, coefficients ``beta`` (one per regressor) and
+    nuisance refit ``alpha`` (intercept first when the effect has one, then the base inputs)."""
+
+    effect: Effect
+    theta: dict
+    beta: tuple[float, ...]
+    alpha: tuple[float, ...]
+    nuisance: tuple[str, ...]
+    sse: float = float("nan")
+
+    def to_json(self) -> dict:
+        return {"name": self.effect.name, "channel": self.effect.channel,
+                "theta": jsonable(self.theta), "beta": list(self.beta),
+                "alpha": list(self.alpha), "nuisance": list(self.nuisance),
+                "parameters": describe(self)}
+
+    @staticmethod
+    def from_json(d: dict) -> Fitted:
+        name = d["name"]
+        if name not in EFFECTS:
+            raise ModelError(f"model effect name={name!r} is not known; allowed: "
+                             f"{', '.join(c.name for c in ordered())}")
+        eff = EFFECTS[name](d.get("channel"))
+        th = {k: tuple(v) if isinstance(v, list) else v for k, v in d["theta"].items()}
+        return Fitted(eff, th, tuple(d["beta"]), tuple(d["alpha"]), tuple(d["nuisance"]))
+
+
+def nuisance_columns(data: Dataset, base_inputs: tuple[str, ...], intercept: bool) -> np.ndarray:
+    """The base's affine part refitted with an effect: [1,] base inputs, (n, k)."""
+    cols = ([np.ones(len(data))] if intercept else []) + [data.inputs[n] for n in base_inputs]
+    return np.column_stack(cols) if cols else np.zeros((len(data), 0))
+
+
+def fit(effect: Effect, ctx: Context, residual: np.ndarray, rows: np.ndarray,
+        thetas: list[dict] | None = None) -> Fitted:
+    """Best settings (AIC over the grid) and least-squares coefficients on ``rows``."""
+    N = nuisance_columns(ctx.data, ctx.base_inputs, effect.intercept)
+    r = residual[rows]
+    n = int(rows.sum())
+    best = None
+    ctx.cache["rows"] = rows
+    for th in (thetas if thetas is not None else effect.grid(ctx)):
+        F = effect.columns(ctx, th)
+        if effect.fixed_coefficients:
+            X, target = N[rows], r - F[rows].sum(1)
+        else:
+            X, target = np.column_stack([F[rows], N[rows]]), r
+        if X.shape[1]:
+            coef, *_ = np.linalg.lstsq(X, target, rcond=None)
+            sse = float(np.sum((target - X @ coef) ** 2))
+        else:
+            coef, sse = np.zeros(0), float(np.sum(target ** 2))
+        p = X.shape[1] + (0 if not effect.fixed_coefficients else len(th))
+        aic = n * math.log(max(sse, 1e-300) / n) + 2 * p
+        if best is None or aic < best[0]:
+            nb = 0 if effect.fixed_coefficients else F.shape[1]
+            beta = (1.0,) * F.shape[1] if effect.fixed_coefficients else tuple(coef[:nb])
+            best = (aic, th, beta, tuple(coef[nb:]), sse)
+    ctx.cache.pop("rows", None)
+    _, th, beta, alpha, sse = best
+    return Fitted(effect, th, tuple(map(float, beta)), tuple(map(float, alpha)),
+                  tuple(ctx.base_inputs), sse)
+
+
+def contribution(f: Fitted, ctx: Context) -> np.ndarray:
+    """What the fitted effect adds to the prediction ``ctx.yhat`` on ``ctx.data``."""
+    F = f.effect.columns(ctx, f.theta)
+    N = nuisance_columns(ctx.data, f.nuisance, f.effect.intercept)
+    out = F @ np.asarray(f.beta) + (N @ np.asarray(f.alpha) if N.shape[1] else 0.0)
+    extra = f.effect.extra(f, ctx, out)
+    return out if extra is None else out + extra
+
+
+def describe(f: Fitted) -> dict:
+    """Parameters of a fitted effect under their physical names, with the refit of the base's
+    affine part (``base_adjust``)."""
+    out: dict[str, Any] = f.effect.describe(f)
+    if f.alpha:
+        names = (["intercept"] if f.effect.intercept else []) + [f"gain[{n}]" for n in f.nuisance]
+        out["base_adjust"] = dict(zip(names, f.alpha))
+    return out
+
+
+def regressor(f: Fitted, ctx: Context) -> tuple[np.ndarray, str]:
+    """The variable that best shows the effect (for plots): one regressor and its name."""
+    return f.effect.regressor(f, ctx)
