@@ -21,7 +21,8 @@ class Material:
     nu: Poisson's ratio (-1 < nu < 0.5); density: t/mm^3; prony: generalized Maxwell terms or None;
     gauge_factor: dR/R per unit strain (piezoresistive materials) or None;
     gauge_quadratic: second-order coefficient c2 in dR/R = GF eps + c2 eps^2;
-    tcr: temperature coefficient of resistance, 1/K; resistivity: ohm*mm or None.
+    tcr: temperature coefficient of resistance, 1/K; resistivity: ohm*mm or None;
+    stand_ins: the fields whose values are stand-ins; max_elongation: strain at break or None.
     """
 
     name: str
@@ -34,6 +35,11 @@ class Material:
     tcr: float = 0.0
     resistivity: float | None = None
     source: str = field(default="", compare=False)
+    #: properties whose values are stand-ins (borrowed from another material), named as the
+    #: fields: every output that uses such a material lists them (see :func:`stand_in_note`)
+    stand_ins: tuple[str, ...] = field(default=(), compare=False)
+    #: elongation at break (strain, 1 = 100 %) or None
+    max_elongation: float | None = None
 
     def __post_init__(self):
         if not (self.E > 0):
@@ -73,9 +79,11 @@ MATERIALS: dict[str, Material] = {m.name: m for m in [
     # Seed 000 Table I (../shared/data/papers/fingertip_strap_tpu.json): E = 12 MPa, Shore 85A.
     # nu: TPU elastomers are nearly incompressible; 0.45 is the usual small-strain value for
     # printed TPU (an assumption, not in the paper). Density 1.19 g/cm^3 (NinjaTek datasheet).
+    # Max elongation 660 % (seed 000 Table I).
     Material("NinjaFlex", E=12.0, nu=0.45, density=1.19e-9, prony=ELASTOMER_PRONY,
              source="E: seed 000 Table I; nu assumed 0.45; density NinjaTek datasheet; "
-                    "Prony: stretch-rig elastomer stand-in"),
+                    "Prony: stretch-rig elastomer stand-in",
+             stand_ins=("prony",), max_elongation=6.6),
     # Seed 000 Table I: PI-ETPU 95-250 carbon black, E = 12 MPa, Shore 95A, resistivity
     # <= 800 ohm*cm = 8000 ohm*mm; TCR 0.002 /K (seed 000 discussion, ref [32]). The paper
     # gives no gauge factor: GF = 3.8 is the carbon-black elastomer value measured from the
@@ -84,7 +92,8 @@ MATERIALS: dict[str, Material] = {m.name: m for m in [
     Material("PI-ETPU", E=12.0, nu=0.45, density=1.25e-9, gauge_factor=3.8, tcr=0.002,
              resistivity=8000.0, prony=ELASTOMER_PRONY,
              source="E, resistivity: seed 000 Table I; TCR: seed 000 [32]; nu assumed; "
-                    "GF and Prony: stand-ins (carbon-black elastomer), calibrate"),
+                    "GF and Prony: stand-ins (carbon-black elastomer), calibrate",
+             stand_ins=("gauge_factor", "prony"), max_elongation=2.2),   # 220 %: Table I
     # Stratasys ABSplus-P430 datasheet (seed 001 printer Dimension BST 768): tensile modulus
     # 2200 MPa (XZ); nu 0.35 typical for ABS; density 1.04 g/cm^3.
     Material("ABS", E=2200.0, nu=0.35, density=1.04e-9, prony=PRINTED_PRONY,
@@ -113,6 +122,100 @@ MATERIALS: dict[str, Material] = {m.name: m for m in [
              source="E0 and Prony: fit to the stepped-strain test, GF: line fits, all "
                     "../shared/data/stretch; nu assumed; Dragon Skin datasheet"),
 ]}
+
+
+def stand_in_note(material: Material) -> str | None:
+    """One line naming a material's stand-in properties, or None when it has none."""
+    if not material.stand_ins:
+        return None
+    return (f"{material.name}: {', '.join(material.stand_ins)} are stand-ins (silicone/"
+            "carbon-black elastomer of the stretch rig or a printed-part analogue), not "
+            "measured on the printed material")
+
+
+# ------------------------------------------------------------- measured printed-material data
+
+#: quantities a measured record may give, with their unit
+MEASURED_QUANTITIES = {"E": "MPa", "nu": "-", "gauge_factor": "-", "gauge_quadratic": "-",
+                       "tcr": "1/K", "resistivity": "ohm*mm", "prony": "g, tau (s)",
+                       "max_elongation": "-"}
+
+
+@dataclass(frozen=True)
+class MeasuredProperty:
+    """One measured property of a *printed* material: the documented place for data that
+    replaces a stand-in. ``value``: a number, or for ``prony`` a mapping ``{"g": [...],
+    "tau": [...]}``; ``source``: who measured what specimen how; ``date``: ISO date."""
+
+    material: str
+    quantity: str
+    value: object
+    source: str
+    date: str
+    conditions: str = ""
+
+    def __post_init__(self):
+        import datetime
+
+        if self.quantity not in MEASURED_QUANTITIES:
+            raise ParameterError("quantity", self.quantity,
+                                 "one of " + ", ".join(MEASURED_QUANTITIES))
+        if not self.source.strip():
+            raise ParameterError(f"{self.material}.{self.quantity}.source", self.source,
+                                 "a non-empty description of the measurement")
+        try:
+            datetime.date.fromisoformat(self.date)
+        except (TypeError, ValueError):
+            raise ParameterError(f"{self.material}.{self.quantity}.date", self.date,
+                                 "an ISO date YYYY-MM-DD") from None
+
+
+def load_measured(path) -> list[MeasuredProperty]:
+    """Measured printed-material data from a JSON file ``{"measured": [{"material": ...,
+    "quantity": ..., "value": ..., "source": ..., "date": ...}, ...]}``."""
+    import json
+    from pathlib import Path
+
+    p = Path(path)
+    try:
+        data = json.loads(p.read_text())
+        rows = data["measured"]
+        return [MeasuredProperty(**r) for r in rows]
+    except FileNotFoundError:
+        raise ParameterError("measured", str(p), "an existing JSON file") from None
+    except (json.JSONDecodeError, KeyError, TypeError) as exc:
+        raise ParameterError("measured", str(p), 'JSON {"measured": [{material, quantity, '
+                             f'value, source, date}}, ...]}} ({exc})') from None
+
+
+def with_measured(material: Material, records) -> Material:
+    """``material`` with the measured properties of ``records`` that name it; those
+    properties leave its ``stand_ins`` and its ``source`` says where they come from."""
+    import dataclasses
+
+    mine = [r for r in records if r.material == material.name]
+    if not mine:
+        return material
+    kw: dict = {}
+    for r in mine:
+        if r.quantity == "prony":
+            try:
+                kw["prony"] = Prony(g=tuple(r.value["g"]), tau=tuple(r.value["tau"]))
+            except (TypeError, KeyError):
+                raise ParameterError(f"{material.name}.prony", r.value,
+                                     '{"g": [...], "tau": [...]}') from None
+        else:
+            try:
+                kw[r.quantity] = float(r.value)
+            except (TypeError, ValueError):
+                raise ParameterError(f"{material.name}.{r.quantity}", r.value,
+                                     "a number") from None
+    measured = {r.quantity for r in mine}
+    src = "; ".join(f"{r.quantity}: {r.source} ({r.date})" for r in mine)
+    return dataclasses.replace(material, **kw,
+                               stand_ins=tuple(q for q in material.stand_ins
+                                               if q not in measured),
+                               source=f"{material.source}; measured: {src}")
 
 
 def get_material(name: str) -> Material:

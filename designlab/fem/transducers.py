@@ -28,6 +28,62 @@ SUPPLY_V = 5.0
 GAUGE_OHM = 1800.0
 
 
+#: Boltzmann constant, J/K (CODATA 2018, exact)
+K_BOLTZMANN = 1.380649e-23
+
+
+def sheet_resistance(resistivity: float, thickness: float) -> float:
+    """Sheet resistance (ohm per square) of a conductor layer: rho / t (ohm*mm, mm)."""
+    if not resistivity > 0:
+        raise ParameterError("resistivity", resistivity, "> 0 ohm*mm")
+    if not thickness > 0:
+        raise ParameterError("thickness", thickness, "> 0 mm")
+    return resistivity / thickness
+
+
+def resistivity_from(R: float, squares: float, thickness: float) -> float:
+    """Effective resistivity (ohm*mm) that gives resistance ``R`` (ohm) on a path of
+    ``squares`` squares of a layer ``thickness`` thick: R t / squares (R = rho L / A)."""
+    if not R > 0:
+        raise ParameterError("R", R, "> 0 ohm")
+    if not squares > 0:
+        raise ParameterError("squares", squares, "> 0")
+    return R * thickness / squares
+
+
+def divider_slope(R, R_fixed: float = DIVIDER_OHM, V_s: float = SUPPLY_V):
+    """dV/dR (V per ohm) of the voltage across the gauge in a divider with ``R_fixed``:
+    V_s R_fixed / (R + R_fixed)^2 (same magnitude across the fixed resistor)."""
+    R = np.asarray(R, float)
+    return V_s * R_fixed / (R + R_fixed) ** 2
+
+
+def optimal_divider_resistor(R) -> float:
+    """Fixed resistor that maximises the divider's voltage change per relative resistance
+    change, R dV/dR = V_s R R_f / (R + R_f)^2: d/dR_f = 0 at R_f = R."""
+    return float(R)
+
+
+def divider_current(R, R_fixed: float = DIVIDER_OHM, V_s: float = SUPPLY_V):
+    """Current through the divider, A (ohm, V)."""
+    return V_s / (np.asarray(R, float) + R_fixed)
+
+
+def johnson_noise_vrms(R, bandwidth_hz: float, T_kelvin: float) -> float:
+    """Thermal (Johnson-Nyquist) noise voltage, V rms: sqrt(4 k T R B)."""
+    if not bandwidth_hz > 0 or not T_kelvin > 0 or not R >= 0:
+        raise ParameterError("johnson_noise", (R, bandwidth_hz, T_kelvin),
+                             "R >= 0 ohm, bandwidth > 0 Hz, T > 0 K")
+    return float(np.sqrt(4 * K_BOLTZMANN * T_kelvin * R * bandwidth_hz))
+
+
+def quantization_noise_vrms(full_scale_V: float, bits: int) -> float:
+    """Quantisation noise of an ideal ADC, V rms: LSB / sqrt(12), LSB = full scale / 2^bits."""
+    if not full_scale_V > 0 or not 1 <= int(bits) <= 32:
+        raise ParameterError("adc", (full_scale_V, bits), "full scale > 0 V, 1 <= bits <= 32")
+    return full_scale_V / 2 ** int(bits) / np.sqrt(12.0)
+
+
 def _columns(result) -> np.ndarray:
     """(n_dofs, k) displacement columns of a static (cases) or history (steps) result."""
     return np.asarray(result.U)
@@ -54,7 +110,8 @@ class StrainGauge:
     ``direction``: constant (3,) axis or callable ``d(x) -> (..., 3)`` of the quadrature point
     coordinates (normalised here), e.g. the tangent of a curved trace. ``gauge_factor``,
     ``gauge_quadratic`` and ``tcr`` default to the region's material. ``R0`` in ohm (1.8 kOhm,
-    seed 000), ``T0`` reference temperature (deg C)."""
+    seed 000; a sensor may derive it from its conductor geometry), ``T0`` reference temperature
+    (deg C), ``R_fixed`` and ``V_s`` the divider's fixed resistor (ohm) and supply (V)."""
 
     model: Model
     region: object
@@ -65,6 +122,8 @@ class StrainGauge:
     R0: float = GAUGE_OHM
     T0: float = 20.0
     name: str = "gauge"
+    R_fixed: float = DIVIDER_OHM
+    V_s: float = SUPPLY_V
 
     def __post_init__(self):
         mesh = self.model.mesh
@@ -132,7 +191,8 @@ class StrainGauge:
 
     def voltage(self, strain, temperature=None, across: str = "gauge") -> np.ndarray:
         """Seed-000 divider output (V), see :func:`divider_voltage`."""
-        return divider_voltage(self.resistance(strain, temperature), across=across)
+        return divider_voltage(self.resistance(strain, temperature), R_fixed=self.R_fixed,
+                               V_s=self.V_s, across=across)
 
     def read(self, result, temperature=None) -> dict[str, np.ndarray]:
         """{"strain", "dR_R", "resistance_ohm", "voltage_V"} per case/step."""

@@ -37,6 +37,9 @@ from designlab.params import rng, validate
 
 #: nozzle diameter (mm): the narrowest printable meander line and gap
 NOZZLE = 0.4
+#: squares of a right-angle bend of a strip of constant width (Hall, "Resistance calculations
+#: for thin film patterns", Thin Solid Films 1 (1967) 277-295: 0.559)
+CORNER_SQUARES = 0.559
 
 
 @dataclass(frozen=True)
@@ -135,6 +138,55 @@ class ArchStrap:
         p0 = b + self.lead_length / R
         p1 = p0 + self.pad_length / R
         return {"a": a, "b": b, "turn": turn, "p0": p0, "p1": p1}
+
+    # ------------------------------------------------------------- conductor path (electrical)
+    def trace_squares(self) -> dict[str, float]:
+        """Resistance of one meander in *squares* (path length / width of each segment), at the
+        trace thickness: ``R = rho / trace_thickness * squares`` (geometry only, no material).
+
+        The conducting path, pad to pad: lead (outer leg beyond ``b``) -> leg 0 -> turn -> leg 1
+        -> ... -> leg n-1 -> lead. ``legs``: the n arcs between the angles ``a`` and ``b`` at
+        their radii (their sum is n x gauge_length: the offsets are symmetric); ``turns``: n - 1
+        turn blocks, each two right-angle corners (0.559 squares each, the conformal-mapping
+        value for a bend of a strip of constant width: Hall, Thin Solid Films 1 (1967) 277) and
+        the radial run across the gap (trace_gap / trace_width); ``leads``: the two leads;
+        ``pads``: the current enters each pad at its inner end and leaves through the wire
+        melted into its top face: half the pad length at the pad's width and full height
+        (trace_cover to the top face), converted to squares at the trace thickness (our
+        estimate of the spreading path)."""
+        R, w, t = self.radius, self.trace_width, self.trace_thickness
+        ang = self.gauge_angles()
+        legs = float(sum((ang["b"] - ang["a"]) * (R + y) for y in self.leg_offsets)) / w
+        turns = (self.legs - 1) * (2 * CORNER_SQUARES + self.trace_gap / w)
+        y0, y1 = float(self.leg_offsets[0]), float(self.leg_offsets[-1])
+        leads = self.lead_length * ((R + y0) + (R + y1)) / R / w
+        pad_height = self.thickness - self.trace_cover
+        pads = 2 * (self.pad_length / 2) / self.pad_width * self.trace_thickness / pad_height
+        return {"legs": legs, "turns": turns, "leads": leads, "pads": pads,
+                "total": legs + turns + leads + pads}
+
+    @property
+    def lug_spacing(self) -> float:
+        """Centre distance of the two nail-plate lugs (mm)."""
+        return 2 * self.lug_x
+
+    @property
+    def lug_x(self) -> float:
+        """Lug centre offset from the nail-plate centre (mm): 1.5 mm rim beside the lug."""
+        return self.nail_plate_length / 2 - self.slot_width / 2 - 1.5
+
+    def slot_distances(self) -> np.ndarray:
+        """Distance (mm, along the tab) from the arch foot to each slot centre, slot 1 = the one
+        nearest the strap end (longest strap) ... slot ``slot_count`` (shortest)."""
+        k = np.arange(self.slot_count)
+        return self.tab_length - self.slot_end_margin - self.slot_width / 2 - k * self.slot_pitch
+
+    def engaged_length(self, slot: int) -> float:
+        """Unstretched centreline length between the centres of the two engaged slots (mm):
+        the arch plus the tab up to slot ``slot`` (1-based) on both ends."""
+        if not 1 <= slot <= self.slot_count:
+            raise ParameterError("slot", slot, f"1 <= value <= {self.slot_count} (slot_count)")
+        return self.arc_length + 2 * float(self.slot_distances()[slot - 1])
 
     def gauge_offset_range(self) -> tuple[float, float]:
         """Allowed ``gauge_offset`` given the other parameters: the two meanders keep
@@ -364,7 +416,7 @@ def _build(p: ArchStrap) -> dict[str, Body]:
     yc = ymin - 5.0 - p.nail_plate_width / 2
     L, W, T = p.nail_plate_length, p.nail_plate_width, p.nail_plate_thickness
     base = Pos(0, yc, 0) * extrude(RectangleRounded(L, W, min(2.0, W / 4)), amount=T)
-    lug_x = L / 2 - p.slot_width / 2 - 1.5
+    lug_x = p.lug_x
     lugs = [Pos(s * lug_x, yc, T) * SlotOverall(p.slot_length - 0.4, p.slot_width - 0.3,
                                                   rotation=90) for s in (1, -1)]
     nail = single_solid((base + extrude(_fuse_faces(lugs), amount=p.thickness + 0.6)).clean(),

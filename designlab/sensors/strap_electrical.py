@@ -1,0 +1,208 @@
+"""Electrical design of the seed 000 strap from its geometry: trace resistance, divider, self-
+heating, noise and resolution.
+
+* **Resistance.** Each meander is a path of ``squares`` squares (``ArchStrap.trace_squares``:
+  legs, turns with Hall's corner squares, leads, pads), so ``R = rho_eff / t * squares +
+  2 R_contact``. The effective resistivity of *printed, annealed* PI-ETPU along the raster is
+  **back-calculated** from the paper's "around 1.8 kOhm" between the pads (seed 000 Sec. III-A)
+  on the default :class:`~designlab.geometry.strap.ArchStrap` (our estimate of the paper's
+  meander): rho_eff = (1800 ohm - 2 R_contact) t / squares = 7.04 ohm*mm (0.70 ohm*cm) with the
+  contacts lumped in (R_contact = 0, the default: the paper measured pad to pad with the wires
+  melted in and gives no contact resistance). Table I's "< 800 ohm*cm" is the filament's
+  upper bound, not the printed trace's value: on the same meander it would give ~2 MOhm,
+  1100x the measured 1.8 kOhm. By construction the paper's geometry gives 1.8 kOhm; any other
+  geometry follows R = rho L / A.
+* **Divider** (seed 000 Fig. 3: gauge + 2.2 kOhm on 5 V, the voltage across the gauge read):
+  dV/dR = V_s R_f / (R + R_f)^2, and the fixed resistor that maximises the voltage per unit
+  dR/R is R_f = R (:func:`~designlab.fem.transducers.optimal_divider_resistor`).
+* **Self-heating.** P = I^2 R in each gauge; its temperature rise from two parallel paths: down
+  through the TPU under the trace into the finger (half-space spreading resistance of an
+  isothermal disc of the gauge's footprint area, 1 / (4 k a), Carslaw & Jaeger, Conduction of
+  Heat in Solids, 2nd ed. 1959, Sec. 8.2), and up by natural convection. The drift is
+  TCR x dT (TCR 0.002/C, seed 000 Sec. V-E); both gauges heat alike, so it enters the sum
+  channel (F_n) and cancels in the difference (F_x).
+* **Noise -> resolution.** Johnson noise of the divider's source resistance R || R_f in the
+  paper's 10 Hz low-pass bandwidth (Sec. III-D) and the ADC's quantisation noise; resolution =
+  noise of the sum (difference) channel / its sensitivity, in mN. Excess (1/f) noise of the
+  carbon-black composite is not modelled: no data for PI-ETPU.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from designlab.fem.transducers import (DIVIDER_OHM, SUPPLY_V, divider_current, divider_slope,
+                                       johnson_noise_vrms, optimal_divider_resistor,
+                                       quantization_noise_vrms, resistivity_from,
+                                       sheet_resistance)
+
+#: seed 000 Sec. III-A: "The resistance measured between the contact pads of the strain gauges
+#: is around 1.8 kOhm" (../shared/data/papers/fingertip_strap_tpu.json strap.gauge_resistance)
+PAPER_GAUGE_OHM = 1800.0
+#: seed 000 Sec. III-D: signals low-pass filtered at 10 Hz
+BANDWIDTH_HZ = 10.0
+#: fingertip skin temperature for the Johnson noise, K (about 32 C at room temperature;
+#: the noise scales with sqrt(T): 10 K change it by 1.6 %)
+SKIN_T_K = 305.0
+#: thermal conductivity of TPU, W/(m K): 0.19-0.25 for polyurethane elastomers (polymer
+#: handbooks); 0.2 used (not measured on NinjaFlex/PI-ETPU)
+K_TPU = 0.2
+#: thermal conductivity of skin/pulp tissue, W/(m K): 0.37 (F. A. Duck, Physical Properties of
+#: Tissue, 1990, skin); perfusion (which lowers the rise) is neglected
+K_TISSUE = 0.37
+#: natural-convection coefficient of still air on a small body, W/(m^2 K): 10 (textbook range
+#: 2-25, Incropera, Fundamentals of Heat and Mass Transfer, Table 1.1)
+H_AIR = 10.0
+
+
+def effective_resistivity(contact_ohm: float = 0.0) -> float:
+    """rho_eff (ohm*mm) of printed PI-ETPU, back-calculated from the paper's 1.8 kOhm on its
+    gauge geometry (the default ArchStrap) with ``contact_ohm`` per pad taken off."""
+    from designlab.errors import ParameterError
+    from designlab.geometry.strap import ArchStrap
+
+    if not 0 <= contact_ohm < PAPER_GAUGE_OHM / 2:
+        raise ParameterError("contact_ohm", contact_ohm,
+                             f"0 <= value < {PAPER_GAUGE_OHM / 2:g} ohm (half the paper's "
+                             "1.8 kOhm)")
+    paper = ArchStrap()
+    return resistivity_from(PAPER_GAUGE_OHM - 2 * contact_ohm,
+                            paper.trace_squares()["total"], paper.trace_thickness)
+
+
+def gauge_resistance(part, contact_ohm: float = 0.0) -> dict[str, float]:
+    """Resistance of one meander of ``part`` (ohm) and its parts: legs, turns, leads, pads,
+    contacts (2 x ``contact_ohm``), total; with the back-calculated rho_eff."""
+    rho = effective_resistivity(contact_ohm)
+    rs = sheet_resistance(rho, part.trace_thickness)
+    sq = part.trace_squares()
+    out = {k: rs * v for k, v in sq.items() if k != "total"}
+    out["contacts"] = 2 * contact_ohm
+    out["total"] = rs * sq["total"] + 2 * contact_ohm
+    return out
+
+
+def gauge_footprint_mm2(part) -> float:
+    """Area (mm^2) of the strap covered by one meander: legs + turns across the leg span."""
+    span = (part.legs - 1) * (part.trace_width + part.trace_gap) + part.trace_width
+    return (part.gauge_length + 2 * part.trace_width) * span
+
+
+def self_heating(part, R: float, R_fixed: float, V_s: float) -> dict[str, float]:
+    """Power and steady temperature rise of one gauge (W, K)."""
+    I = float(divider_current(R, R_fixed, V_s))
+    P = I * I * R
+    A = gauge_footprint_mm2(part) * 1e-6                                      # m^2
+    a = math.sqrt(A / math.pi)
+    r_down = part.trace_cover * 1e-3 / (K_TPU * A) + 1.0 / (4 * K_TISSUE * a)   # K/W
+    r_up = 1.0 / (H_AIR * A)
+    r = 1.0 / (1.0 / r_down + 1.0 / r_up)
+    return {"current_mA": 1e3 * I, "power_mW": 1e3 * P, "thermal_resistance_K_per_W": r,
+            "temperature_rise_K": P * r}
+
+
+def electrical_report(part, material, sens_sum_Fn: float, sens_diff_Fx: float, *,
+                      contact_ohm: float = 0.0, R_fixed: float = DIVIDER_OHM,
+                      V_s: float = SUPPLY_V, adc_bits: int = 16,
+                      adc_full_scale_V: float = SUPPLY_V, bandwidth_hz: float = BANDWIDTH_HZ,
+                      R_rest: float | None = None) -> dict[str, Any]:
+    """The electrical design of ``part``: resistance, divider, self-heating, noise and the
+    F_n / F_x resolution (mN) from the sum/difference sensitivities (V per N). ``R_rest``: the
+    gauge resistance at the worn operating point (default: unstrained)."""
+    Rg = gauge_resistance(part, contact_ohm)
+    R0 = Rg["total"]
+    R = R0 if R_rest is None else float(R_rest)
+    slope = float(divider_slope(R, R_fixed, V_s))
+    rf_opt = optimal_divider_resistor(R)
+    gain = R * slope                                      # V per unit dR/R
+    gain_opt = R * float(divider_slope(R, rf_opt, V_s))
+    heat = self_heating(part, R, R_fixed, V_s)
+    tcr = float(material.tcr)
+    # both gauges: the same self-heating -> sum channel only
+    dV_heat_sum = 2 * gain * tcr * heat["temperature_rise_K"]
+    dV_per_K_sum = 2 * gain * tcr
+    r_src = R * R_fixed / (R + R_fixed)
+    v_j = johnson_noise_vrms(r_src, bandwidth_hz, SKIN_T_K)
+    v_q = quantization_noise_vrms(adc_full_scale_V, adc_bits)
+    v_ch = math.hypot(v_j, v_q)
+    v_sd = math.sqrt(2.0) * v_ch                          # sum and difference of 2 channels
+    rho = effective_resistivity(contact_ohm)
+
+    def mN(v, s):
+        return float(1e3 * v / abs(s)) if s else None
+
+    return {
+        "resistance_ohm": Rg,
+        "resistance_at_rest_ohm": R,
+        "squares": part.trace_squares(),
+        "effective_resistivity_ohm_mm": rho,
+        "effective_resistivity_note": (
+            f"rho_eff = {rho:.3g} ohm*mm ({rho / 10:.3g} ohm*cm) back-calculated from seed 000's "
+            "'around 1.8 kOhm' between the pads on its gauge geometry (the default ArchStrap, "
+            "our estimate of the paper's meander), printed and annealed PI-ETPU along the "
+            f"raster, contacts {'lumped in' if contact_ohm == 0 else f'{contact_ohm:g} ohm each'}"
+            f"; Table I's '< 800 ohm*cm' ({material.resistivity:g} ohm*mm in the library) would "
+            f"give {sheet_resistance(material.resistivity, part.trace_thickness) * part.trace_squares()['total'] / 1e6:.3g} MOhm"
+            if material.resistivity else "rho_eff back-calculated from seed 000's 1.8 kOhm"),
+        "divider": {"R_fixed_ohm": R_fixed, "supply_V": V_s,
+                    "rest_voltage_V": float(V_s * R / (R + R_fixed)),
+                    "dV_dR_V_per_ohm": slope, "V_per_unit_dR_R": gain,
+                    "optimal_R_fixed_ohm": rf_opt,
+                    "gain_vs_optimum": float(gain / gain_opt),
+                    "source": "seed 000 Fig. 3: gauge + 2.2 kOhm on 5 V, voltage across the "
+                              "gauge"},
+        "self_heating": heat | {
+            "tcr_per_K": tcr,
+            "drift_dR_R": tcr * heat["temperature_rise_K"],
+            "F_n_equivalent_mN": mN(dV_heat_sum, sens_sum_Fn),
+            "F_n_equivalent_per_K_mN": mN(dV_per_K_sum, sens_sum_Fn),
+            "F_x_equivalent_mN": 0.0,
+            "note": "steady rise after switch-on (both gauges alike: in the sum, cancels in the "
+                    "difference); F_n_equivalent_per_K: a 1 K change of skin/ambient "
+                    "temperature read as normal force (seed 000 Sec. V-E)"},
+        "noise": {"bandwidth_hz": bandwidth_hz, "johnson_V_rms": v_j,
+                  "adc_bits": int(adc_bits), "adc_full_scale_V": adc_full_scale_V,
+                  "adc_quantisation_V_rms": v_q, "channel_V_rms": v_ch,
+                  "sum_or_diff_V_rms": v_sd,
+                  "adc_note": "ADC: our assumption (16 bit over the 5 V supply); the paper's "
+                              "TMSi Saga AUX-input noise is not given",
+                  "not_modelled": "1/f (excess) noise of the carbon-black composite: no data "
+                                  "for PI-ETPU"},
+        "resolution_mN": {"F_n": mN(v_sd, sens_sum_Fn), "F_x": mN(v_sd, sens_diff_Fx),
+                          "definition": "rms noise of the sum (difference) channel / its "
+                                        "sensitivity"},
+        "sensitivity_V_per_N": {"sum_F_n": sens_sum_Fn, "diff_F_x": sens_diff_Fx},
+    }
+
+
+def scale_sensitivity(sens: float, R0_old: float, R0_new: float, R_fixed: float) -> float:
+    """Sensitivity (V per N) of the same strain response read through a gauge of rest
+    resistance ``R0_new`` instead of ``R0_old`` (the divider gain R dV/dR changes only)."""
+    g_old = R0_old * float(divider_slope(R0_old, R_fixed))
+    g_new = R0_new * float(divider_slope(R0_new, R_fixed))
+    return float(sens * g_new / g_old)
+
+
+def trade_off(part, strain_per_N: dict[str, dict[str, float]], material, **kw) -> dict:
+    """Resistance, sensitivity and resolution of ``part`` from gauge strains per newton
+    (``{"Ch1": {"F_n": .., "F_x": ..}, "Ch2": ..}``) without a new FEM run: the sum/difference
+    sensitivities through this geometry's divider gain."""
+    R_fixed = kw.get("R_fixed", DIVIDER_OHM)
+    V_s = kw.get("V_s", SUPPLY_V)
+    R = gauge_resistance(part, kw.get("contact_ohm", 0.0))["total"]
+    gain = R * float(divider_slope(R, R_fixed, V_s)) * float(material.gauge_factor)
+    e = strain_per_N
+    s_sum = gain * (e["Ch1"]["F_n"] + e["Ch2"]["F_n"])
+    s_diff = gain * (e["Ch1"]["F_x"] - e["Ch2"]["F_x"])
+    rep = electrical_report(part, material, s_sum, s_diff, **kw)
+    return {"R_ohm": R, "sum_F_n_V_per_N": s_sum, "diff_F_x_V_per_N": s_diff,
+            "resolution_F_n_mN": rep["resolution_mN"]["F_n"],
+            "resolution_F_x_mN": rep["resolution_mN"]["F_x"],
+            "power_mW": rep["self_heating"]["power_mW"],
+            "temperature_rise_K": rep["self_heating"]["temperature_rise_K"],
+            "F_n_equivalent_per_K_mN": rep["self_heating"]["F_n_equivalent_per_K_mN"]}
+
+
+__all__ = ["PAPER_GAUGE_OHM", "effective_resistivity", "gauge_resistance", "electrical_report",
+           "self_heating", "trade_off", "scale_sensitivity"]
