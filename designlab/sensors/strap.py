@@ -35,6 +35,7 @@ protocol; with Prony series: the whole history through
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -88,9 +89,37 @@ class StrapModelSettings(FEMSettings):
                                         "(Winkler springs normal to the inner face), 0 = none"))
     read_fraction: float = field(default=0.2, metadata=rng(0, 1, lo_open=True,
                                  doc="end part of each staircase hold that is averaged"))
+    slot: int = field(default=0, metadata=rng(0, 6, doc="engaged slot (1 = nearest the strap "
+                      "end): the wrap's initial strain (strap_fit); 0 = stress-free wrap"))
+    wrap_length: float = field(default=0.0, metadata=rng(0, 300, unit="mm",
+                               doc="custom engaged length instead of a slot, 0 = none"))
+    contact_ohm: float = field(default=0.0, metadata=rng(0, 899, unit="ohm",
+                               doc="per pad; 0 = lumped into rho_eff (strap_electrical)"))
+    divider_ohm: float = field(default=2200.0, metadata=rng(10, 1e7, unit="ohm",
+                               doc="fixed divider resistor (seed 000 Fig. 3: 2.2 kOhm)"))
+    supply_V: float = field(default=5.0, metadata=rng(0.1, 48, unit="V",
+                            doc="divider supply (seed 000: 5 V)"))
+    adc_bits: int = field(default=16, metadata=rng(8, 32, doc="ADC resolution (assumed)"))
+    bandwidth_hz: float = field(default=10.0, metadata=rng(0.01, 1e4, unit="Hz",
+                                doc="readout bandwidth (seed 000: 10 Hz low-pass)"))
 
     def __post_init__(self):
+        for name in ("slot", "adc_bits"):
+            v = getattr(self, name)
+            if isinstance(v, float) and v.is_integer():
+                object.__setattr__(self, name, int(v))
+            elif not isinstance(v, int) or isinstance(v, bool):
+                raise ParameterError(name, v, "an integer")
         validate(self)
+        if self.slot and self.wrap_length:
+            raise ParameterError("wrap_length", self.wrap_length,
+                                 "0 when a slot is given (one or the other)")
+        if (self.slot or self.wrap_length) and self.configuration != "worn":
+            raise ParameterError("slot", self.slot, "0 in the flat configuration (no wrap)")
+
+    @property
+    def prestrained(self) -> bool:
+        return bool(self.slot or self.wrap_length)
 
 
 # ------------------------------------------------------------------------------------ geometry
@@ -239,8 +268,12 @@ def build_model(part, flat_mesh, settings: StrapModelSettings, materials=None):
             normals = np.tile([0.0, 0.0, 1.0], (len(ids), 1))
         for i, a, nv in zip(ids, area, normals):
             model.spring(f"tissue_{i}", a=int(i), k=settings.tissue_stiffness * a, axis=nv)
+    from designlab.sensors.strap_electrical import gauge_resistance
+
     d = centreline_direction(part, settings)
-    gauges = {ch: StrainGauge(model, gauge_cells(part, flat_mesh, reg), direction=d, name=ch)
+    R0 = gauge_resistance(part, settings.contact_ohm)["total"]
+    gauges = {ch: StrainGauge(model, gauge_cells(part, flat_mesh, reg), direction=d, name=ch,
+                              R0=R0, R_fixed=settings.divider_ohm, V_s=settings.supply_V)
               for ch, reg in zip(CHANNELS, GAUGE_REGIONS)}
     return model, gauges, frame
 
@@ -306,10 +339,42 @@ def run(part=None, protocol: StrapLoadTest | None = None,
     timings["solve"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    voltage = np.column_stack([gauges[c].voltage(strain[:, i]) for i, c in enumerate(CHANNELS)])
-    v0 = np.array([float(gauges[c].voltage(0.0)) for c in CHANNELS])
+    from designlab.sensors import strap_electrical as el
+    from designlab.sensors import strap_fit as sf
+
+    g1 = gauges[CHANNELS[0]]
+    trace_mat = model.region_materials[mesh.region_id(GAUGE_REGIONS[0])]
+    pre = None
+    eps0 = 0.0
+    if settings.prestrained:
+        say("prestrain")
+        pre = sf.prestrain_state(part, 2 * math.pi * settings.finger_radius, trace_mat, g1.R0,
+                                 settings.divider_ohm, slot=settings.slot or None,
+                                 length=settings.wrap_length or None)
+        if pre["initial_strain"] > 0:       # a slack strap reads stress-free
+            eps0 = pre["initial_strain"]
+            strain = strain * pre["mechanical_factor"]
+            if unit is not None:
+                unit = unit * pre["mechanical_factor"]
+    voltage = np.column_stack([gauges[c].voltage(eps0 + strain[:, i])
+                               for i, c in enumerate(CHANNELS)])
+    v0 = np.array([float(gauges[c].voltage(eps0)) for c in CHANNELS])
     dV = voltage - v0
     report = evaluate(protocol, settings, t, fn, fx, dV, strain)
+    sens = report["sensitivity"]["V_per_N"]
+    R_rest = float(g1.resistance(eps0))
+    report["electrical"] = el.electrical_report(
+        part, trace_mat, sens["sum"]["F_n"], sens["diff"]["F_x"],
+        contact_ohm=settings.contact_ohm, R_fixed=settings.divider_ohm, V_s=settings.supply_V,
+        adc_bits=settings.adc_bits, adc_full_scale_V=settings.supply_V,
+        bandwidth_hz=settings.bandwidth_hz, R_rest=R_rest)
+    report["prestrain"] = pre
+    if settings.configuration == "worn":
+        # the paper's slots on this finger, from this run's sensitivity without prestrain
+        f = pre["sensitivity_factor"] if pre and pre["initial_strain"] > 0 else 1.0
+        report["slots"] = sf.slot_table(part, 2 * math.pi * settings.finger_radius, trace_mat,
+                                        g1.R0, settings.divider_ohm, sens["sum"]["F_n"] / f,
+                                        sens["diff"]["F_x"] / f)
     timings["metrics"] = time.perf_counter() - t0
     report["timings_s"] = timings
     report["mesh"] = {"points": int(mesh.n_points), "cells": int(mesh.n_cells),
@@ -331,9 +396,18 @@ def run(part=None, protocol: StrapLoadTest | None = None,
         report["strain_per_N"] = {c: {"F_n": float(unit[i, 0]), "F_x": float(unit[i, 1])}
                                   for i, c in enumerate(CHANNELS)}
     report["viscoelastic"] = bool(viscous)
+    from designlab.fem.materials import stand_in_note
+
+    stand = sorted({n for m in model.region_materials.values()
+                    if (n := stand_in_note(m if viscous else
+                                           dataclasses.replace(m, stand_ins=tuple(
+                                               q for q in m.stand_ins if q != "prony"))))})
+    report["material_stand_ins"] = stand
+    report["notes"] = []
     if not viscous:
-        report["notes"] = ["materials have no Prony series: elastic response, hysteresis is "
-                           "0 by construction (not a measurement of the printed part)"]
+        report["notes"].append("materials have no Prony series: elastic response, hysteresis "
+                               "is 0 by construction (not a measurement of the printed part)")
+    report["notes"].extend(stand)
     return StrapPrediction(t, fn, fx, strain, voltage, dV, report, mesh, u_peak)
 
 

@@ -1,0 +1,346 @@
+"""The worn strap's initial strain and a strap sized to one finger (seed 000 Sec. V-E).
+
+**Wrap.** Worn, the strap runs around the fingertip and both tabs cross over the nail plate:
+each tab hooks its slot onto the lug on the *far* side of the plate (the arch, 44 mm, covers
+most of a 9 mm-radius finger and the two 14 mm tabs overlap on the nail: hooking the near lug
+would leave no tension at all). The centreline path between the two engaged slot centres is
+therefore the finger's perimeter at the strap's mid-plane plus the lug spacing, and the initial
+membrane strain is ``eps0 = path / L_engaged - 1`` with ``L_engaged`` the unstretched length
+between the engaged slots (:meth:`ArchStrap.engaged_length`). Friction on the skin and the
+nail plate's thickness are neglected; the finger is rigid here (the pulp's compression under
+the strap's tension lowers eps0: the pulp-as-solid model is not built yet, see docs/strap.md),
+so eps0 is an upper bound. The wrap's bending strain (t/2 / r at the faces) is zero on average
+over the gauges, which straddle the mid-plane.
+
+**What the prestrain changes in a linear model.** Superposition: the FEM's strain increments
+per newton do not depend on eps0. It enters through (1) the tangent stiffness of the TPU at
+eps0 (no measured curve of the printed TPU: an incompressible neo-Hookean law with E = 12 MPa
+is the labelled stand-in) and (2) the gauge's operating point: R(eps0) moves the divider's gain
+and dR/R = GF eps + c2 eps^2 has slope GF + 2 c2 eps0. Stress stiffening (geometric stiffness of
+the tension) is not included.
+
+**Finger.** Width (across the nail) and depth (nail to pulp) of the distal phalanx at the strap,
+its length; the section is an ellipse (Ramanujan's perimeter). The accepted ranges are the
+range the wrap model is built for (a cylinder-like fingertip from a small little finger to a
+large thumb), not anthropometric percentiles: no cited fingertip-breadth survey could be
+checked while this was written (docs/strap.md).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from designlab.errors import ParameterError
+from designlab.params import rng, validate
+
+#: accepted finger sizes (mm): the wrap model's range (see the module docstring)
+WIDTH_RANGE = (10.0, 26.0)
+DEPTH_RANGE = (8.0, 24.0)
+LENGTH_RANGE = (15.0, 45.0)
+#: reference finger: the strap model's default finger radius, 9 mm ("index: ~9",
+#: StrapModelSettings.finger_radius), as a circle
+REFERENCE_RADIUS = 9.0
+#: the paper's medium slot (seed 000 Fig. 2: three slots; the middle one)
+MEDIUM_SLOT = 2
+#: nonlinear analysis is called for when the neo-Hookean stress at eps0 differs from the
+#: linear one by more than this (relative)
+NONLINEAR_THRESHOLD = 0.05
+
+
+@dataclass(frozen=True)
+class Finger:
+    """Distal phalanx at the strap position (mm)."""
+
+    width: float = field(metadata=rng(*WIDTH_RANGE, unit="mm",
+                                      doc="across the nail (wrap model range)"))
+    depth: float = field(metadata=rng(*DEPTH_RANGE, unit="mm", doc="nail to pulp"))
+    length: float = field(default=25.0, metadata=rng(*LENGTH_RANGE, unit="mm",
+                                                     doc="distal phalanx, tip to DIP crease"))
+
+    def __post_init__(self):
+        validate(self)
+        if not 0.55 <= self.depth / self.width <= 1.25:
+            raise ParameterError("depth", self.depth,
+                                 f"{0.55 * self.width:.3g} <= value <= {1.25 * self.width:.3g} "
+                                 "mm (0.55-1.25 x width: a fingertip-like section)")
+
+    @property
+    def perimeter(self) -> float:
+        return ellipse_perimeter(self.width / 2, self.depth / 2)
+
+    @property
+    def equivalent_radius(self) -> float:
+        """Radius of the circle with the same perimeter (the FEM's cone wraps a circle)."""
+        return self.perimeter / (2 * math.pi)
+
+
+def parse_finger(text: str) -> Finger:
+    """``"WIDTH,DEPTH,LENGTH"`` (mm) -> Finger; one-line error otherwise."""
+    try:
+        vals = [float(v) for v in text.split(",")]
+    except ValueError:
+        raise ParameterError("--finger", text, "WIDTH,DEPTH,LENGTH in mm, e.g. 16,14,25") from None
+    if len(vals) != 3:
+        raise ParameterError("--finger", text, "three numbers WIDTH,DEPTH,LENGTH in mm")
+    return Finger(*vals)
+
+
+def ellipse_perimeter(a: float, b: float) -> float:
+    """Perimeter of an ellipse with semi-axes a, b (Ramanujan's second approximation)."""
+    h = ((a - b) / (a + b)) ** 2
+    return math.pi * (a + b) * (1 + 3 * h / (10 + math.sqrt(4 - 3 * h)))
+
+
+def wrap_path(part, perimeter: float) -> float:
+    """Centreline path between the engaged slot centres on a finger of ``perimeter`` (mm,
+    at the skin): the mid-plane perimeter (+ pi t) plus the lug spacing (tabs cross over)."""
+    return perimeter + math.pi * part.thickness + part.lug_spacing
+
+
+def initial_strain(part, perimeter: float, slot: int | None = None,
+                   length: float | None = None) -> float:
+    """Initial membrane strain of the worn strap (rigid finger): engaged slot ``slot``
+    (1 = nearest the strap end) or a custom engaged ``length`` (mm)."""
+    L = part.engaged_length(slot) if length is None else float(length)
+    if not L > 0:
+        raise ParameterError("wrap_length", length, "> 0 mm")
+    return wrap_path(part, perimeter) / L - 1.0
+
+
+def neo_hooke(eps0: float) -> dict[str, float]:
+    """Incompressible neo-Hookean uniaxial response at nominal strain eps0 (stand-in for the
+    printed TPU's unmeasured curve): stress and tangent relative to the linear law."""
+    lam = 1.0 + eps0
+    stress = (lam - lam ** -2) / 3.0                     # / E (E = 3 mu)
+    tangent = (1.0 + 2.0 * lam ** -3) / 3.0              # / E
+    lin = eps0 if eps0 else 1.0
+    return {"stress_over_linear": stress / lin if eps0 else 1.0,
+            "tangent_over_E": tangent,
+            "nonlinear_needed": bool(abs(stress / lin - 1.0) > NONLINEAR_THRESHOLD) if eps0
+            else False}
+
+
+def operating_point(eps0: float, R0: float, gauge_factor: float, gauge_quadratic: float,
+                    R_fixed: float) -> dict[str, float]:
+    """Gauge resistance at eps0 and the divider's voltage per unit strain there relative to
+    the unstrained gauge."""
+    from designlab.fem.transducers import divider_slope
+
+    R = R0 * (1.0 + gauge_factor * eps0 + gauge_quadratic * eps0 ** 2)
+    d = R0 * (gauge_factor + 2 * gauge_quadratic * eps0) * float(divider_slope(R, R_fixed))
+    d0 = R0 * gauge_factor * float(divider_slope(R0, R_fixed))
+    return {"R_ohm": R, "electrical_factor": d / d0}
+
+
+def prestrain_state(part, perimeter: float, material, R0: float, R_fixed: float, *,
+                    slot: int | None = None, length: float | None = None) -> dict[str, Any]:
+    """Initial strain, its checks and the factors it puts on the linear sensitivity."""
+    eps0 = initial_strain(part, perimeter, slot, length)
+    if material.max_elongation is not None and eps0 >= material.max_elongation:
+        raise ParameterError("initial strain", round(eps0, 4),
+                             f"< {material.max_elongation:g} ({material.name} elongation at "
+                             "break, seed 000 Table I)")
+    nh = neo_hooke(max(eps0, 0.0))
+    op = operating_point(max(eps0, 0.0), R0, material.gauge_factor, material.gauge_quadratic,
+                         R_fixed)
+    mech = 1.0 / nh["tangent_over_E"]
+    r = perimeter / (2 * math.pi)
+    return {"slot": slot, "engaged_length_mm": part.engaged_length(slot) if length is None
+            else float(length),
+            "path_mm": wrap_path(part, perimeter), "finger_perimeter_mm": perimeter,
+            "initial_strain": eps0, "slack": bool(eps0 < 0),
+            "wrap_bending_strain_faces": part.thickness / 2 / r,
+            "neo_hooke_stress_over_linear": nh["stress_over_linear"],
+            "geometrically_nonlinear_needed": nh["nonlinear_needed"],
+            "mechanical_factor": mech, "electrical_factor": op["electrical_factor"],
+            "sensitivity_factor": mech * op["electrical_factor"],
+            "R_rest_ohm": op["R_ohm"],
+            "notes": ["rigid finger: an upper bound on eps0 (the pulp compresses under the "
+                      "tension; pulp-as-solid model not built)",
+                      "mechanical_factor = E / tangent of an incompressible neo-Hookean law at "
+                      "eps0: a stand-in for the printed TPU's unmeasured stress-strain curve",
+                      "a slack strap (eps0 < 0) reads with the stress-free factors"]}
+
+
+def slot_table(part, perimeter: float, material, R0: float, R_fixed: float,
+               sens_sum_Fn: float, sens_diff_Fx: float) -> dict[str, Any]:
+    """The paper's slots on one finger: eps0, sensitivities and their spread."""
+    rows = []
+    for k in range(1, part.slot_count + 1):
+        s = prestrain_state(part, perimeter, material, R0, R_fixed, slot=k)
+        rows.append({"slot": k, "initial_strain": s["initial_strain"],
+                     "sensitivity_factor": s["sensitivity_factor"],
+                     "sum_F_n_V_per_N": sens_sum_Fn * s["sensitivity_factor"],
+                     "diff_F_x_V_per_N": sens_diff_Fx * s["sensitivity_factor"],
+                     "geometrically_nonlinear_needed": s["geometrically_nonlinear_needed"]})
+    S = np.array([r["sum_F_n_V_per_N"] for r in rows])
+    return {"finger_perimeter_mm": perimeter, "slots": rows,
+            "sum_sensitivity_spread_percent": float(100 * (S.max() - S.min()) / abs(S.mean())),
+            "definition": "spread = (max - min) / mean over the slots; the stress-free FEM's "
+                          "sensitivity times each slot's prestrain factor"}
+
+
+# ------------------------------------------------------------------------- personalised strap
+
+def fit_part(finger: Finger, target_strain: float, slots: int = 1, base=None):
+    """An ArchStrap whose middle slot gives ``target_strain`` on ``finger`` (rigid finger).
+
+    The tab keeps the paper's medium-slot distance from the arch foot (7.7 mm on the default
+    strap); the arch (width, height, gauge offset, pad contact) is scaled so that arch + two
+    tabs has the engaged length path / (1 + target). ``slots`` = 1 (no adjustment) or an odd
+    number of slots at the minimum pitch (slot width + 0.8 mm web) centred on the target."""
+    from designlab.geometry.strap import ArchStrap
+
+    base = base or ArchStrap()
+    if slots not in (1, 3, 5):
+        raise ParameterError("--slots", slots, "1, 3 or 5")
+    pitch = base.slot_width + 0.8
+    d0 = float(base.slot_distances()[MEDIUM_SLOT - 1])
+    m = (slots - 1) // 2                                    # target = the middle slot
+    L = wrap_path(base, finger.perimeter) / (1.0 + target_strain)
+    f = (L - 2 * d0) / base.arc_length
+    tab = d0 + base.slot_end_margin + base.slot_width / 2 + m * pitch
+    kw = dict(arch_width=base.arch_width * f, arch_height=base.arch_height * f,
+              gauge_offset=base.gauge_offset * f, contact_length=base.contact_length * f,
+              tab_length=tab, slot_count=slots, slot_pitch=pitch if slots > 1 else
+              base.slot_pitch)
+    try:
+        part = dataclasses.replace(base, **{k: round(v, 3) if isinstance(v, float) else v
+                                            for k, v in kw.items()})
+    except ParameterError as exc:
+        raise ParameterError("--finger", f"{finger.width:g},{finger.depth:g},{finger.length:g}",
+                             f"a finger this strap family fits at strain {target_strain:.3g} "
+                             f"(arch scale {f:.3g} violates {exc.name}: {exc.allowed})") from None
+    if finger.length < part.strap_width + 2:
+        raise ParameterError("--finger", f"length={finger.length:g}",
+                             f">= {part.strap_width + 2:g} mm (strap width + 2 mm)")
+    return part
+
+
+def default_target(base=None) -> float:
+    """The paper's medium-slot initial strain on the reference finger (rigid finger)."""
+    from designlab.geometry.strap import ArchStrap
+
+    base = base or ArchStrap()
+    return initial_strain(base, 2 * math.pi * REFERENCE_RADIUS, slot=MEDIUM_SLOT)
+
+
+def check_target(target: float, material, base=None) -> None:
+    """Target strain within (0, elongation at break) and the paper slots' range of strains on
+    the accepted fingers."""
+    from designlab.geometry.strap import ArchStrap
+
+    base = base or ArchStrap()
+    hi = material.max_elongation if material.max_elongation is not None else 1.0
+    if not 0 < target < hi:
+        raise ParameterError("--target-strain", target,
+                             f"0 < value < {hi:g} ({material.name} elongation at break)")
+    p_lo = ellipse_perimeter(WIDTH_RANGE[0] / 2, max(DEPTH_RANGE[0], 0.55 * WIDTH_RANGE[0]) / 2)
+    p_hi = ellipse_perimeter(WIDTH_RANGE[1] / 2, min(DEPTH_RANGE[1], 1.25 * WIDTH_RANGE[1]) / 2)
+    lo = max(0.0, initial_strain(base, p_lo, slot=1))
+    top = initial_strain(base, p_hi, slot=base.slot_count)
+    if target > top:
+        raise ParameterError("--target-strain", target,
+                             f"{lo:.3g} < value <= {top:.3g} (the paper slots' strains over the "
+                             "accepted fingers)")
+
+
+def size_table(perimeters, material, R0: float, R_fixed: float, sens_sum_Fn: float,
+               target: float, measurement_sd_mm: float = 0.5) -> dict[str, Any]:
+    """Initial strain and sum sensitivity over finger perimeters: the paper's three slots (the
+    best slot per finger, i.e. the one closest to the target) vs one personalised strap per
+    finger. The personalised strap's strain error comes from the finger measurement:
+    ``measurement_sd_mm`` per caliper reading of width and depth (our assumption for soft
+    tissue), propagated to the perimeter."""
+    from designlab.geometry.strap import ArchStrap
+
+    base = ArchStrap()
+    rows = []
+    for P in perimeters:
+        eps = [initial_strain(base, P, slot=k) for k in range(1, base.slot_count + 1)]
+        k = int(np.argmin([abs(e - target) for e in eps]))
+        st = prestrain_state(base, P, material, R0, R_fixed, slot=k + 1) if eps[k] >= 0 \
+            else None
+        # personalised: eps = path / L - 1 with L fitted to the *measured* P;
+        # d eps / dP = 1 / L, sd_P ~ pi / sqrt(2) * sd(width) for an ellipse near a circle
+        L = wrap_path(base, P) / (1 + target)
+        sd_eps = math.pi / math.sqrt(2) * measurement_sd_mm / L
+        fp = prestrain_state(base, P, material, R0, R_fixed, length=L)
+        rows.append({"perimeter_mm": float(P), "slot_strains": eps, "best_slot": k + 1,
+                     "best_slot_strain": eps[k],
+                     "best_slot_sum_F_n_V_per_N": sens_sum_Fn * st["sensitivity_factor"]
+                     if st else None,
+                     "personalised_strain": target, "personalised_strain_sd": sd_eps,
+                     "personalised_sum_F_n_V_per_N": sens_sum_Fn * fp["sensitivity_factor"]})
+
+    def spread(v):
+        v = np.array([x for x in v if x is not None], float)
+        return float(100 * np.std(v) / abs(np.mean(v))) if len(v) else None
+
+    slot_eps = [r["best_slot_strain"] for r in rows]
+    return {"rows": rows, "target_strain": target,
+            "slots_strain_spread_percent_of_mean": spread(slot_eps),
+            "personalised_strain_spread_percent_of_mean":
+                float(100 * max(r["personalised_strain_sd"] for r in rows) / target),
+            "slots_sum_sensitivity_spread_percent":
+                spread([r["best_slot_sum_F_n_V_per_N"] for r in rows]),
+            "personalised_sum_sensitivity_spread_percent":
+                spread([r["personalised_sum_F_n_V_per_N"] for r in rows]),
+            "definition": "spread = standard deviation / mean over the perimeters (slots: the "
+                          "slot closest to the target per finger; personalised: the strain sd "
+                          "from the finger measurement error)",
+            "population": "a uniform grid of perimeters over the accepted finger range, NOT "
+                          "anthropometric percentiles (no checked source, docs/strap.md)"}
+
+
+# ------------------------------------------------------------------------------ finger scans
+
+def finger_from_scan(path, strap_position: float | None = None) -> Finger:
+    """Width, depth and length of a fingertip from a closed surface (STL): its long axis by
+    PCA, the tip as the end where the sections shrink, the section at ``strap_position`` mm
+    from the tip (default: 40 % of the length, the pulp under the strap) fitted with its
+    principal extents (width = larger)."""
+    import trimesh
+
+    try:
+        mesh = trimesh.load_mesh(str(path), force="mesh")
+    except (ValueError, OSError) as exc:
+        raise ParameterError("--scan", str(path), f"a readable STL ({exc})") from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) < 20:
+        raise ParameterError("--scan", str(path), "a triangle surface with >= 20 faces")
+    if not mesh.is_watertight:
+        raise ParameterError("--scan", str(path), "a closed (watertight) surface")
+    v = mesh.vertices - mesh.vertices.mean(0)
+    _, _, Vt = np.linalg.svd(v, full_matrices=False)
+    axis = Vt[0]
+    s = v @ axis
+    length = float(s.max() - s.min())
+    # the tip: the end whose last 15 % has the smaller cross extent
+    cross = np.linalg.norm(v - np.outer(s, axis), axis=1)
+    lo = cross[s < s.min() + 0.15 * length].max()
+    hi = cross[s > s.max() - 0.15 * length].max()
+    if hi < lo:
+        axis, s = -axis, -s
+    tip = float(s.min())
+    pos = 0.4 * length if strap_position is None else float(strap_position)
+    if not 0 < pos < length:
+        raise ParameterError("strap_position", pos, f"0 < value < {length:.3g} mm")
+    sec = mesh.section(plane_origin=mesh.vertices.mean(0) + (tip + pos) * axis,
+                       plane_normal=axis)
+    if sec is None:
+        raise ParameterError("--scan", str(path), "a surface cut by the plane at the strap")
+    pts = np.asarray(sec.vertices) - np.asarray(sec.vertices).mean(0)
+    pts = pts - np.outer(pts @ axis, axis)
+    _, sv, W = np.linalg.svd(pts, full_matrices=False)
+    ext = [float(np.ptp(pts @ W[i])) for i in range(2)]
+    width, depth = max(ext), min(ext)
+    if not 1.2 <= length / width <= 6:
+        raise ParameterError("--scan", str(path),
+                             f"a fingertip-like shape (length / width = {length / width:.2g}; "
+                             "allowed 1.2-6)")
+    return Finger(round(width, 2), round(depth, 2), round(min(length, LENGTH_RANGE[1]), 2))
