@@ -87,8 +87,8 @@ def _sweep_callback(bar: Bar):
     def callback(done: int, total: int | None, row: dict) -> None:
         bar(completed=done, **({"total": total} if total is not None else {}))
         if row.get("status") == "error":
-            bar.print(f"[yellow]design {row['key'][:8]} failed:[/] {row['error']}",
-                      highlight=False)
+            bar.print(_plain(("design " + row["key"][:8] + " failed:", "yellow"), " ",
+                             _one_line(row["error"])), highlight=False)
 
     return callback
 
@@ -152,7 +152,7 @@ def sweep(config: Path = typer.Argument(..., help="Sweep config (TOML): part, pa
     write_report(out, res.rows, cfg, res.pareto_keys, res.best_key, title=f"designlab sweep: {config.name}")
     _summary_table(res.rows, cfg, res.pareto_keys, res.best_key)
     console.print(f"{res.new} evaluated, {res.reused} from the store, {res.failed} failed -> "
-                  f"{res.table_path}, {out / 'report.html'}")
+                  f"{res.table_path}, {out / 'report.html'}", markup=False, highlight=False)
 
 
 @app.command()
@@ -190,7 +190,7 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
                "surrogate": res.surrogate, "files": [str(f) for f in files]}
     atomic_write_json(out / "optimize.json", summary)
     console.print(f"chosen ({res.method}): " + ", ".join(f"{k}={v:.4g}" for k, v in res.chosen_params.items()))
-    console.print(f"exported {len(files)} files to {design_dir}")
+    console.print(f"exported {len(files)} files to {design_dir}", markup=False, highlight=False)
 
 
 @app.command()
@@ -242,7 +242,7 @@ def flexure(preset: str = typer.Option("visiflex", "--preset",
         console.print(f"[bold]note:[/] {note}", highlight=False)
     if json_out is not None:
         fr.write_json(json_out, report)
-        console.print(f"wrote {json_out}")
+        console.print(f"wrote {json_out}", markup=False, highlight=False)
 
 
 def _parts_from_cli(part: str, set_: Optional[List[str]], config: Optional[Path]):
@@ -289,7 +289,7 @@ def export(part: str = typer.Argument(..., help="strap | fingertip | flexure | a
             raise
     console.print(reports_table(res.reports))
     for f in res.files:
-        console.print(f"wrote {f}", highlight=False)
+        console.print(f"wrote {f}", highlight=False, markup=False)
 
 
 @app.command()
@@ -313,7 +313,7 @@ def show(part: str = typer.Argument(..., help="strap | fingertip | flexure", aut
             raise ParameterError(name, v, "64 <= value <= 8000 px")
     (name, obj), = _parts_from_cli(part, set_, config).items()
     path = write_png(obj.build(), out, title=name, size=(width, height))
-    console.print(f"wrote {path}", highlight=False)
+    console.print(f"wrote {path}", highlight=False, markup=False)
 
 
 def _names(values: Optional[List[str]]) -> list[str]:
@@ -391,7 +391,7 @@ def compensate(model: Optional[List[str]] = typer.Option(
                           f"{w['rmse']['p_value']:.3g}, p(NCC) = {w['ncc']['p_value']:.3g} "
                           f"({segments} segments)", highlight=False)
     for path in comp.write_outputs(result, train_recs + val_recs, out):
-        console.print(f"wrote {path}")
+        console.print(f"wrote {path}", markup=False, highlight=False)
 
 
 @app.command("loop")
@@ -426,7 +426,7 @@ def loop_cmd(
         result = run_loop(ds, start, outputs=output or None, folds=folds,
                           max_effects=max_effects, n_se=n_se, min_relative=min_relative,
                           progress=step)
-    table = Table(title=f"loop on {data.name}: validation RMSE (base {result.report['base']})")
+    table = Table(title=escape(f"loop on {data.name}: validation RMSE (base {result.report['base']})"))
     for col in ("output", "effect", "parameters", "before", "after"):
         table.add_column(col, justify="right" if col in ("before", "after") else "left")
     for o, rep in result.report["outputs"].items():
@@ -443,7 +443,7 @@ def loop_cmd(
     for o, rep in result.report["outputs"].items():
         console.print(f"{o}: {rep['verdict']}", highlight=False, markup=False)
     for path in write_outputs(result, out):
-        console.print(f"wrote {path}", highlight=False)
+        console.print(f"wrote {path}", highlight=False, markup=False)
 
 
 def _short(v) -> str:
@@ -493,13 +493,15 @@ def verify(reference: Optional[str] = typer.Option(None, "--reference",
     console.print(table)
     path = write_report(results, out / "verify.json")
     failed = [c for c in results if not c["passed"]]
-    console.print(f"{len(results) - len(failed)}/{len(results)} passed -> {path}")
+    console.print(f"{len(results) - len(failed)}/{len(results)} passed -> {path}", markup=False)
     if failed:
         raise SystemExit(1)  # (main() drops typer.Exit codes under standalone_mode=False)
 
 
 @app.command("mesh")
-def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure", autocompletion=_sensor_names),
+def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure, or a closed "
+                                                  "surface FILE.stl (a scan, a part from elsewhere)",
+                                         autocompletion=_sensor_names),
              out: Path = typer.Option(..., "--out", help="Output directory (mesh.vtu, mesh.json)."),
              set_: Optional[List[str]] = typer.Option(None, "--set", metavar="NAME=VALUE",
                                                       help="Override a part parameter (mm)."),
@@ -510,22 +512,37 @@ def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure",
              quality: str = typer.Option("default", "--quality",
                                          help="coarse | default | fine (edge length x2/x1/x0.7)."),
              refine: bool = typer.Option(True, "--refine/--no-refine",
-                                         help="Use the part's local refinement spheres.")):
-    """Tetrahedral mesh of a part's FEM bodies (fTetWild): writes mesh.vtu and mesh.json."""
+                                         help="Use the part's local refinement spheres."),
+             mesher: str = typer.Option("auto", "--mesher",
+                                        help="auto (gmsh from the B-rep, fTetWild if it fails) | "
+                                             "gmsh | tetwild.")):
+    """Tetrahedral mesh of a part's FEM bodies (gmsh from the B-rep; fTetWild for an STL):
+    writes mesh.vtu and mesh.json."""
     from rich.table import Table
 
+    from designlab.errors import ParameterError
     from designlab.geometry.parts import make_part
-    from designlab.mesh.meshing import mesh_part_detailed, save_mesh
+    from designlab.mesh.meshing import mesh_part_detailed, mesh_stl, save_mesh
     from designlab.params import load_toml, parse_sets
 
-    obj = make_part(part, parse_sets(set_), load_toml(config) if config is not None else None)
-    with progress_bar(f"meshing {part} (fTetWild)"):
-        res = mesh_part_detailed(obj, refine=refine, order=order, edge_length=edge_length,
-                                 quality=quality)
-        vtu, js = save_mesh(res, out)
+    if part.lower().endswith(".stl"):
+        if set_ or config is not None:
+            raise ParameterError("--set/--config", part, "none with an STL (it has no parameters)")
+        if not Path(part).is_file():
+            raise ParameterError("part", part, "an existing STL file or one of the parts")
+        with progress_bar(f"meshing {Path(part).name} (fTetWild)"):
+            res = mesh_stl(part, edge_length=edge_length, order=order, quality=quality)
+            vtu, js = save_mesh(res, out)
+    else:
+        obj = make_part(part, parse_sets(set_), load_toml(config) if config is not None else None)
+        with progress_bar(f"meshing {part}"):
+            res = mesh_part_detailed(obj, refine=refine, order=order, edge_length=edge_length,
+                                     quality=quality, mesher=mesher)
+            vtu, js = save_mesh(res, out)
     rep = res.report()
     table = Table(title=f"{part}: {rep['n_cells']} TET{4 if order == 1 else 10} cells, "
-                        f"{rep['n_points']} nodes, {rep['dof']} DOF, {rep['seconds']:.1f} s")
+                        f"{rep['n_points']} nodes, {rep['dof']} DOF, {rep['seconds']:.1f} s "
+                        f"({rep['mesher']})")
     for col in ("region", "material", "cells", "volume mm^3", "body mm^3", "error %"):
         table.add_column(col, justify="left" if col in ("region", "material") else "right")
     for name, r in rep["regions"].items():
@@ -539,7 +556,7 @@ def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure",
                   f"{q['n_poor']} poor cells", highlight=False)
     console.print("facet sets: " + ", ".join(f"{k} ({v})" for k, v in rep["facet_sets"].items()),
                   highlight=False)
-    console.print(f"wrote {vtu}\nwrote {js}", highlight=False)
+    console.print(f"wrote {vtu}\nwrote {js}", highlight=False, markup=False)
 
 
 @app.command()
@@ -590,33 +607,153 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
     if pred.get("paper_comparison"):
         console.print(pred["paper_comparison"]["explanation"], highlight=False)
     for w in prediction.warnings:
-        err_console.print(f"[yellow]warning:[/] {w}", highlight=False)
-    console.print(f"wrote {len(files)} files to {out}")
+        err_console.print(_plain(("warning:", "yellow"), " ", w), highlight=False)
+    console.print(f"wrote {len(files)} files to {out}", markup=False, highlight=False)
+
+
+@app.command("fit-strap")
+def fit_strap(finger: Optional[str] = typer.Option(None, "--finger", metavar="WIDTH,DEPTH,LENGTH",
+                                                   help="Distal phalanx at the strap, mm."),
+              scan: Optional[Path] = typer.Option(None, "--scan", help="Fingertip surface (closed STL)."),
+              target_strain: Optional[float] = typer.Option(None, "--target-strain",
+                                                            help="Initial strain (default: the paper's medium slot on the reference finger)."),
+              slots: int = typer.Option(1, "--slots", help="1 (no adjustment), 3 or 5 fine slots."),
+              out: Path = typer.Option(..., "--out", help="Output directory (fit.json, strap/strap.3mf).")):
+    """A strap sized to one finger: parameters for a target initial strain, its predicted
+    sensitivity and resolution, the size table vs the paper's three slots, the printable 3MF."""
+    from rich.table import Table
+
+    from designlab.errors import ParameterError
+    from designlab.sensors import strap_fit as sf
+
+    if (finger is None) == (scan is None):
+        raise ParameterError("--finger/--scan", finger or scan, "exactly one of the two")
+    fg = sf.parse_finger(finger) if finger is not None else sf.finger_from_scan(scan)
+    with progress_bar("fit-strap") as bar:
+        res = sf.fit_strap(fg, out, target_strain=target_strain, slots=slots,
+                           progress=lambda s: bar(f"fit-strap: {s}"))
+    t = Table(title=f"strap for finger {fg.width:g} x {fg.depth:g} x {fg.length:g} mm "
+                    f"(perimeter {fg.perimeter:.1f} mm)")
+    t.add_column("quantity")
+    t.add_column("value", justify="right")
+    p, pre, el = res["strap_parameters"], res["prestrain"], res["electrical"]
+    t.add_row("arch width x height (mm)", f"{p['arch_width']:.4g} x {p['arch_height']:.4g}")
+    t.add_row("tab length (mm), slots", f"{p['tab_length']:.4g}, {p['slot_count']}")
+    t.add_row("initial strain (target)", f"{pre['initial_strain']:.4g} ({res['target_initial_strain']:.4g})")
+    t.add_row("gauge resistance (ohm)", f"{el['resistance_ohm']['total']:.4g}")
+    t.add_row("sum F_n sensitivity (mV/N)", f"{1e3 * res['sensitivity_V_per_N']['sum_F_n']:.4g}")
+    t.add_row("diff F_x sensitivity (mV/N)", f"{1e3 * res['sensitivity_V_per_N']['diff_F_x']:.4g}")
+    t.add_row("resolution F_n / F_x (mN)", f"{res['resolution_mN']['F_n']:.3g} / {res['resolution_mN']['F_x']:.3g}")
+    sl = res["paper_slots_on_this_finger"]
+    t.add_row("paper slots: strains", ", ".join(f"{r['initial_strain']:.3g}" for r in sl["slots"]))
+    t.add_row("paper slots: sum sensitivity spread %", f"{sl['sum_sensitivity_spread_percent']:.3g}")
+    st = res["size_table"]
+    t.add_row("size grid: strain spread % (slots / personalised)",
+              f"{st['slots_strain_spread_percent_of_mean']:.3g} / {st['personalised_strain_spread_percent_of_mean']:.3g}")
+    t.add_row("time (s)", f"{res['timings_s']['total']:.1f}")
+    console.print(t)
+    for note in res["material_stand_ins"]:
+        console.print(f"[bold]note:[/] {note}", highlight=False)
+    for f in res["files"]:
+        console.print(f"wrote {f}", highlight=False)
 
 
 # --- commands (each helper inserts its command above this line) ---
 
 
+def _plain(*parts):
+    """A rich ``Text`` of literal pieces (``str`` or ``(str, style)``): user text such as
+    ``[time]`` or ``[/bold]`` is printed as it is, never read as markup."""
+    from rich.text import Text
+
+    return Text.assemble(*parts)
+
+
+def _one_line(text: object, limit: int = 2000) -> str:
+    """``text`` on one line (newlines and control characters as spaces), at most ``limit``
+    characters."""
+    s = "".join(c if c.isprintable() else " " for c in str(text).replace("\r\n", "\n")).strip()
+    return s if len(s) <= limit else s[:limit - 3] + "..."
+
+
+def _log_dir() -> Path:
+    """Where tracebacks of unexpected errors go: ``$DESIGNLAB_LOG_DIR``, else
+    ``$XDG_STATE_HOME/designlab`` (``~/.local/state/designlab``), else the temp directory."""
+    import os
+    import tempfile
+
+    env = os.environ.get("DESIGNLAB_LOG_DIR")
+    state = os.environ.get("XDG_STATE_HOME") or str(Path.home() / ".local" / "state")
+    for d in ([Path(env)] if env else []) + [Path(state) / "designlab",
+                                             Path(tempfile.gettempdir()) / "designlab-logs"]:
+        try:
+            d.mkdir(parents=True, exist_ok=True)
+            if os.access(d, os.W_OK):
+                return d
+        except OSError:
+            continue
+    return Path(tempfile.gettempdir())
+
+
+def _write_log(argv: Optional[List[str]]) -> Optional[Path]:
+    """The current exception's traceback (and the command line) in a new log file."""
+    import datetime
+    import os
+    import traceback
+
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    try:
+        path = _log_dir() / f"designlab-{stamp}-{os.getpid()}.log"
+        with open(path, "w", encoding="utf-8", errors="replace") as fh:
+            fh.write(f"designlab {__version__}\nargv: {list(sys.argv if argv is None else argv)!r}\n\n")
+            fh.write(traceback.format_exc())
+        return path
+    except OSError:
+        return None
+
+
+def _error(exc: BaseException, prefix: str = "error:") -> None:
+    err_console.print(_plain((prefix, "bold red"), " ", _one_line(exc)), highlight=False,
+                      soft_wrap=True)
+
+
 def main(argv: Optional[List[str]] = None) -> None:
-    """Console-script entry point: run the app, map user errors to one line + exit 2."""
+    """Console-script entry point: run the app; a user error (:class:`DesignlabError`, a bad
+    option) is one line + exit 2; anything else one line naming a log file with the
+    traceback + exit 1; Ctrl-C exit 130. Messages are printed literally (no rich markup)."""
+    import click
+
     try:
         rc = app(args=argv, standalone_mode=False)
         if isinstance(rc, int) and rc:
             sys.exit(rc)
     except DesignlabError as exc:
-        err_console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
+        _error(exc)
         sys.exit(2)
     except typer.Exit as exc:
         sys.exit(exc.exit_code)
-    except typer.Abort:
-        err_console.print("aborted")
+    except (typer.Abort, KeyboardInterrupt):
+        err_console.print("interrupted")
         sys.exit(130)
-    except Exception as exc:
-        # usage errors of typer's command parser (missing command, bad option...)
-        if hasattr(exc, "show") and hasattr(exc, "exit_code"):
-            exc.show()
-            sys.exit(exc.exit_code or 2)
+    except click.ClickException as exc:  # usage errors of the command parser (bad option...)
+        exc.show()
+        sys.exit(exc.exit_code or 2)
+    except SystemExit:
         raise
+    except BrokenPipeError:  # output piped into a reader that quit (head, less)
+        sys.exit(1)
+    except RecursionError as exc:
+        _error(f"input nested too deeply ({type(exc).__name__})")
+        sys.exit(2)
+    except MemoryError:
+        log = _write_log(argv)
+        _error(f"out of memory; use smaller inputs (details in {log})")
+        sys.exit(1)
+    except Exception as exc:
+        log = _write_log(argv)
+        where = f"; traceback in {log}" if log else ""
+        _error(f"internal error {type(exc).__name__}: {_one_line(exc, 300)}{where}")
+        sys.exit(1)
 
 
 if __name__ == "__main__":

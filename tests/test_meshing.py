@@ -192,7 +192,7 @@ def test_fTetWild_failure_retries_then_one_line_error(monkeypatch):
 
     monkeypatch.setattr(meshing, "_tetwild", broken)
     with pytest.raises(MeshingError) as err:
-        mesh_bodies(_bodies(), edge_length=0.6)
+        mesh_bodies(_bodies(), edge_length=0.6, mesher="tetwild")
     msg = str(err.value)
     assert "\n" not in msg and "strap, trace" in msg and "simulated fTetWild crash" in msg
     assert len(calls) == 3
@@ -206,7 +206,7 @@ def test_lost_thin_body_is_detected(monkeypatch):
     monkeypatch.setattr(meshing, "tag_regions",
                         lambda points, cells, surfaces, host, pad: np.full(len(cells), host))
     with pytest.raises(MeshingError, match="'trace' meshed to 0 mm\\^3 instead of"):
-        mesh_bodies(_bodies(), edge_length=1.0, order=1)
+        mesh_bodies(_bodies(), edge_length=1.0, order=1, mesher="tetwild")
 
 
 def test_fTetWild_abort_is_contained(monkeypatch):
@@ -216,7 +216,7 @@ def test_fTetWild_abort_is_contained(monkeypatch):
     monkeypatch.setattr(meshing, "_attempts", lambda h, eps, e: [(h, eps, e)])
     monkeypatch.setattr(meshing, "_tetwild_call", lambda *a: os.abort())
     with pytest.raises(MeshingError, match="crashed"):
-        mesh_bodies(_bodies(), edge_length=1.0, order=1)
+        mesh_bodies(_bodies(), edge_length=1.0, order=1, mesher="tetwild")
 
 
 def test_not_a_solid_and_overlaps_are_refused():
@@ -361,3 +361,51 @@ def test_cli_mesh_strap(tmp_path):
     rep = json.loads((tmp_path / "mesh.json").read_text())
     assert rep["order"] == 1 and set(rep["regions"]) == {"strap", "trace_left", "trace_right"}
     assert read_vtu(tmp_path / "mesh.vtu").n_cells == rep["n_cells"]
+
+
+# ------------------------------------------------------------------ gmsh from the B-rep
+
+def test_gmsh_is_the_default_and_deterministic():
+    """Same input -> the same mesh, bit for bit (gmsh on one thread with a fixed seed)."""
+    a = mesh_bodies_detailed(_bodies(), SELECTORS, edge_length=0.6, order=2)
+    b = mesh_bodies_detailed(_bodies(), SELECTORS, edge_length=0.6, order=2)
+    assert a.mesher == b.mesher == "gmsh"
+    for x, y in ((a.mesh.points, b.mesh.points), (a.mesh.cells, b.mesh.cells),
+                 (a.mesh.region, b.mesh.region)):
+        assert x.shape == y.shape and np.array_equal(x, y)
+    assert {k: v.tolist() for k, v in a.mesh.facet_sets.items()} == \
+        {k: v.tolist() for k, v in b.mesh.facet_sets.items()}
+
+
+def test_gmsh_failure_falls_back_to_fTetWild(monkeypatch, tmp_path):
+    """gmsh fails on every attempt -> fTetWild meshes it, the result says so, and nothing is
+    written into the working directory."""
+    from designlab.mesh import brep
+
+    def broken(*a, **kw):
+        raise MeshingError("simulated gmsh failure")
+
+    monkeypatch.setattr(brep, "tetrahedralize", broken)
+    monkeypatch.chdir(tmp_path)
+    res = mesh_bodies_detailed(_bodies(), SELECTORS, edge_length=0.6, order=1)
+    assert res.mesher == "tetwild" and res.mesh.n_cells > 0
+    assert sum("simulated gmsh failure" in a for a in res.attempts) == 3
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(MeshingError, match="with gmsh failed"):
+        mesh_bodies(_bodies(), edge_length=0.6, mesher="gmsh")
+
+
+def test_stl_soup_is_meshed_with_fTetWild_and_open_stl_refused(tmp_path):
+    import trimesh
+
+    from designlab.mesh.meshing import mesh_stl
+
+    box = trimesh.creation.box((10.0, 4.0, 2.0))
+    box.export(tmp_path / "box.stl")
+    res = mesh_stl(tmp_path / "box.stl", edge_length=1.0, order=1)
+    assert res.mesher == "tetwild"
+    assert res.mesh.volume == pytest.approx(80.0, rel=0.01)
+    open_box = trimesh.Trimesh(box.vertices, box.faces[:-1], process=False)
+    open_box.export(tmp_path / "open.stl")
+    with pytest.raises(MeshingError, match="not closed: 3 open edges"):
+        mesh_stl(tmp_path / "open.stl", edge_length=1.0)

@@ -1,6 +1,12 @@
-"""Bodies -> one conforming, region-tagged tetrahedral mesh (fTetWild via pytetwild), mm.
+"""Bodies -> one conforming, region-tagged tetrahedral mesh, mm.
 
-How: every body is tessellated (:func:`designlab.geometry.tessellate.tessellate`); fTetWild
+Two meshers. ``gmsh`` (the default, :mod:`designlab.mesh.brep`) meshes the bodies' exact B-rep:
+deterministic (the same input gives the same mesh bit for bit) and fast; it is tried first with
+the size field alone, then with curvature-based sizing, then finer. ``tetwild`` (fTetWild via
+pytetwild) meshes triangle soups (an STL from elsewhere, a scan) and is the fallback when gmsh
+fails on a part; ``MeshResult.mesher`` says which one made the mesh.
+
+fTetWild: every body is tessellated (:func:`designlab.geometry.tessellate.tessellate`); fTetWild
 meshes the boundary of the union of all bodies together with the surfaces of every body but
 the largest (the *host*), so each interface between bodies is inserted into one tetrahedral mesh
 and the regions share their nodes there. Each cell is then given to the body whose surface winds
@@ -20,6 +26,8 @@ the global size at ``grading`` mm per mm.
 
 from __future__ import annotations
 
+import os
+import tempfile
 import time
 from pathlib import Path
 from dataclasses import dataclass, field
@@ -32,6 +40,8 @@ from designlab.geometry.body import Body, FacetSelector
 from designlab.mesh.tetmesh import TetMesh, box_tet_mesh
 from designlab.mesh.facets import interface_facets, select_facets
 
+#: the meshers: gmsh from the B-rep (auto: gmsh, fTetWild if gmsh fails), fTetWild
+MESHERS = ("auto", "gmsh", "tetwild")
 #: quality presets: (edge length factor, fTetWild stop energy)
 PRESETS = {"coarse": (2.0, 25.0), "default": (1.0, 15.0), "fine": (0.7, 10.0)}
 #: linear cells a default edge length aims at (TET10 of that: ~1e5 DOF)
@@ -52,6 +62,8 @@ class MeshResult:
     body_volumes: dict[str, float]
     attempts: list[str] = field(default_factory=list)
     seconds: float = 0.0
+    #: "gmsh" (from the B-rep) or "tetwild" (fTetWild on the tessellation)
+    mesher: str = "gmsh"
 
     def region_volumes(self) -> dict[str, float]:
         """Mesh volume of each region, mm^3."""
@@ -66,7 +78,7 @@ class MeshResult:
         m = self.mesh
         got = self.region_volumes()
         return {
-            "n_points": m.n_points, "n_cells": m.n_cells, "order": m.order,
+            "mesher": self.mesher, "n_points": m.n_points, "n_cells": m.n_cells, "order": m.order,
             "dof": 3 * m.n_points, "edge_length_mm": self.edge_length,
             "epsilon_mm": self.epsilon, "stop_energy": self.stop_energy,
             "seconds": self.seconds, "attempts": list(self.attempts),
@@ -241,6 +253,8 @@ def _tetwild_call(vertices, faces, edge_length, epsilon, stop_energy, sizing, th
 
 def _child(conn, args):
     try:
+        # fTetWild writes __tracked_surface.stl into the working directory: give it a temp one
+        os.chdir(tempfile.mkdtemp(prefix="designlab-tetwild-"))
         conn.send(("ok", _tetwild_call(*args)))
     except BaseException as exc:  # reported to the parent, which decides
         conn.send(("error", f"{type(exc).__name__}: {exc}"))
@@ -317,8 +331,10 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
                          tessellation_tolerance: float | None = None,
                          angular_tolerance: float = 0.5, volume_rtol: float = 0.05,
                          interfaces: bool = True, threads: int = 1, isolate: bool = True,
-                         target_cells: int = TARGET_CELLS) -> MeshResult:
+                         target_cells: int = TARGET_CELLS, mesher: str = "auto") -> MeshResult:
     """Mesh bodies into one conforming TET4/TET10 mesh; see the module doc for the method.
+
+    mesher:      ``auto`` (gmsh from the B-rep, fTetWild if gmsh fails), ``gmsh`` or ``tetwild``
 
     edge_length: ideal edge length, mm (default: the smaller of 1.5 x the host's thickness
                  ``2 V / A`` and the size for ``target_cells``; scaled by the ``quality`` preset)
@@ -341,6 +357,8 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
         raise ParameterError("edge_length", edge_length, "a number > 0 mm")
     if epsilon is not None and not (np.isfinite(epsilon) and epsilon > 0):
         raise ParameterError("epsilon", epsilon, "a number > 0 mm")
+    if mesher not in MESHERS:
+        raise ParameterError("mesher", mesher, "one of " + ", ".join(MESHERS))
     factor, energy = PRESETS[quality]
     refinement = [(c, r, factor * e) for c, r, e in _check_refinement(refinement)]
     items = _as_bodies(bodies)
@@ -355,11 +373,68 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
     lo = np.min([tuple(bb.min) for bb in boxes], axis=0)
     hi = np.max([tuple(bb.max) for bb in boxes], axis=0)
     diag = float(np.linalg.norm(hi - lo))
+    volumes = brep[:, 0]  # the exact B-rep volumes the regions are checked against
+    if edge_length is None:
+        h_vol = (_CELLS_PER_EDGE3 * volumes.sum() / target_cells) ** (1.0 / 3.0)
+        edge_length = factor * min(1.5 * t_body[host], h_vol)
+    names = [b.name for b in items]
+    log: list[str] = []
+
+    def finish(points, cells, region, h, e, se, which):
+        region_names = {k: n for k, n in enumerate(names)}
+        mesh = TetMesh(points, cells, region, region_names, {b.name: b.material for b in items})
+        sets = select_facets(points, mesh.boundary_facets(), facet_sets or {})
+        if interfaces and len(items) > 1:
+            for name, tri in interface_facets(cells, region, region_names).items():
+                sets.setdefault(name, tri)
+        mesh = TetMesh(points, cells, region, region_names, dict(mesh.materials), sets)
+        if order == 2:
+            mesh = mesh.quadratic()
+        return MeshResult(mesh, h, e, se, {n: float(v) for n, v in zip(names, volumes)}, log,
+                          time.perf_counter() - t0, which)
+
+    def volume_error(points, cells, region, what) -> bool:
+        p = points[cells]
+        vol = np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]),
+                        p[:, 3] - p[:, 0]) / 6.0
+        got = np.bincount(region, weights=vol, minlength=len(items))
+        err = np.abs(got - volumes) / volumes
+        if err.max() > volume_rtol:
+            k = int(np.argmax(err))
+            log.append(f"{what}: body {names[k]!r} meshed to {got[k]:.4g} mm^3 instead of "
+                       f"{volumes[k]:.4g} mm^3")
+            return True
+        return False
+
+    if mesher in ("auto", "gmsh"):
+        from designlab.mesh import brep
+
+        for h, curvature in ((float(edge_length), 0), (float(edge_length), 12),
+                             (0.6 * float(edge_length), 12)):
+            what = f"gmsh: edge {h:.3g} mm, curvature {curvature}"
+            try:
+                points, cells, region = brep.tetrahedralize(
+                    [b.shape for b in items], names, h, refinement, curvature=curvature)
+            except MeshingError as exc:
+                log.append(f"{what}: {exc}")
+                if "regions must not intersect" in str(exc):
+                    raise
+                continue
+            points, cells = compact(points, cells)
+            if volume_error(points, cells, region, what):
+                continue
+            log.append(f"{what}: ok, {len(cells)} cells")
+            try:
+                return finish(points, cells, region, h, 0.0, float("nan"), "gmsh")
+            except MeshingError as exc:  # a small facet set no triangle of this mesh hits
+                log[-1] = f"{what}: {exc}"
+        if mesher == "gmsh":
+            raise MeshingError(f"meshing bodies {', '.join(names)} with gmsh failed after "
+                               f"{len(log)} attempts: " + "; ".join(log))
     eps = float(epsilon) if epsilon is not None else float(
         np.clip(0.1 * t_body.min(), 1e-5 * diag, 1e-3 * diag))
     tol = float(tessellation_tolerance) if tessellation_tolerance else max(0.5 * eps, 0.01)
     surfaces = [_tessellate(b, tol, angular_tolerance) for b in items]
-    volumes = brep[:, 0]  # the exact B-rep volumes the regions are checked against
     if len(items) > 1:
         union = _union(items, tol, angular_tolerance)
         tess_sum = sum(s.volume for s in surfaces)
@@ -375,11 +450,6 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
         verts, faces = np.asarray(surfaces[0].vertices), np.asarray(surfaces[0].faces)
     if stop_energy is not None:
         energy = float(stop_energy)
-    if edge_length is None:
-        h_vol = (_CELLS_PER_EDGE3 * volumes.sum() / target_cells) ** (1.0 / 3.0)
-        edge_length = factor * min(1.5 * t_body[host], h_vol)
-    names = [b.name for b in items]
-    log: list[str] = []
     for h, e, se in _attempts(float(edge_length), eps, energy):
         sizing = None
         if refinement:
@@ -396,29 +466,10 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
             continue
         points, cells = compact(points, cells)
         region = tag_regions(points, cells, surfaces, host, pad=e)
-        p = points[cells]
-        vol = np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]),
-                        p[:, 3] - p[:, 0]) / 6.0
-        got = np.bincount(region, weights=vol, minlength=len(items))
-        err = np.abs(got - volumes) / volumes
-        if err.max() > volume_rtol:
-            k = int(np.argmax(err))
-            log.append(f"{what}: body {names[k]!r} meshed to {got[k]:.4g} mm^3 instead of "
-                       f"{volumes[k]:.4g} mm^3")
+        if volume_error(points, cells, region, f"fTetWild: {what}"):
             continue
-        log.append(f"{what}: ok, {len(cells)} cells")
-        region_names = {k: n for k, n in enumerate(names)}
-        mesh = TetMesh(points, cells, region, region_names,
-                       {b.name: b.material for b in items})
-        sets = select_facets(points, mesh.boundary_facets(), facet_sets or {})
-        if interfaces and len(items) > 1:
-            for name, tri in interface_facets(cells, region, region_names).items():
-                sets.setdefault(name, tri)
-        mesh = TetMesh(points, cells, region, region_names, dict(mesh.materials), sets)
-        if order == 2:
-            mesh = mesh.quadratic()
-        return MeshResult(mesh, h, e, se, {n: float(v) for n, v in zip(names, volumes)}, log,
-                          time.perf_counter() - t0)
+        log.append(f"fTetWild: {what}: ok, {len(cells)} cells")
+        return finish(points, cells, region, h, e, se, "tetwild")
     raise MeshingError(f"meshing bodies {', '.join(names)} failed after {len(log)} attempts: "
                        + "; ".join(log))
 
@@ -441,6 +492,47 @@ def mesh_part_detailed(part: Any, *, refine: bool = True, **kw: Any) -> MeshResu
                            f"does not return (has {', '.join(built)})") from None
     refinement = (list(part.refinement()) if refine else []) + list(kw.pop("refinement", ()))
     return mesh_bodies_detailed(bodies, part.facet_sets(), refinement=refinement, **kw)
+
+
+def mesh_stl(path: str | Path, *, edge_length: float | None = None, order: int = 2,
+             material: str = "ABS", quality: str = "default", threads: int = 1) -> MeshResult:
+    """Tetrahedral mesh of a closed triangle surface from elsewhere (an STL, a scan) with
+    fTetWild, one region named after the file. An open surface -> one line with how many
+    open edges it has."""
+    import trimesh
+
+    t0 = time.perf_counter()
+    path = Path(path)
+    try:
+        soup = trimesh.load_mesh(path, process=True)
+    except Exception as exc:
+        raise MeshingError(f"{path}: not a readable triangle surface ({type(exc).__name__})") from None
+    if not isinstance(soup, trimesh.Trimesh) or len(soup.faces) == 0:
+        raise MeshingError(f"{path}: no triangles")
+    edges = soup.edges_sorted
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    open_edges = int(np.sum(counts == 1))
+    if open_edges or not soup.is_watertight:
+        raise MeshingError(f"{path}: the surface is not closed: {open_edges} open edges "
+                           "(a volume mesh needs a watertight surface)")
+    if quality not in PRESETS:
+        raise ParameterError("quality", quality, "one of " + ", ".join(PRESETS))
+    factor, energy = PRESETS[quality]
+    volume = float(abs(soup.volume))
+    if edge_length is None:
+        edge_length = factor * (_CELLS_PER_EDGE3 * volume / TARGET_CELLS) ** (1.0 / 3.0)
+    diag = float(np.linalg.norm(soup.extents))
+    eps = 1e-3 * diag
+    points, cells = _tetwild(np.asarray(soup.vertices, float), np.asarray(soup.faces), edge_length,
+                             eps, energy, None, threads)
+    points, cells = compact(points, cells)
+    name = path.stem
+    mesh = TetMesh(points, cells, np.zeros(len(cells), np.int64), {0: name}, {name: material})
+    if order == 2:
+        mesh = mesh.quadratic()
+    return MeshResult(mesh, float(edge_length), eps, energy, {name: volume},
+                      [f"fTetWild on {path.name}: {len(cells)} cells"], time.perf_counter() - t0,
+                      "tetwild")
 
 
 def mesh_part(part: Any, *, order: int = 2, edge_length: float | None = None,
