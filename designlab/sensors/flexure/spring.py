@@ -41,6 +41,12 @@ SS302_E_MPA = 193_000.0
 SS302_G_MPA = 69_000.0
 
 #: multiply a designlab stiffness (N*mm/rad, N/mm, N) entry-wise by this to get SI (N*m/rad, N/m, N)
+#: closed-and-ground ends: one dead turn at each end (inactive_coils = 2)
+GROUND_DEAD_COILS = 2.0
+#: fewest total turns with ground ends: 2 dead turns plus the two quarter-turn pitch ramps
+#: (designlab.geometry.flexure.RAMP) between them and the active pitch
+MIN_GROUND_COILS = 2.5
+
 SI_SCALE = np.block([[np.full((3, 3), 1e-3), np.ones((3, 3))],
                      [np.ones((3, 3)), np.full((3, 3), 1e3)]])
 
@@ -63,6 +69,10 @@ class HelicalSpring:
 
     def __post_init__(self):
         validate(self)
+        if self.inactive_coils >= GROUND_DEAD_COILS and self.coils < MIN_GROUND_COILS:
+            raise ParameterError("coils", self.coils,
+                                 f">= {MIN_GROUND_COILS:g} turns for closed and ground ends "
+                                 f"({self.inactive_coils:g} dead turns + 0.5 active)")
         if self.active_coils <= 0:
             raise ParameterError("inactive_coils", self.inactive_coils,
                                  f"fewer than coils={self.coils:g}")
@@ -157,6 +167,21 @@ def stiffness_timoshenko(spring: HelicalSpring, length: float | None = None,
         raise ParameterError("frame", frame, "one of " + ", ".join(offsets))
     # {a} = the end frame, {f} = centre; T_af puts the centre at -offset along z of {a}
     return transform_stiffness(K, transform(translation=(0.0, 0.0, -offsets[frame])))
+
+
+def check_working_load(spring: HelicalSpring, force_N: float) -> None:
+    """ParameterError when the active coils touch under an axial ``force_N`` (N): the gap
+    ``pitch - 2 r`` must exceed the closed-form deflection per active turn ``F / (k_z n_a)``."""
+    if force_N <= 0:
+        return
+    k_z = centre_terms(spring)["k_z"]
+    need = 2 * spring.wire_radius + force_N / (k_z * spring.active_coils)
+    if spring.pitch <= need:
+        a_min = math.atan(need / (2 * math.pi * spring.mean_radius))
+        raise ParameterError("pitch_angle", spring.pitch_angle,
+                             f"> {a_min:.4g} rad: at the {force_N:g} N working load the active "
+                             f"coils touch (pitch {spring.pitch:.3g} mm <= wire diameter + "
+                             f"deflection per turn = {need:.3g} mm)")
 
 
 def to_si(K: np.ndarray) -> np.ndarray:

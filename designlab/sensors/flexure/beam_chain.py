@@ -1,0 +1,416 @@
+"""Fast helix model: the spring wire as a chain of Timoshenko beams, its ends seated and in contact.
+
+The wire centreline (mean radius ``R``, wire radius ``r``, ``d = 2 r``) is cut into straight
+12-dof Timoshenko beams (:func:`designlab.fem.beam.beam_stiffness`, round section, shear
+coefficient 0.9), ``elements_per_turn`` per turn. Frame: the base seat (the top face of the base
+disc) is ``z = 0``, the tip seat (bottom face of the fingertip disc) ``z = L``; the tip disc is a
+rigid 6-dof master at ``(0, 0, L)``; the spring centre, the closed form's frame {f}, is
+``(0, 0, L / 2)``.
+
+Ends (``closed_ground``, one dead turn at each end):
+
+* **as built** (:func:`as_built`): the dead turn has pitch ``d`` (its gap to the next turn closes
+  to zero: the wire end touches the first active turn), the pitch ramps linearly to the active
+  pitch over ``RAMP`` turn after it, and the end is ground flat ``GRIND x d`` above the end's
+  centreline (the solid part's convention, :mod:`designlab.geometry.flexure`). The active pitch is
+  set so the seat-to-seat length is the handbook free length ``n_a p + 2 d`` (seed 002: 19.80 mm,
+  its measured rest length).
+* **the solid's geometry** (:func:`from_part`): the centreline and cut planes of the meshed
+  ``SpringFlexure`` (dead turns 0.1 d clear of their neighbours), for the check against the
+  solid FEM.
+
+Seats. ``seat="bonded"``: every node whose wire section reaches the ground plane (the ground
+face, ``c < r`` with ``c`` the centreline's height above the seat) is clamped to its disc
+(seed 002: "epoxy interfaces between the housings and the flexure"); this is what the solid FEM
+does with the ground faces. ``seat="contact"``: only the wire's end node is bonded (the epoxy
+spot that locates the spring); the rest of the ground face sits on the seat with unilateral
+contact at zero gap.
+
+Contact (``contact=True``): node-to-wire pairs one turn apart over the dead turn and the ramp at
+each end (the dead turn against the first active turn, gap ``z(u + 1) - z(u) - d``), and
+node-to-seat pairs over the dead turn (gap ``c - r``). A closed contact is a stiff normal penalty
+spring, frictionless (tangential contact forces are not modelled), solved by an active-set
+iteration. Penalty stiffness per contact node: a line contact of length ``h`` (the node spacing)
+between an elastic cylinder and a flat or a cylinder has a stiffness per unit length of the order
+of the contact modulus ``E*`` (Johnson, *Contact Mechanics*, 1985, sec. 5.6: the approach grows
+only logarithmically with the load), so ``k_n = E* h``.
+
+The 6x6 comes from small symmetric perturbations of the tip disc around a reference state (the
+unloaded spring, or the spring under an axial working load): ``K[:, j] = (W(+d e_j) - W(-d e_j)) /
+(2 d)``, each perturbation solved with its own active set. Geometrically linear: no stress
+stiffening (the axial working load stiffens only through contact).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from designlab.errors import ModelError, ParameterError
+from designlab.fem.beam import beam_stiffness, circular_section
+from designlab.frames import transform, transform_stiffness
+from designlab.params import rng, validate
+from designlab.sensors.flexure.spring import HelicalSpring, check_working_load, to_si
+
+#: turns over which the pitch ramps from the dead pitch d to the active pitch (the solid part's
+#: RAMP, designlab.geometry.flexure)
+RAMP = 0.25
+#: grinding plane above the wire end's centreline, in wire diameters (the solid part's
+#: DEAD_GAP-sized grind, designlab.geometry.flexure._cut_planes)
+GRIND = 0.1
+#: printed seat discs (seed 002: PLA housings); E from designlab.fem.materials "PLA"
+SEAT_E_MPA = 3500.0
+SEAT_NU = 0.36
+#: master order (u_x, u_y, u_z, th_x, th_y, th_z) -> twist/wrench order (w, v) / (m, f)
+_PERM = np.array([3, 4, 5, 0, 1, 2])
+
+
+@dataclass(frozen=True)
+class ChainSettings:
+    """Settings of the beam-chain model (mm, N, rad)."""
+
+    elements_per_turn: int = field(default=36, metadata=rng(8, 400,
+                                   doc="straight beams per turn of wire"))
+    contact: bool = True
+    seat: str = field(default="bonded", metadata=rng(choices=("bonded", "contact", "potted"),
+                      doc="ground faces bonded (epoxy), only seated, or the whole dead turn "
+                          "set in epoxy"))
+    working_load_N: float = field(default=10.0, metadata=rng(0, 1000, unit="N", doc=(
+        "axial compression of the second reference state (seed 002: ~10 N per fingertip)")))
+    perturbation_rad: float = field(default=2e-3, metadata=rng(0, 0.1, lo_open=True, unit="rad"))
+    perturbation_mm: float = field(default=0.02, metadata=rng(0, 1, lo_open=True, unit="mm"))
+    max_iterations: int = field(default=60, metadata=rng(2, 1000))
+
+    def __post_init__(self):
+        validate(self)
+
+
+@dataclass(frozen=True)
+class Coil:
+    """What the chain needs of a spring (mm, MPa): centreline ``z(u)`` at turn count ``u``
+    (``0 <= u <= turns``), seat heights in the same frame, ends, wire and moduli."""
+
+    R: float
+    r: float
+    turns: float
+    z_of_u: Callable[[np.ndarray], np.ndarray]
+    seat_lo: float
+    seat_hi: float
+    ends: str
+    E: float
+    G: float
+    label: str
+
+    @property
+    def length(self) -> float:
+        return self.seat_hi - self.seat_lo
+
+
+def _ramp_profile(u, turns, p_dead, p_act, start, ramp):
+    """Pitch per turn: ``p_dead`` up to ``start``, linear to ``p_act`` over ``ramp``, mirrored."""
+    up = np.clip((u - start) / ramp, 0.0, 1.0)
+    down = np.clip((u - (turns - start - ramp)) / ramp, 0.0, 1.0)
+    return p_dead + (p_act - p_dead) * (up - down)
+
+
+def _integrate(profile, turns):
+    fine = np.linspace(0.0, turns, 20001)
+    P = profile(fine)
+    z = np.concatenate([[0.0], np.cumsum((P[1:] + P[:-1]) / 2 * np.diff(fine))])
+    return lambda u: np.interp(np.asarray(u, float), fine, z)
+
+
+def as_built(spring: HelicalSpring) -> Coil:
+    """The spring as built: ``inactive_coils`` 2 -> closed-and-ground ends (one dead turn each,
+    gap closing to zero, ground); 0 -> plain ends clamped at the wire's end points."""
+    R, r, d = spring.mean_radius, spring.wire_radius, 2 * spring.wire_radius
+    n_a = spring.active_coils
+    if spring.inactive_coils == 0:
+        p = spring.pitch
+        return Coil(R, r, n_a, lambda u: p * np.asarray(u, float), 0.0, p * n_a, "plain",
+                    spring.E, spring.G, "plain ends, clamped wire ends")
+    if spring.inactive_coils != 2:
+        raise ParameterError("inactive_coils", spring.inactive_coils,
+                             "0 (plain ends) or 2 (closed and ground ends: one dead turn each)")
+    turns = spring.coils                            # >= 2.5 (HelicalSpring checks it)
+    L0 = n_a * spring.pitch + 2 * d                 # handbook free length (seed 002: 19.80 mm)
+    e = GRIND * d
+    # rise: 2 dead turns of d + n_a p_a - RAMP (p_a - d)  =  L0 + 2 e
+    p_a = (L0 + 2 * e - 2 * d - RAMP * d) / (n_a - RAMP)
+    z = _integrate(lambda u: _ramp_profile(u, turns, d, p_a, 1.0, RAMP), turns)
+    return Coil(R, r, turns, z, e, float(z(turns)) - e, "closed_ground", spring.E, spring.G,
+                f"as built: closed (gap 0) and ground ends, active pitch {p_a:.3g} mm")
+
+
+def from_part(part, E: float | None = None, G: float | None = None) -> Coil:
+    """The meshed ``SpringFlexure``'s centreline and cut planes (its E, G from its material)."""
+    from designlab.fem.materials import get_material
+
+    m = get_material(part.material)
+    lo, hi = part._cut_planes()
+    return Coil(part.mean_diameter / 2, part.wire_radius, part.total_coils, part.centerline_z,
+                lo, hi, part.ends, m.E if E is None else E, m.G if G is None else G,
+                f"solid part geometry ({part.ends})")
+
+
+@dataclass
+class _Contact:
+    row: np.ndarray         # (n_q,): opening of the gap per reduced dof
+    g0: float               # initial gap, mm
+    k_n: float              # penalty, N/mm
+    kind: str               # "coil" or "seat"
+
+
+@dataclass
+class ChainResult:
+    """6x6 of the chain (N*mm/rad, N/mm, N) at the tip master ``(0, 0, L)``, global axes."""
+
+    K: np.ndarray
+    K_loaded: np.ndarray | None
+    master: np.ndarray
+    centre: np.ndarray
+    coil: Coil
+    settings: ChainSettings
+    info: dict
+
+    def at(self, point, loaded: bool = False) -> np.ndarray:
+        K = self.K_loaded if loaded else self.K
+        return transform_stiffness(K, transform(translation=self.master - np.asarray(point, float)))
+
+    @property
+    def K_centre(self) -> np.ndarray:
+        return self.at(self.centre)
+
+    @property
+    def K_centre_si(self) -> np.ndarray:
+        return to_si(self.K_centre)
+
+    @property
+    def K_loaded_centre_si(self) -> np.ndarray | None:
+        return None if self.K_loaded is None else to_si(self.at(self.centre, loaded=True))
+
+
+class Chain:
+    """Assembled chain: reduced stiffness, contact operators, active-set solves."""
+
+    def __init__(self, coil: Coil, settings: ChainSettings):
+        self.coil, self.s = coil, settings
+        R, r, N = coil.R, coil.r, coil.turns
+        n_el = max(int(math.ceil(N * settings.elements_per_turn - 1e-9)), 4)
+        u = np.linspace(0.0, N, n_el + 1)
+        self.u, self.h = u, N / n_el
+        z = coil.z_of_u(u) - coil.seat_lo
+        X = np.column_stack([R * np.cos(2 * np.pi * u), R * np.sin(2 * np.pi * u), z])
+        self.X, L = X, coil.length
+        self.master = np.array([0.0, 0.0, L])
+        n = len(u)
+        sec = circular_section(2 * r)
+        K = np.zeros((6 * n, 6 * n))
+        for e in range(n_el):
+            ke = beam_stiffness(X[e], X[e + 1], coil.E, coil.G, sec["A"], sec["Iy"], sec["Iz"],
+                                sec["J"], sec["As"])
+            idx = np.r_[6 * e:6 * e + 12]
+            K[np.ix_(idx, idx)] += ke
+        # ---- ends: bonded nodes (base fixed, tip rigid to the master)
+        c_base, c_tip = z, L - z                 # centreline heights above the seats
+        if coil.ends == "plain":
+            base_bond, tip_bond = np.array([0]), np.array([n - 1])
+        elif settings.seat == "bonded":
+            base_bond = np.nonzero((c_base < r) & (u < 1))[0]
+            tip_bond = np.nonzero((c_tip < r) & (u > N - 1))[0]
+        elif settings.seat == "potted":
+            base_bond = np.nonzero(u <= 1 + 1e-9)[0]
+            tip_bond = np.nonzero(u >= N - 1 - 1e-9)[0]
+        else:
+            base_bond, tip_bond = np.array([0]), np.array([n - 1])
+        self.base_bond, self.tip_bond = base_bond, tip_bond
+        # T: reduced q = [free node dofs, master 6] -> full node dofs
+        fixed = np.zeros(6 * n, bool)
+        tied = np.zeros(6 * n, bool)
+        for k in base_bond:
+            fixed[6 * k:6 * k + 6] = True
+        for k in tip_bond:
+            tied[6 * k:6 * k + 6] = True
+        free = np.nonzero(~fixed & ~tied)[0]
+        nq = len(free) + 6
+        T = np.zeros((6 * n, nq))
+        T[free, np.arange(len(free))] = 1.0
+        m0 = len(free)
+        for k in tip_bond:
+            T[6 * k:6 * k + 6, m0:] = self._rigid(X[k])
+        self.T, self.nq, self.m = T, nq, np.arange(m0, nq)
+        Ts = sp.csr_matrix(T)
+        self.Kq = (Ts.T @ sp.csr_matrix(K) @ Ts).tocsr()
+        self.n_dofs = 6 * n
+        # ---- contacts
+        nu = coil.E / (2 * coil.G) - 1
+        E_ss = coil.E / (2 * (1 - nu ** 2))                   # E* of two identical bodies
+        E_seat = 1.0 / ((1 - nu ** 2) / coil.E + (1 - SEAT_NU ** 2) / SEAT_E_MPA)
+        self.contacts: list[_Contact] = []
+        if settings.contact and coil.ends == "closed_ground":
+            self._coil_contacts(E_ss * self.h)
+            self._seat_contacts(E_seat * self.h, c_base, c_tip)
+        self.N = sp.csr_matrix(np.array([c.row for c in self.contacts]).reshape(-1, nq))
+        self.kn = np.array([c.k_n for c in self.contacts])
+        self.g0 = np.array([c.g0 for c in self.contacts])
+        self.bonded_turns = (len(base_bond) + len(tip_bond)) * self.h / 2
+
+    # ------------------------------------------------------------------ operators
+    def _rigid(self, x) -> np.ndarray:
+        """(6, 6) master (u, th) -> node (u, th) of a point ``x`` rigid with the master."""
+        from designlab.frames import skew
+
+        A = np.zeros((6, 6))
+        A[:3, :3] = np.eye(3)
+        A[:3, 3:] = -skew(np.asarray(x, float) - self.master)     # th x (x - x_m)
+        A[3:, 3:] = np.eye(3)
+        return A
+
+    def _uz(self, k) -> np.ndarray:
+        """(n_q,) axial displacement of node k per reduced dof."""
+        return self.T[6 * k + 2]
+
+    def _node_at(self, u):
+        j = min(int(np.floor(u / self.h + 1e-9)), len(self.u) - 2)
+        s = (u - self.u[j]) / self.h
+        return j, float(np.clip(s, 0.0, 1.0))
+
+    def _coil_contacts(self, k_n):
+        """The wire at ``u`` against the wire one turn above, over each end's dead turn and
+        ramp; contact points on the wire surfaces (``+-r`` along z)."""
+        c, r, N = self.coil, self.coil.r, self.coil.turns
+        span = 1.0 + RAMP + 2.0 / self.s.elements_per_turn
+        for i, ui in enumerate(self.u):
+            if ui + 1 > N + 1e-9 or not (ui <= span or ui + 1 >= N - span):
+                continue
+            g0 = float(c.z_of_u(ui + 1) - c.z_of_u(ui)) - 2 * r
+            j, s = self._node_at(ui + 1)
+            # the z motion of a surface point is its node's u_z (a rotation moves it sideways)
+            row = (1 - s) * self._uz(j) + s * self._uz(j + 1) - self._uz(i)   # upper - lower
+            if np.any(row):
+                self.contacts.append(_Contact(row, max(g0, 0.0), k_n, "coil"))
+
+    def _seat_contacts(self, k_n, c_base, c_tip):
+        """The dead turn's wire surface against its seat plane (the tip seat moves with the
+        master), where the node is not bonded."""
+        r, N = self.coil.r, self.coil.turns
+        ez = np.array([0.0, 0.0, r])
+        for i, ui in enumerate(self.u):
+            if ui <= 1.0 and i not in self.base_bond:
+                row = self._uz(i)                                       # wire bottom - seat
+                self.contacts.append(_Contact(row, max(float(c_base[i]) - r, 0.0), k_n, "seat"))
+            if ui >= N - 1.0 and i not in self.tip_bond:
+                seat = np.zeros((3, self.nq))
+                seat[:, self.m] = self._rigid(self.X[i] + ez)[:3]
+                row = seat[2] - self._uz(i)                             # seat - wire top
+                self.contacts.append(_Contact(row, max(float(c_tip[i]) - r, 0.0), k_n, "seat"))
+
+    # ------------------------------------------------------------------ solves
+    def solve(self, q_master=None, f_master=None, ref: dict | None = None) -> dict:
+        """Active-set solve with the master displaced to ``q_master`` (u, th) or loaded by
+        ``f_master`` (f, m; the master free), starting from the active set of ``ref``."""
+        nq, m = self.nq, self.m
+        nc = len(self.contacts)
+        closed = np.zeros(nc, bool) if ref is None else ref["closed"].copy()
+        q = np.zeros(nq) if ref is None else ref["q"].copy()
+        fext = np.zeros(nq)
+        if f_master is not None:
+            fext[m] = f_master
+        free = np.arange(nq) if q_master is None else np.setdiff1d(np.arange(nq), m)
+        if q_master is not None:
+            q[m] = q_master
+        N, kn, g0 = self.N, self.kn, self.g0
+        tol = 1e-6 * self.s.perturbation_mm
+        seen = set()
+        for it in range(self.s.max_iterations):
+            w = kn * closed
+            A = (self.Kq + N.T @ sp.diags(w) @ N).tocsc()
+            b = fext - N.T @ (w * g0)
+            rhs = b[free] - (A[free][:, m] @ q[m] if q_master is not None else 0.0)
+            try:
+                q[free] = spla.splu(A[free][:, free]).solve(rhs)
+            except RuntimeError:
+                raise ModelError("beam chain: singular stiffness (a spring end is not held)") from None
+            g = g0 + N @ q
+            # a band of +-tol around zero gap keeps the current state (no chatter at g ~ 0)
+            new = np.where(g < -tol, True, np.where(g > tol, False, closed))
+            if np.array_equal(new, closed):
+                break
+            key = new.tobytes()
+            if key in seen:
+                # a cycle: change only the contact that violates its state most
+                bad = np.nonzero(new != closed)[0]
+                new = closed.copy()
+                k = bad[np.argmax(np.abs(g[bad]))]
+                new[k] = not closed[k]
+            seen.add(key)
+            closed = new
+        else:
+            raise ModelError(f"beam chain: contact active set did not settle in "
+                             f"{self.s.max_iterations} iterations")
+        reaction = (A @ q - b)[m] + (fext[m] if q_master is None else 0.0)
+        return {"q": q.copy(), "closed": closed, "f_n": np.where(closed, -kn * np.minimum(g, 0), 0.0),
+                "reaction": reaction, "iterations": it + 1}
+
+    def stiffness(self, ref: dict | None = None) -> tuple[np.ndarray, list]:
+        """6x6 (twist -> wrench order) by symmetric master perturbations around ``ref``."""
+        amp = np.r_[[self.s.perturbation_mm] * 3, [self.s.perturbation_rad] * 3]
+        q0 = np.zeros(6) if ref is None else ref["q"][self.m]
+        Kq = np.zeros((6, 6))
+        closed = []
+        for j in range(6):
+            res = []
+            for sgn in (1.0, -1.0):
+                r = self.solve(q_master=q0 + sgn * amp[j] * np.eye(6)[j], ref=ref)
+                res.append(r)
+                closed.append(int(np.count_nonzero(r["closed"])))
+            Kq[:, j] = (res[0]["reaction"] - res[1]["reaction"]) / (2 * amp[j])
+        K = Kq[np.ix_(_PERM, _PERM)]
+        return (K + K.T) / 2, closed
+
+
+def chain_stiffness(spring, settings: ChainSettings | None = None, *,
+                    geometry: str = "as_built") -> ChainResult:
+    """6x6 of a spring flexure by the beam chain, unloaded and at the axial working load.
+
+    spring:   a :class:`~designlab.sensors.flexure.spring.HelicalSpring` (geometry
+              ``"as_built"``) or a ``SpringFlexure`` (the solid part's centreline).
+    """
+    settings = settings or ChainSettings()
+    t0 = time.perf_counter()
+    if isinstance(spring, HelicalSpring):
+        if geometry != "as_built":
+            raise ParameterError("geometry", geometry, "as_built for a HelicalSpring")
+        coil = as_built(spring)
+        if settings.working_load_N > 0:
+            check_working_load(spring, settings.working_load_N)
+    else:
+        coil = from_part(spring)
+    chain = Chain(coil, settings)
+    K, closed = chain.stiffness()
+    K_loaded, info_l = None, None
+    if settings.working_load_N > 0 and settings.contact and coil.ends == "closed_ground":
+        pre = chain.solve(f_master=np.r_[0.0, 0.0, -settings.working_load_N, 0.0, 0.0, 0.0])
+        K_loaded, closed_l = chain.stiffness(ref=pre)
+        info_l = {"axial_deflection_mm": float(-pre["q"][chain.m][2]),
+                  "closed_contacts": int(np.count_nonzero(pre["closed"])),
+                  "closed_during_perturbations": [min(closed_l), max(closed_l)]}
+    if np.any(np.linalg.eigvalsh(K) <= 0):
+        raise ModelError("beam chain: 6x6 stiffness not positive definite")
+    info = {"nodes": len(chain.u), "elements": len(chain.u) - 1, "dofs": int(chain.nq),
+            "contacts": len(chain.contacts), "bonded_turns_per_end": chain.bonded_turns,
+            "closed_during_perturbations": [min(closed), max(closed)],
+            "length_mm": coil.length, "geometry": coil.label, "working_load": info_l,
+            "seconds": time.perf_counter() - t0}
+    return ChainResult(K, K_loaded, chain.master, np.array([0, 0, coil.length / 2]), coil,
+                       settings, info)
+
+
+def with_settings(base: ChainSettings | None = None, **kw) -> ChainSettings:
+    return replace(base or ChainSettings(), **kw)
