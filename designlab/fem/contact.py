@@ -1,0 +1,474 @@
+"""Point contacts between a linear structure's master points: Hertz, Mindlin, Coulomb (mm N MPa).
+
+Sensor-free building blocks of a small nonlinear contact problem on a *condensed* linear
+structure:
+
+* :class:`HertzContact` - two elastic spheres (Johnson, *Contact Mechanics*, 1985, eqs. 4.22-4.23):
+  ``1/R* = 1/R1 + 1/R2``, ``1/E* = (1-nu1^2)/E1 + (1-nu2^2)/E2``, contact radius
+  ``a = (3 N R* / (4 E*))^(1/3)``, approach ``delta = a^2 / R* = (9 N^2 / (16 R* E*^2))^(1/3)``,
+  i.e. ``N = 4/3 E* sqrt(R*) delta^(3/2)``; Mindlin's tangential stiffness of the stuck circle
+  ``k_t = 8 G* a`` with ``1/G* = (2-nu1)/G1 + (2-nu2)/G2`` (Johnson eq. 7.40; Mindlin 1949).
+* :class:`ContactLaw` - the law of one contact point: normal force from the approach through the
+  Hertz compliance in series with an optional linear spring (a force sensor), unilateral (open
+  when the approach would be negative), tangential Mindlin stiffness with Coulomb slip
+  (``|T| <= mu N``), integrated incrementally with a return map (the elastic-perfectly-plastic
+  friction model: path dependent, so cyclic loads give hysteresis loops).
+* :class:`ContactProblem` - ``m`` contacts on a linear structure of flexibility ``C`` (n x n) at
+  its master dofs: ``q = C (f + sum_k L_k^T p_k)``; ``L_k`` (3 x n) maps the master dofs to the
+  relative displacement of body A with respect to body B at contact ``k`` in its local frame
+  (normal, t1, t2; the normal points from B to A); ``p_k = (N, T1, T2)`` is the force B exerts on
+  A. :meth:`ContactProblem.solve_path` follows a load path in increments (Newton on the 3m
+  relative displacements, batched over independent load histories).
+* :func:`condense` - the flexibility of a designlab FEM :class:`~designlab.fem.model.Model` at a
+  few master points (unit loads at reference points, one factorisation): the exact static
+  condensation of a linear model, for the contact problem.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from designlab.errors import ModelError, ParameterError
+from designlab.fem.model import Model, RefPoint, skew
+
+#: Upper bound of a friction coefficient accepted as an input (dry clean metals reach ~1.2,
+#: e.g. aluminium on aluminium 1.05-1.35; above 2 is not a Coulomb coefficient any more).
+MU_MAX = 2.0
+
+
+@dataclass(frozen=True)
+class HertzContact:
+    """Two elastic spheres of radii ``R1``, ``R2`` (mm; ``inf`` = a plane) and moduli E (MPa),
+    Poisson ratios nu."""
+
+    R1: float
+    R2: float
+    E1: float
+    nu1: float
+    E2: float
+    nu2: float
+
+    def __post_init__(self):
+        for n in ("R1", "R2", "E1", "E2"):
+            if not getattr(self, n) > 0:
+                raise ParameterError(n, getattr(self, n), "> 0")
+        for n in ("nu1", "nu2"):
+            if not -1 < getattr(self, n) < 0.5:
+                raise ParameterError(n, getattr(self, n), "-1 < value < 0.5")
+
+    @property
+    def R_star(self) -> float:
+        """Effective radius 1/R* = 1/R1 + 1/R2, mm."""
+        return 1.0 / (1.0 / self.R1 + 1.0 / self.R2)
+
+    @property
+    def E_star(self) -> float:
+        """Contact modulus 1/E* = (1-nu1^2)/E1 + (1-nu2^2)/E2, MPa."""
+        return 1.0 / ((1 - self.nu1 ** 2) / self.E1 + (1 - self.nu2 ** 2) / self.E2)
+
+    @property
+    def G_star(self) -> float:
+        """Tangential contact modulus 1/G* = (2-nu1)/G1 + (2-nu2)/G2, MPa (G = E/(2(1+nu)))."""
+        G1, G2 = self.E1 / (2 * (1 + self.nu1)), self.E2 / (2 * (1 + self.nu2))
+        return 1.0 / ((2 - self.nu1) / G1 + (2 - self.nu2) / G2)
+
+    @property
+    def c_approach(self) -> float:
+        """delta = c N^(2/3): c = (9 / (16 R* E*^2))^(1/3), mm N^(-2/3)."""
+        return (9.0 / (16.0 * self.R_star * self.E_star ** 2)) ** (1.0 / 3.0)
+
+    def force(self, delta):
+        """Normal force N = 4/3 E* sqrt(R*) delta^(3/2) (0 for delta <= 0), N."""
+        d = np.maximum(np.asarray(delta, float), 0.0)
+        return 4.0 / 3.0 * self.E_star * np.sqrt(self.R_star) * d ** 1.5
+
+    def approach(self, N):
+        """Approach of distant points delta(N) = (9 N^2 / (16 R* E*^2))^(1/3), mm."""
+        return self.c_approach * np.maximum(np.asarray(N, float), 0.0) ** (2.0 / 3.0)
+
+    def radius(self, N):
+        """Contact radius a = (3 N R* / (4 E*))^(1/3), mm."""
+        return (3.0 * np.maximum(np.asarray(N, float), 0.0) * self.R_star
+                / (4.0 * self.E_star)) ** (1.0 / 3.0)
+
+    def normal_stiffness(self, N):
+        """dN/d(delta) = 2 E* a, N/mm."""
+        return 2.0 * self.E_star * self.radius(N)
+
+    def tangential_stiffness(self, N):
+        """Mindlin's tangential stiffness of the stuck contact, k_t = 8 G* a, N/mm."""
+        return 8.0 * self.G_star * self.radius(N)
+
+
+@dataclass(frozen=True)
+class ContactLaw:
+    """One contact point. Normal: approach ``delta`` shared by the Hertz contact (``hertz``,
+    None = rigid) and a linear spring in series (``k_series`` N/mm, None = rigid; at least one
+    of the two). Tangential: ``k_t(N)`` = Mindlin's stiffness of ``hertz`` in series with
+    ``kt_series`` (N/mm, None = rigid); with no Hertz contact, ``kt_series`` alone. Coulomb
+    friction coefficient ``mu``."""
+
+    mu: float
+    hertz: HertzContact | None = None
+    k_series: float | None = None
+    kt_series: float | None = None
+
+    def __post_init__(self):
+        if not (0.0 <= self.mu <= MU_MAX):
+            raise ParameterError("friction_coefficient", self.mu, f"0 <= value <= {MU_MAX:g}")
+        if self.hertz is None and self.k_series is None:
+            raise ParameterError("contact law", None, "a Hertz contact, a series spring or both")
+        if self.hertz is None and self.mu > 0 and self.kt_series is None:
+            raise ParameterError("kt_series", None, "a tangential stiffness when mu > 0 and "
+                                 "there is no Hertz contact")
+
+    # ------------------------------------------------------------------ normal
+    def normal(self, delta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N, dN/d delta) for approaches ``delta`` (any shape): the series of a Hertz contact
+        and a linear spring, solved for N (Newton on s = N^(1/3): delta = s^3/k + c s^2 is
+        convex in s, so Newton from an upper bound converges monotonically)."""
+        d = np.asarray(delta, float)
+        pos = d > 0
+        dp = np.where(pos, d, 0.0)
+        if self.hertz is None:
+            return self.k_series * dp, np.where(pos, self.k_series, 0.0)
+        c = self.hertz.c_approach
+        if self.k_series is None:
+            N = (dp / c) ** 1.5
+            return N, np.where(pos, 1.5 * np.sqrt(dp / c) / c, 0.0)
+        k = self.k_series
+        s = np.minimum(np.cbrt(k * dp), np.sqrt(dp / c))
+        for _ in range(60):
+            f = s ** 3 / k + c * s ** 2 - dp
+            fp = 3 * s ** 2 / k + 2 * c * s
+            step = np.where(fp > 0, f / np.where(fp > 0, fp, 1.0), 0.0)
+            s = s - step
+            if np.all(np.abs(step) <= 1e-15 * np.maximum(s, 1e-300)):
+                break
+        N = s ** 3
+        # dN/d delta = 1 / (1/k + (2/3) c N^(-1/3))
+        with np.errstate(divide="ignore"):
+            dN = np.where(s > 0, 1.0 / (1.0 / k + (2.0 / 3.0) * c / np.where(s > 0, s, 1.0)),
+                          0.0)
+        return N, np.where(pos, dN, 0.0)
+
+    def approach(self, N) -> np.ndarray:
+        """Total approach at normal force N (inverse of :meth:`normal`), mm."""
+        N = np.maximum(np.asarray(N, float), 0.0)
+        out = np.zeros_like(N)
+        if self.hertz is not None:
+            out = out + self.hertz.approach(N)
+        if self.k_series is not None:
+            out = out + N / self.k_series
+        return out
+
+    # ------------------------------------------------------------------ tangential
+    def kt(self, N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(k_t, dk_t/dN): Mindlin 8 G* a(N) in series with ``kt_series``."""
+        N = np.maximum(np.asarray(N, float), 0.0)
+        if self.hertz is None:
+            k = np.full_like(N, self.kt_series if self.kt_series is not None else 0.0)
+            return k, np.zeros_like(N)
+        km = self.hertz.tangential_stiffness(N)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dkm = np.where(N > 0, km / (3.0 * np.where(N > 0, N, 1.0)), 0.0)
+        if self.kt_series is None:
+            return km, dkm
+        ks = self.kt_series
+        k = km * ks / (km + ks)
+        return k, dkm * (ks / (km + ks)) ** 2
+
+
+@dataclass
+class ContactState:
+    """History variables of ``(batch, m)`` contacts: tangential force ``T`` (.., 2) and the
+    tangential relative displacement ``gt`` (.., 2) at the last converged increment; ``N``."""
+
+    T: np.ndarray
+    gt: np.ndarray
+    N: np.ndarray
+    g: np.ndarray            # (.., 3) relative displacement (normal, t1, t2), mm
+
+    @classmethod
+    def zero(cls, batch: int, m: int) -> "ContactState":
+        z = np.zeros((batch, m))
+        return cls(np.zeros((batch, m, 2)), np.zeros((batch, m, 2)), z.copy(),
+                   np.zeros((batch, m, 3)))
+
+    def copy(self) -> "ContactState":
+        return ContactState(self.T.copy(), self.gt.copy(), self.N.copy(), self.g.copy())
+
+    def take(self, idx) -> "ContactState":
+        return ContactState(self.T[idx].copy(), self.gt[idx].copy(), self.N[idx].copy(),
+                            self.g[idx].copy())
+
+
+class _LawArrays:
+    """The parameters of ``m`` contact laws as (m,) arrays, for evaluating all contacts of a
+    batch at once (inverse stiffnesses 0 = rigid)."""
+
+    def __init__(self, laws: list[ContactLaw]):
+        self.mu = np.array([lw.mu for lw in laws])
+        self.ks_inv = np.array([0.0 if lw.k_series is None else 1.0 / lw.k_series
+                                for lw in laws])
+        self.c = np.array([0.0 if lw.hertz is None else lw.hertz.c_approach for lw in laws])
+        # Mindlin k_m = 8 G* a = A N^(1/3), A = 8 G* (3 R* / (4 E*))^(1/3)
+        self.A = np.array([0.0 if lw.hertz is None else 8.0 * lw.hertz.G_star * (
+            3.0 * lw.hertz.R_star / (4.0 * lw.hertz.E_star)) ** (1.0 / 3.0) for lw in laws])
+        self.kts = np.array([np.inf if lw.kt_series is None else lw.kt_series for lw in laws])
+        self.hertz = self.c > 0
+
+    def normal(self, delta: np.ndarray, N_guess: np.ndarray | None = None):
+        """(N, dN/d delta) for approaches (B, m): delta = N/k + c N^(2/3), Newton on
+        s = N^(1/3) (f(s) = s^3/k + c s^2 - delta is convex increasing for s > 0: from above it
+        converges monotonically, from below the first step lands above)."""
+        d = np.maximum(delta, 0.0)
+        ki, c = self.ks_inv, self.c
+        with np.errstate(divide="ignore", invalid="ignore"):
+            up = np.minimum(np.where(ki > 0, np.cbrt(d / np.where(ki > 0, ki, 1.0)), np.inf),
+                            np.where(c > 0, np.sqrt(d / np.where(c > 0, c, 1.0)), np.inf))
+        s = up
+        if N_guess is not None:
+            sg = np.cbrt(np.maximum(N_guess, 0.0))
+            s = np.where((sg > 0) & (sg < up), sg, up)
+        for _ in range(80):
+            f = s ** 3 * ki + c * s ** 2 - d
+            fp = 3.0 * s ** 2 * ki + 2.0 * c * s
+            step = np.divide(f, fp, out=np.zeros_like(f), where=fp > 0)
+            s = np.maximum(s - step, 0.0)
+            if not (np.abs(step) > 1e-14 * s).any():
+                break
+        N = s ** 3
+        denom = ki + (2.0 / 3.0) * c * np.divide(1.0, s, out=np.zeros_like(s), where=s > 0)
+        dN = np.divide(1.0, denom, out=np.zeros_like(s), where=(denom > 0) & (d > 0))
+        # a rigid series and Hertz at s = 0: the stiffness is 0 there, the limit of 2 E* a
+        return N, dN
+
+    def kt(self, N: np.ndarray):
+        """(k_t, dk_t/dN) (B, m): Mindlin A N^(1/3) in series with k_t,series."""
+        N = np.maximum(N, 0.0)
+        s = np.cbrt(N)
+        km = self.A * s
+        dkm = np.divide(km, 3.0 * N, out=np.zeros_like(N), where=N > 0)
+        kts = self.kts
+        fin = np.isfinite(kts)
+        if not fin.any():
+            return np.where(self.hertz, km, 0.0), dkm
+        ks = np.where(fin, kts, 1.0)
+        r = np.where(fin, ks / (km + ks), 1.0)
+        k = np.where(self.hertz, km * r, np.where(fin, kts, 0.0))
+        dk = np.where(self.hertz, dkm * r ** 2, 0.0)
+        return k, dk
+
+
+def contact_forces(laws, g: np.ndarray, state: ContactState, gap0: np.ndarray | None = None):
+    """Forces ``p`` (B, m, 3) = (N, T1, T2) that B exerts on A for relative displacements
+    ``g`` (B, m, 3), starting the increment from ``state``, and their tangent dp/dg
+    (B, m, 3, 3). ``laws``: the contact laws (list, or their :class:`_LawArrays`). Approach
+    ``delta = gap0 - g_n`` (``gap0``: initial interference, mm). Tangential: trial
+    T = T_old - k_t(N) (g_t - g_t,old); slip when |T| > mu N (return to the cone). Open contacts
+    (N = 0) carry nothing."""
+    la = laws if isinstance(laws, _LawArrays) else _LawArrays(laws)
+    p = np.zeros_like(g)
+    D = np.zeros(g.shape + (3,))
+    delta = (0.0 if gap0 is None else np.asarray(gap0, float)) - g[..., 0]
+    N, dN = la.normal(delta, state.N)
+    p[..., 0] = N
+    D[..., 0, 0] = -dN
+    if not (la.mu > 0).any():
+        return p, D
+    kt, dkt = la.kt(N)
+    dg = g[..., 1:] - state.gt
+    Ttr = state.T - kt[..., None] * dg
+    nT = np.linalg.norm(Ttr, axis=-1)
+    lim = la.mu * N
+    closed = N > 0
+    slip = (nT > lim) & closed
+    th = np.divide(Ttr, nT[..., None], out=np.zeros_like(Ttr), where=nT[..., None] > 0)
+    r = np.where(slip, np.divide(lim, nT, out=np.zeros_like(nT), where=nT > 0), 1.0)
+    T = np.where(closed[..., None], r[..., None] * Ttr, 0.0)
+    P = np.eye(2) - np.where(slip[..., None, None], th[..., :, None] * th[..., None, :], 0.0)
+    Dtt = (r * -kt)[..., None, None] * P
+    dTtr_dgn = (-dkt)[..., None] * dg * (-dN)[..., None]          # through k_t(N(g_n))
+    DtN = r[..., None] * (P @ dTtr_dgn[..., None])[..., 0] \
+        + np.where(slip[..., None], la.mu[:, None] * th * (-dN)[..., None], 0.0)
+    p[..., 1:] = T
+    D[..., 1:, 1:] = np.where(closed[..., None, None], Dtt, 0.0)
+    D[..., 1:, 0] = np.where(closed[..., None], DtN, 0.0)
+    return p, D
+
+
+def commit(laws: list[ContactLaw], g: np.ndarray, p: np.ndarray) -> ContactState:
+    """State after a converged increment: an open contact forgets its tangential history (its
+    reference moves with it, so it re-closes stuck)."""
+    return ContactState(p[:, :, 1:].copy(), g[:, :, 1:].copy(), p[:, :, 0].copy(), g.copy())
+
+
+@dataclass
+class PathResult:
+    """Forces (B, n_points, m, 3) and relative displacements at every load point of a path,
+    the final state, the number of Newton iterations, and lift-off events ``(batch, point,
+    contact)`` where a contact that was closed opened."""
+
+    p: np.ndarray
+    g: np.ndarray
+    state: ContactState
+    iterations: int
+    lift_off: list[tuple[int, int, int]] = field(default_factory=list)
+
+
+@dataclass
+class ContactProblem:
+    """``m`` contacts with laws ``laws`` on a linear structure of flexibility ``C`` (n x n) at
+    its master dofs, contact maps ``L`` (m, 3, n) (rows: normal, t1, t2 of A relative to B)
+    and initial interferences ``gap0`` (m,) (0: touching without force)."""
+
+    C: np.ndarray
+    L: np.ndarray
+    laws: list[ContactLaw]
+    gap0: np.ndarray | None = None
+    tol: float = 1e-12            # relative, on the relative displacements
+    max_iter: int = 60
+
+    def __post_init__(self):
+        self.C = np.asarray(self.C, float)
+        self.L = np.asarray(self.L, float)
+        m, three, n = self.L.shape
+        if three != 3 or self.C.shape != (n, n) or len(self.laws) != m:
+            raise ModelError(f"contact problem: C {self.C.shape}, L {self.L.shape}, "
+                             f"{len(self.laws)} laws do not match")
+        self.Lf = self.L.reshape(3 * m, n)
+        self.F = self.Lf @ self.C @ self.Lf.T          # contact flexibility (3m x 3m)
+        self._la = _LawArrays(self.laws)
+
+    @property
+    def m(self) -> int:
+        return self.L.shape[0]
+
+    def free_motion(self, f: np.ndarray) -> np.ndarray:
+        """(B, m, 3) relative displacements of the loads ``f`` (B, n) with no contact force."""
+        return (np.atleast_2d(f) @ self.C.T @ self.Lf.T).reshape(-1, self.m, 3)
+
+    def solve_increment(self, g0: np.ndarray, state: ContactState, g_start: np.ndarray):
+        """Equilibrium g = g0 + F p(g) for free motions ``g0`` (B, m, 3), from ``g_start``.
+        Returns (g, p, iterations)."""
+        Bn, m = g0.shape[:2]
+        F = self.F
+        g = g_start.copy()
+        scale = max(float(np.abs(g0).max()), float(np.abs(g_start).max()), 1e-9)
+        def residual(g):
+            p, D = contact_forces(self._la, g, state, self.gap0)
+            return (g - g0).reshape(Bn, -1) - p.reshape(Bn, -1) @ F.T, D
+
+        R, D = residual(g)
+        for it in range(1, self.max_iter + 1):
+            Dbd = np.zeros((Bn, 3 * m, 3 * m))
+            for k in range(m):
+                Dbd[:, 3 * k:3 * k + 3, 3 * k:3 * k + 3] = D[:, k]
+            J = np.eye(3 * m)[None] - F[None] @ Dbd
+            dx = np.linalg.solve(J, -R[..., None])[..., 0].reshape(Bn, m, 3)
+            # backtracking on the residual norm, per load history (stick/slip and open/closed
+            # switches make the residual only piecewise smooth)
+            r0 = np.linalg.norm(R, axis=1)
+            lam = np.ones(Bn)
+            for _ in range(12):
+                g_try = g + lam[:, None, None] * dx
+                R_try, D_try = residual(g_try)
+                worse = np.linalg.norm(R_try, axis=1) > r0 * (1 - 1e-4 * lam) + 1e-15 * scale
+                if not np.any(worse):
+                    break
+                lam = np.where(worse, 0.5 * lam, lam)
+            g, R, D = g_try, R_try, D_try
+            if np.abs(lam[:, None, None] * dx).max() <= self.tol * scale \
+                    or np.abs(R).max() <= self.tol * scale:
+                break
+        else:
+            raise ModelError(f"contact increment did not converge in {self.max_iter} Newton "
+                             f"iterations (last correction {np.abs(dx).max():.3g} mm)")
+        p, _ = contact_forces(self._la, g, state, self.gap0)
+        return g, p, it
+
+    def solve_path(self, f_points: np.ndarray, state: ContactState, n_sub: int = 1,
+                   f_start: np.ndarray | None = None) -> PathResult:
+        """Follow the master loads ``f_points`` (B, n_points, n) from ``f_start`` (B, n; default
+        the loads of the state, zero for a fresh one) in straight segments of ``n_sub``
+        increments each; the readings are the states at the points."""
+        f_points = np.asarray(f_points, float)
+        Bn, npt, n = f_points.shape
+        f_prev = np.zeros((Bn, n)) if f_start is None else np.asarray(f_start, float)
+        st = state.copy()
+        g = st.g.copy()
+        P = np.zeros((Bn, npt, self.m, 3))
+        Gs = np.zeros_like(P)
+        iters = 0
+        lift = []
+        for j in range(npt):
+            for s in range(1, n_sub + 1):
+                f = f_prev + (f_points[:, j] - f_prev) * (s / n_sub)
+                g0 = self.free_motion(f)
+                closed_before = st.N > 0
+                g, p, it = self.solve_increment(g0, st, g)
+                iters += it
+                st = commit(self.laws, g, p)
+                opened = closed_before & ~(st.N > 0)
+                for b, k in zip(*np.nonzero(opened)):
+                    lift.append((int(b), j, int(k)))
+            f_prev = f_points[:, j]
+            P[:, j] = np.concatenate([st.N[..., None], st.T], -1)
+            Gs[:, j] = g
+        return PathResult(P, Gs, st, iters, lift)
+
+
+# ---------------------------------------------------------------------- static condensation
+
+def _master_map(model: Model, master) -> np.ndarray:
+    """(k, n_dofs) dense map u -> master dofs: a RefPoint -> its 6 dofs (translation v, rotation
+    w; distributing couplings: the weighted rigid fit), ``(RefPoint, xyz)`` -> the 3
+    translations of a point moving with it."""
+    if isinstance(master, tuple):
+        ref, p = master
+        M = np.hstack([np.eye(3), -skew(np.asarray(p, float) - ref.x)])
+        return M @ model.twist_map(ref).toarray()
+    if isinstance(master, RefPoint):
+        return model.twist_map(master).toarray()
+    raise ParameterError("master", master, "a RefPoint or (RefPoint, xyz)")
+
+
+def condense(model: Model, masters: list, solver: str = "direct", check: bool = True,
+             keep_cases: tuple[str, ...] = ()):
+    """Flexibility of a linear FEM model at its master points by unit loads (exact static
+    condensation; one factorisation, one back-substitution per master dof).
+
+    ``masters``: RefPoints (6 dofs each: forces f_x, f_y, f_z then moments m_x, m_y, m_z, and
+    the conjugate (v, w)) or ``(RefPoint, xyz)`` (3 dofs: a force at that point, carried by the
+    reference point as force + moment, and its displacement). Returns ``(C, R)``: C (n, n)
+    N -> mm flexibility (symmetric), R {case: (n,)} the master motions under the model's own
+    load cases named in ``keep_cases`` (their equivalent master loads are ``inv(C) @ R``).
+    The model gets the load cases ``_condense_i``; its other cases are solved alongside."""
+    from designlab.fem.static import solve_static
+
+    maps = [_master_map(model, m) for m in masters]
+    Lm = np.vstack(maps)                                  # (n, n_dofs)
+    names = []
+    for mi, m in enumerate(masters):
+        ref, p = (m if isinstance(m, tuple) else (m, None))
+        for i in range(maps[mi].shape[0]):
+            e = np.zeros(6)
+            e[i] = 1.0
+            force, moment = (e[:3], e[3:]) if p is None else (
+                e[:3], np.cross(np.asarray(p, float) - ref.x, e[:3]))
+            name = f"_condense_{len(names)}"
+            model.force(ref, force=force, moment=moment, case=name)
+            names.append(name)
+    res = solve_static(model, solver=solver, check=check)
+    idx = [res.system.case_index(c) for c in names]
+    C = Lm @ res.U[:, idx]
+    asym = np.abs(C - C.T).max() / np.abs(C).max()
+    if asym > 1e-6:
+        raise ModelError(f"condensed flexibility is not symmetric ({asym:.2g}): the masters' "
+                         "loads and motions are not conjugate")
+    C = 0.5 * (C + C.T)
+    R = {c: Lm @ res.U[:, res.system.case_index(c)] for c in keep_cases}
+    return C, R
