@@ -201,13 +201,21 @@ def flexure(preset: str = typer.Option("visiflex", "--preset",
                                                      help="Override a spring parameter (mm, rad, MPa)."),
             frame: str = typer.Option("camera", "--frame", help="spring (centre of the spring) or camera."),
             json_out: Optional[Path] = typer.Option(None, "--json", help="Write all matrices as JSON (SI)."),
-            no_fem: bool = typer.Option(False, "--no-fem", help="Skip the FEM 6x6 (meshing the helix takes minutes)."),
+            fem: bool = typer.Option(False, "--fem/--no-fem",
+                                     help="Also mesh and solve the solid helix (about a minute; "
+                                          "the beam chain always runs)."),
+            seat: str = typer.Option("bonded", "--seat",
+                                     help="Beam chain ends: bonded (ground faces epoxied), "
+                                          "contact (seated, wire end bonded) or potted (dead turn in epoxy)."),
+            working_load: float = typer.Option(10.0, "--working-load",
+                                               help="Axial load of the second linearisation, N (0: none)."),
             edge_length: Optional[float] = typer.Option(None, "--edge-length",
                                                         help="FEM tet edge length, mm (default: wire radius)."),
             paper_json: Optional[Path] = typer.Option(None, "--paper-json",
                                                       help="Seed 002 JSON (default ../shared/data/papers/visiflex_flexure.json).")):
-    """Seed 002 spring flexure 6x6 stiffness: closed form, FEM, paper theory and measurement (SI)."""
+    """Seed 002 spring flexure 6x6 stiffness: closed form, beam chain, solid FEM (--fem), paper theory and measurement (SI)."""
     from designlab.sensors.flexure import report as fr
+    from designlab.sensors.flexure.beam_chain import ChainSettings, chain_stiffness
     from designlab.sensors.flexure.spring import preset as spring_preset
     from designlab.params import parse_sets, with_overrides
 
@@ -216,25 +224,32 @@ def flexure(preset: str = typer.Option("visiflex", "--preset",
         raise ParameterError("--frame", frame, "one of " + ", ".join(fr.FRAMES))
     spring = with_overrides(spring_preset(preset), parse_sets(set_))
     paper = fr.load_paper(paper_json)
+    chain = chain_stiffness(spring, ChainSettings(seat=seat, working_load_N=working_load))
     K_fem = None
     fem_info = None
-    if not no_fem:
+    if fem:
         from designlab.sensors.flexure.helix_fem import fem_stiffness
 
         with progress_bar("FEM 6x6") as bar:
             def step(text: str, done: int, total: int) -> None:
                 bar(f"FEM: {text}", completed=done, total=total)
 
-            fem = fem_stiffness(spring, edge_length=edge_length, progress=step)
-        K_fem, fem_info = fem.K_centre_si, fem.summary()
-    report = fr.flexure_report(spring, frame=frame, K_fem_spring_si=K_fem, paper=paper)
+            sol = fem_stiffness(spring, edge_length=edge_length, progress=step)
+        K_fem, fem_info = sol.K_centre_si, sol.summary()
+    report = fr.flexure_report(spring, frame=frame, K_fem_spring_si=K_fem, paper=paper,
+                               K_chain_spring_si=chain.K_centre_si,
+                               K_chain_loaded_si=chain.K_loaded_centre_si)
     report["fem_info"] = fem_info
+    report["chain_info"] = chain.info
     for table in fr.report_tables(report):
         console.print(table)
     r = report["ratios"]
     console.print("ratios (closed form vs paper theory): " + ", ".join(
         f"{k} {r['closed_form'][k]:.4g} vs {r['paper_theory'][k]:.4g} ({v:+.2f} %)"
         for k, v in r["closed_form_vs_paper_pct"].items()), highlight=False)
+    ci = chain.info
+    console.print(f"chain: {ci['geometry']}; {ci['elements']} beams, {ci['contacts']} contact "
+                  f"pairs, {ci['seconds']:.2f} s", highlight=False)
     if fem_info is not None:
         console.print(f"FEM: {fem_info['n_nodes']} nodes, {fem_info['n_cells']} TET{fem_info['cell_nodes']}"
                       f", asymmetry ||K-K^T||/||K|| = {fem_info['asymmetry']:.2e}", highlight=False)
@@ -242,7 +257,7 @@ def flexure(preset: str = typer.Option("visiflex", "--preset",
         console.print(f"[bold]note:[/] {note}", highlight=False)
     if json_out is not None:
         fr.write_json(json_out, report)
-        console.print(f"wrote {json_out}", markup=False, highlight=False)
+        console.print(f"wrote {json_out}")
 
 
 def _parts_from_cli(part: str, set_: Optional[List[str]], config: Optional[Path]):

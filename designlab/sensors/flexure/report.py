@@ -118,11 +118,54 @@ def _pct(ours: float, ref: float) -> float | None:
     return None if ref == 0 else float(100.0 * (ours - ref) / abs(ref))
 
 
+def fit_camera_offset(K_spring_si: np.ndarray, K_c_measured: np.ndarray,
+                      entries=ENTRIES) -> dict:
+    """Least-squares camera offset: the ``h`` (m, spring centre above the camera origin along z)
+    that brings ``K_spring_si`` closest to the measured K_c on ``entries`` (relative errors,
+    equal weights), and the zero-coupling point of the measured and of the fitted matrix.
+
+    This fits one geometric quantity of the rig to the measurement: report it as fitted."""
+    from scipy.optimize import minimize_scalar
+
+    M = np.asarray(K_c_measured, float)
+
+    def cost(h):
+        K = to_frame(K_spring_si, "camera", h)
+        return float(sum(((K[i, j] - M[i, j]) / M[i, j]) ** 2 for _, i, j in entries))
+
+    res = minimize_scalar(cost, bounds=(-0.1, 0.1), method="bounded", options={"xatol": 1e-8})
+    K = to_frame(K_spring_si, "camera", float(res.x))
+    return {"offset_m": float(res.x), "cost": float(res.fun), "entries": [e[0] for e in entries],
+            "zero_coupling_m": zero_coupling_point(K),
+            "measured_zero_coupling_m": zero_coupling_point(M)}
+
+
+def zero_coupling_point(K: np.ndarray) -> float:
+    """Height (m) above the frame origin where the x/y moment-translation couplings of ``K``
+    vanish: mean of ``-K[0, 4] / K[4, 4]`` and ``K[1, 3] / K[3, 3]`` (SI)."""
+    K = np.asarray(K, float)
+    return float(np.mean([-K[0, 4] / K[4, 4], K[1, 3] / K[3, 3]]))
+
+
+def goal_metrics(rows: list, key: str) -> dict | None:
+    """Mean |error| % over the six diagonal entries and measured/model ratios of the two
+    couplings for the column ``key`` (None when the column is empty)."""
+    if any(r.get(key) is None for r in rows):
+        return None
+    diag = [abs(r[f"{key}_vs_measured_pct"]) for r in rows if r["i"] == r["j"]]
+    coup = {r["entry"]: r[key] / r["paper_measured"] for r in rows if r["i"] != r["j"]}
+    return {"diagonal_mean_abs_error_pct": float(np.mean(diag)),
+            "coupling_model_over_measured": coup}
+
+
 def flexure_report(spring: HelicalSpring, frame: str = "camera", K_fem_spring_si: np.ndarray | None = None,
-                   paper: dict | None = None) -> dict:
+                   paper: dict | None = None, K_chain_spring_si: np.ndarray | None = None,
+                   K_chain_loaded_si: np.ndarray | None = None) -> dict:
     """All numbers of the ``designlab flexure`` table, in SI and in ``frame``.
 
     ``K_fem_spring_si``: the FEM stiffness at the spring centre (SI), or None (no FEM column).
+    ``K_chain_spring_si`` / ``K_chain_loaded_si``: the beam chain's, unloaded and at the working
+    load (columns ``chain`` and ``chain_loaded``).
     Keys: closed_form, closed_form_timoshenko, fem, frame, paper_theory, paper_measured, ratios,
     common_factor, explanation (None unless the factor is common and != 1), offset_m, rows,
     condition_numbers, units.
@@ -136,6 +179,8 @@ def flexure_report(spring: HelicalSpring, frame: str = "camera", K_fem_spring_si
     if frame == "spring":  # the measured K_c moved back to the spring centre
         measured = transform_stiffness(measured, transform(translation=(0.0, 0.0, -h)))
     mats = {"closed_form": to_frame(K_cf, frame, h), "closed_form_timoshenko": to_frame(K_tim, frame, h),
+            "chain": None if K_chain_spring_si is None else to_frame(K_chain_spring_si, frame, h),
+            "chain_loaded": None if K_chain_loaded_si is None else to_frame(K_chain_loaded_si, frame, h),
             "fem": None if K_fem_spring_si is None else to_frame(K_fem_spring_si, frame, h)}
     cf = common_factor(K_cf, paper["K_f_theory"])
     explanation = None
@@ -181,10 +226,21 @@ def flexure_report(spring: HelicalSpring, frame: str = "camera", K_fem_spring_si
                      f"k_wz = {paper['K_f_theory'][2, 2]:g}; an offset along z cannot change it "
                      "(printing/rounding in the paper)")
     Km = paper["K_c_measured"]
-    centre_measured = float(np.mean([-Km[0, 4] / Km[4, 4], Km[1, 3] / Km[3, 3]]))
+    centre_measured = zero_coupling_point(Km)
     notes.append(f"the camera frame is {1e3 * h:.2f} mm below the spring centre (from the paper's "
                  f"K_f -> K_c couplings); the measured K_c has its zero-coupling point "
                  f"{1e3 * centre_measured:.2f} mm above the camera origin")
+    spring_frame = {"closed_form_timoshenko": K_tim, "chain": K_chain_spring_si,
+                    "chain_loaded": K_chain_loaded_si, "fem": K_fem_spring_si}
+    camera_fit = {k: fit_camera_offset(K, paper["K_c_measured"]) for k, K in spring_frame.items()
+                  if K is not None}
+    for k, fit in camera_fit.items():
+        Kc = to_frame(spring_frame[k], "camera", fit["offset_m"])
+        fit["diagonal_mean_abs_error_pct"] = float(np.mean(
+            [abs(_pct(Kc[i, i], paper["K_c_measured"][i, i])) for i in range(6)]))
+        fit["coupling_model_over_measured"] = {
+            n: float(Kc[i, j] / paper["K_c_measured"][i, j]) for n, i, j in ENTRIES if i != j}
+    goals = {k: goal_metrics(rows, k) for k in mats}
     tolist = lambda K: None if K is None else np.asarray(K).tolist()  # noqa: E731
     return {"frame": frame, "units": UNITS, "offset_m": h,
             "spring": dataclasses.asdict(spring) | {"active_coils": spring.active_coils,
@@ -194,7 +250,9 @@ def flexure_report(spring: HelicalSpring, frame: str = "camera", K_fem_spring_si
                                 for k, v in centre_terms(spring).items()},
             "closed_form": tolist(mats["closed_form"]),
             "closed_form_timoshenko": tolist(mats["closed_form_timoshenko"]),
-            "fem": tolist(mats["fem"]),
+            "fem": tolist(mats["fem"]), "chain": tolist(mats["chain"]),
+            "chain_loaded": tolist(mats["chain_loaded"]),
+            "goals": goals, "camera_fit": camera_fit,
             "paper_theory": tolist(theory), "paper_measured": tolist(measured),
             "ratios": ratios, "common_factor": cf, "explanation": explanation, "notes": notes,
             "measured_elastic_centre_m": centre_measured,
@@ -211,12 +269,18 @@ def write_json(path: str | Path, report: dict) -> Path:
     return atomic_write_json(path, report)
 
 
+#: report columns: key, table heading
+COLUMNS = (("closed_form", "closed form"), ("closed_form_timoshenko", "Timoshenko"),
+           ("chain", "chain"), ("chain_loaded", "chain @load"), ("fem", "solid FEM"))
+
+
 def report_tables(report: dict) -> list:
-    """Two rich Tables of the report rows: values (paper theory/measured, closed form,
-    Timoshenko, FEM) and % errors with which model is closer to the measurement."""
+    """Three rich Tables: values (paper theory/measured and each model present), % errors of
+    each model against the measurement, and the goal metrics with the paper's and the fitted
+    camera offset."""
     from rich.table import Table
 
-    has_fem = report["fem"] is not None
+    cols = [(k, t) for k, t in COLUMNS if report.get(k) is not None]
 
     def num(v):
         return "-" if v is None else (f"{v:.0f}" if abs(v) >= 100 else f"{v:.3g}")
@@ -226,26 +290,37 @@ def report_tables(report: dict) -> list:
 
     values = Table(title=f"Visiflex flexure stiffness, {report['frame']} frame ({report['units']})",
                    caption_justify="left")
-    for c in ["entry", "paper theory", "paper meas.", "closed form", "Timoshenko"] + (
-            ["FEM"] if has_fem else []):
+    for c in ["entry", "paper theory", "paper meas."] + [t for _, t in cols]:
         values.add_column(c, justify="left" if c == "entry" else "right", no_wrap=True)
     errors = Table(title="% error: closed form vs paper theory, then each model vs paper measured",
                    caption_justify="left")
-    cols = ["entry", "closed/paper", "closed/meas", "Tim./meas"]
-    cols += ["FEM/meas", "closer"] if has_fem else []
-    for c in cols:
-        errors.add_column(c, justify="left" if c in ("entry", "closer") else "right",
-                          no_wrap=True)
+    for c in ["entry", "closed/paper"] + [f"{t}/meas" for _, t in cols]:
+        errors.add_column(c, justify="left" if c == "entry" else "right", no_wrap=True)
     for r in report["rows"]:
         values.add_row(r["entry"], num(r["paper_theory"]), num(r["paper_measured"]),
-                       num(r["closed_form"]), num(r["closed_form_timoshenko"]),
-                       *([num(r["fem"])] if has_fem else []))
-        cells = [r["entry"], pct(r["closed_form_vs_theory_pct"]),
-                 pct(r["closed_form_vs_measured_pct"]), pct(r["closed_form_timoshenko_vs_measured_pct"])]
-        if has_fem:
-            cells += [pct(r["fem_vs_measured_pct"]),
-                      {"fem": "FEM", "closed_form": "closed form"}.get(r["closer_to_measured"], "-")]
-        errors.add_row(*cells)
+                       *[num(r[k]) for k, _ in cols])
+        errors.add_row(r["entry"], pct(r["closed_form_vs_theory_pct"]),
+                       *[pct(r[f"{k}_vs_measured_pct"]) for k, _ in cols])
     c = report["condition_numbers"]
     errors.caption = "cond(K): " + ", ".join(f"{k} {v:.4g}" for k, v in c.items() if v is not None)
-    return [values, errors]
+    goals = Table(title="goals: mean |error| over the measured diagonal <= 15 %, couplings "
+                        "within 1.5x of -37.8 / 30.1", caption_justify="left")
+    for c in ("model", "camera offset", "diag. MAE %", "k_wx_vy ratio", "k_wy_vx ratio"):
+        goals.add_column(c, justify="left" if c == "model" else "right", no_wrap=True)
+    for k, t in cols:
+        g = report["goals"].get(k)
+        if g is not None:
+            cr = g["coupling_model_over_measured"]
+            goals.add_row(t, f"paper {1e3 * report['offset_m']:.2f} mm",
+                          f"{g['diagonal_mean_abs_error_pct']:.1f}",
+                          f"{cr['k_wx_vy']:.2f}", f"{cr['k_wy_vx']:.2f}")
+        f = report["camera_fit"].get(k)
+        if f is not None:
+            cr = f["coupling_model_over_measured"]
+            goals.add_row(t, f"fitted {1e3 * f['offset_m']:.2f} mm",
+                          f"{f['diagonal_mean_abs_error_pct']:.1f}",
+                          f"{cr['k_wx_vy']:.2f}", f"{cr['k_wy_vx']:.2f}")
+    goals.caption = ("paper offset: from the paper's own K_f -> K_c theory; fitted: least squares "
+                     "on the 8 measured entries (relative errors), a quantity fitted to the "
+                     "measurement. Goal metrics are in the camera frame.")
+    return [values, errors, goals]
