@@ -128,7 +128,8 @@ def stand_in_note(material: Material) -> str | None:
     """One line naming a material's stand-in properties, or None when it has none."""
     if not material.stand_ins:
         return None
-    return (f"{material.name}: {', '.join(material.stand_ins)} are stand-ins (silicone/"
+    verb = "is a stand-in" if len(material.stand_ins) == 1 else "are stand-ins"
+    return (f"{material.name}: {', '.join(material.stand_ins)} {verb} (silicone/"
             "carbon-black elastomer of the stretch rig or a printed-part analogue), not "
             "measured on the printed material")
 

@@ -193,13 +193,13 @@ def fit_part(finger: Finger, target_strain: float, slots: int = 1, base=None):
     The tab keeps the paper's medium-slot distance from the arch foot (7.7 mm on the default
     strap); the arch (width, height, gauge offset, pad contact) is scaled so that arch + two
     tabs has the engaged length path / (1 + target). ``slots`` = 1 (no adjustment) or an odd
-    number of slots at the minimum pitch (slot width + 0.8 mm web) centred on the target."""
+    number of slots at a fine pitch (slot width + 0.85 mm web) centred on the target."""
     from designlab.geometry.strap import ArchStrap
 
     base = base or ArchStrap()
     if slots not in (1, 3, 5):
         raise ParameterError("--slots", slots, "1, 3 or 5")
-    pitch = base.slot_width + 0.8
+    pitch = base.slot_width + 0.85             # 0.85 mm web: just above the 0.8 mm minimum
     d0 = float(base.slot_distances()[MEDIUM_SLOT - 1])
     m = (slots - 1) // 2                                    # target = the middle slot
     L = wrap_path(base, finger.perimeter) / (1.0 + target_strain)
@@ -344,3 +344,83 @@ def finger_from_scan(path, strap_position: float | None = None) -> Finger:
                              f"a fingertip-like shape (length / width = {length / width:.2g}; "
                              "allowed 1.2-6)")
     return Finger(round(width, 2), round(depth, 2), round(min(length, LENGTH_RANGE[1]), 2))
+
+
+# ------------------------------------------------------------------------------- fit-strap
+
+def fit_strap(finger: Finger, out, *, target_strain: float | None = None, slots: int = 1,
+              edge_length: float = 1.5, perimeters=None, progress=None) -> dict[str, Any]:
+    """Personalised strap for ``finger``: the part, its elastic virtual test on the finger
+    (static FEM, TPUs without their Prony stand-ins: the instantaneous sensitivity), the
+    electrical design, the size table, ``fit.json`` and the printable two-material 3MF
+    (``out/strap/strap.3mf``). Everything is checked before anything is written."""
+    import time
+    from pathlib import Path
+
+    from designlab.atomic import atomic_write_json
+    from designlab.fem.materials import get_material
+    from designlab.geometry.export import export_parts, prepare_part, require_printable
+    from designlab.sensors import strap as st
+
+    say = progress or (lambda s: None)
+    t0 = time.perf_counter()
+    trace = get_material("PI-ETPU")
+    target = default_target() if target_strain is None else float(target_strain)
+    check_target(target, trace)
+    part = fit_part(finger, target, slots)
+    say("checking printability")
+    prepared = prepare_part(part, "strap")
+    require_printable([prepared])
+    r = finger.equivalent_radius
+    settings = st.StrapModelSettings(edge_length=edge_length, finger_radius=round(r, 4),
+                                     slot=(slots + 1) // 2)
+    mats = {b: dataclasses.replace(get_material(m), prony=None) for b, m in
+            (("strap", "NinjaFlex"), ("trace_left", "PI-ETPU"), ("trace_right", "PI-ETPU"))}
+    say("virtual test (static FEM)")
+    pred = st.run(part, settings=settings, materials=mats, progress=say)
+    rep = pred.report
+    el = rep["electrical"]
+    sens = rep["sensitivity"]["V_per_N"]
+    # the paper's strap on the same finger, same model, medium slot
+    say("paper strap on this finger")
+    from designlab.geometry.strap import ArchStrap
+
+    paper = st.run(ArchStrap(), settings=dataclasses.replace(settings, slot=MEDIUM_SLOT),
+                   materials=mats).report
+    s0 = paper["sensitivity"]["V_per_N"]["sum"]["F_n"] / paper["prestrain"]["sensitivity_factor"]
+    d0 = paper["sensitivity"]["V_per_N"]["diff"]["F_x"] / paper["prestrain"]["sensitivity_factor"]
+    R0 = el["resistance_ohm"]["total"]
+    table = size_table(perimeters if perimeters is not None else np.arange(40.0, 75.0, 5.0),
+                       trace, R0, settings.divider_ohm, s0, target)
+    result = {
+        "finger_mm": dataclasses.asdict(finger) | {"perimeter": finger.perimeter,
+                                                   "equivalent_radius": r},
+        "target_initial_strain": target,
+        "target_source": "default: the paper's medium slot on the reference finger (radius "
+                         f"{REFERENCE_RADIUS:g} mm), rigid finger" if target_strain is None
+                         else "given",
+        "strap_parameters": dataclasses.asdict(part),
+        "prestrain": rep["prestrain"],
+        "sensitivity_V_per_N": {"sum_F_n": sens["sum"]["F_n"], "diff_F_x": sens["diff"]["F_x"]},
+        "resolution_mN": el["resolution_mN"],
+        "electrical": el,
+        "paper_slots_on_this_finger": paper["slots"] | {
+            "paper_strap_slots_sensitivity_from": "same FEM, the paper's strap"},
+        "size_table": table,
+        "required_measurement_sd_mm_for_10_percent":
+            0.10 * target * min(wrap_path(ArchStrap(), P) / (1 + target)
+                                for P in [row["perimeter_mm"] for row in table["rows"]])
+            * math.sqrt(2) / math.pi,
+        "material_stand_ins": rep["material_stand_ins"],
+        "model": "elastic (no Prony stand-ins), static FEM of the worn strap on a rigid-finger "
+                 "prestrain; see strap_fit module notes",
+        "paper_medium_slot_sum_F_n_V_per_N_unstrained": s0,
+        "paper_medium_slot_diff_F_x_V_per_N_unstrained": d0,
+    }
+    say("writing")
+    out = Path(out)
+    files = export_parts({"strap": part}, out, ("3mf",), png=False).files
+    result["timings_s"] = {"total": time.perf_counter() - t0}
+    files.append(atomic_write_json(out / "fit.json", result))
+    result["files"] = [str(f) for f in files]
+    return result
