@@ -206,13 +206,23 @@ class _Staging:
         while not d.exists():
             self.created.append(d)
             d = d.parent
-        target.mkdir(parents=True, exist_ok=True)
+        from designlab.atomic import ensure_dir, sweep_temps, temp_prefix
+
+        ensure_dir(target)
+        sweep_temps(target)  # what a killed export left (its writer is gone)
         for fname, writer in jobs:
-            fd, tmp = tempfile.mkstemp(prefix=f".{fname}.", suffix=".tmp" + Path(fname).suffix,
-                                       dir=target)
+            fd, tmp = tempfile.mkstemp(prefix=temp_prefix(fname),
+                                       suffix=".tmp" + Path(fname).suffix, dir=target)
             os.close(fd)
             self.temps.append((Path(tmp), target / fname))
-            writer(Path(tmp))
+            try:
+                writer(Path(tmp))
+            except OSError as exc:
+                if isinstance(exc, OutputError):
+                    raise
+                from designlab.atomic import os_error
+
+                raise os_error(target / fname, exc) from None
             if Path(tmp).stat().st_size == 0:
                 raise OutputError(f"writing {fname} produced an empty file")
 

@@ -2,7 +2,8 @@
 
 Rendering uses pyvista/VTK off screen. The VTK wheels pinned by CadQuery (9.3) need an X server:
 when ``DISPLAY`` is unset, one private ``Xvfb`` is started for the process (``-displayfd`` picks a
-free display) and stopped at exit. Without an X server and without ``Xvfb`` on the PATH, a
+free display) and stopped at exit; it also dies with the process however that one ends (kill -9
+included: Linux parent-death signal). Without an X server and without ``Xvfb`` on the PATH, a
 matplotlib (Agg) picture of the same triangles is drawn instead, so export never fails for lack of
 a screen.
 """
@@ -46,10 +47,19 @@ def ensure_display() -> bool:
     xvfb = shutil.which("Xvfb")
     if xvfb is None:
         return False
+    import threading
+
+    from designlab.atomic import die_with_parent
+
     r, w = os.pipe()
+    # the parent-death signal fires when the *thread* that started the child ends: arm it from
+    # the main thread only (a worker thread's Xvfb is still stopped at exit)
+    me = os.getpid()
+    pre = ((lambda: die_with_parent(me)) if threading.current_thread() is threading.main_thread()
+           else None)
     try:
         _XVFB = subprocess.Popen([xvfb, "-displayfd", str(w), "-screen", "0", "1600x1200x24",
-                                  "-nolisten", "tcp"], pass_fds=(w,),
+                                  "-nolisten", "tcp"], pass_fds=(w,), preexec_fn=pre,
                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     finally:
         os.close(w)

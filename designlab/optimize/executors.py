@@ -25,10 +25,27 @@ def _guarded(fn: Callable[[Any], Any], task: Any) -> tuple[Any, str | None]:
         return None, f"{type(exc).__name__}: {msg}" if msg else traceback.format_exc(limit=1)
 
 
+def _worker_init(parent_pid: int) -> None:
+    """Pool worker initializer: the worker dies with the process that started the pool
+    (kill -9 of the sweep included), instead of computing on for nobody."""
+    from designlab.atomic import die_with_parent
+
+    die_with_parent(parent_pid)
+
+
+MAX_WORKERS = 512
+
+
 class LocalExecutor:
-    """Process pool (``spawn`` start method: OCP and VTK are not fork-safe)."""
+    """Process pool (``spawn`` start method: OCP and VTK are not fork-safe). Its workers end
+    with the process that started them, however that one ends (Linux parent-death signal)."""
 
     def __init__(self, workers: int | None = None):
+        from designlab.errors import ParameterError
+
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
+                                    or not 1 <= workers <= MAX_WORKERS):
+            raise ParameterError("--workers", workers, f"an integer, 1 <= value <= {MAX_WORKERS}")
         self.workers = workers or os.cpu_count() or 1
 
     def run(self, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Iterator[Result]:
@@ -37,7 +54,8 @@ class LocalExecutor:
                 yield (i, *_guarded(fn, t))
             return
         ctx = mp.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx) as pool:
+        with ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx,
+                                 initializer=_worker_init, initargs=(os.getpid(),)) as pool:
             pending = {pool.submit(_guarded, fn, t): i for i, t in enumerate(tasks)}
             try:
                 while pending:

@@ -9,13 +9,17 @@ Layout under the sweep's output directory::
 
 Every file is written to a temporary name and renamed, so an interrupted sweep (Ctrl-C, kill -9)
 leaves only complete files; the key (a hash of part, parameters, settings, protocol and the
-designlab version) names both files, so a resumed sweep never duplicates a design.
+designlab version) names both files, so a resumed sweep never duplicates a design. Temporary
+names (``.KEY.RANDOM.tmp``) never match the store's own names (``KEY.parquet``, ``KEY.json``),
+and :meth:`ResultStore.recover` removes those a killed run left (under the directory's lock,
+:func:`designlab.atomic.out_lock`, so never another live run's).
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import re
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -24,7 +28,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from designlab import __version__
-from designlab.atomic import atomic_write_bytes, jsonable as _jsonable
+from designlab.atomic import atomic_write_bytes, jsonable as _jsonable, sweep_temps
+
+KEY = re.compile(r"^[0-9a-f]{20}$")
 
 
 def design_key(part: str, params: dict[str, Any], settings: dict[str, Any] | None = None,
@@ -66,11 +72,37 @@ class ResultStore:
         self.cache_dir = self.root / "cache"
         self.rows_dir = self.root / "results"
 
+    def recover(self) -> dict[str, int]:
+        """After a kill: remove temporary files, and row or cache files that cannot be read
+        (a file system that lost a write); those designs are evaluated again. Returns counts."""
+        temps = len(sweep_temps(self.rows_dir)) + len(sweep_temps(self.cache_dir))
+        broken = 0
+        for p in self._row_files():
+            try:
+                pq.read_metadata(p)
+            except (pa.ArrowException, OSError):
+                p.unlink(missing_ok=True)
+                broken += 1
+        if self.cache_dir.is_dir():
+            for p in self.cache_dir.glob("*.json"):
+                if KEY.match(p.stem) and self._read_cache(p) is None:
+                    p.unlink(missing_ok=True)
+                    broken += 1
+        return {"temporary_files": temps, "unreadable_files": broken}
+
+    @staticmethod
+    def _read_cache(p: Path) -> dict[str, Any] | None:
+        try:
+            doc = json.loads(p.read_text())
+        except (OSError, ValueError):
+            return None
+        return doc if isinstance(doc, dict) and "metrics" in doc else None
+
     def cached(self, key: str) -> dict[str, Any] | None:
         p = self.cache_dir / f"{key}.json"
         if not p.exists():
             return None
-        return json.loads(p.read_text())
+        return self._read_cache(p)
 
     def has_row(self, key: str) -> bool:
         return (self.rows_dir / f"{key}.parquet").exists()
@@ -79,20 +111,26 @@ class ResultStore:
         """Store a finished design: its full result in the cache, then its table row."""
         if result is not None:
             atomic_write_bytes(self.cache_dir / f"{key}.json",
-                               json.dumps(_jsonable(result), indent=1).encode())
+                               json.dumps(_jsonable(result), indent=1).encode(),
+                               keep_suffix=False)
         table = pa.Table.from_pylist([row])
         sink = pa.BufferOutputStream()
         pq.write_table(table, sink)
-        atomic_write_bytes(self.rows_dir / f"{key}.parquet", sink.getvalue().to_pybytes())
+        atomic_write_bytes(self.rows_dir / f"{key}.parquet", sink.getvalue().to_pybytes(),
+                           keep_suffix=False)
+
+    def _row_files(self) -> list[Path]:
+        """The row files (``KEY.parquet``; temporary and foreign files are not rows)."""
+        if not self.rows_dir.is_dir():
+            return []
+        return sorted(p for p in self.rows_dir.glob("*.parquet") if KEY.match(p.stem))
 
     def keys(self) -> set[str]:
-        if not self.rows_dir.is_dir():
-            return set()
-        return {p.stem for p in self.rows_dir.glob("*.parquet")}
+        return {p.stem for p in self._row_files()}
 
     def table(self) -> pa.Table:
         """All rows (columns unified across designs; missing values are null)."""
-        files = sorted(self.rows_dir.glob("*.parquet")) if self.rows_dir.is_dir() else []
+        files = self._row_files()
         if not files:
             return pa.table({})
         return pa.concat_tables([pq.read_table(f) for f in files], promote_options="permissive")

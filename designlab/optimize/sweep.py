@@ -92,9 +92,21 @@ def scores(rows: list[dict[str, Any]], config: SweepConfig) -> np.ndarray:
 def run_sweep(config: SweepConfig, out: str | Path, *, evaluator: Evaluator | None = None,
               executor=None, progress: Callable[[int, int, dict], None] | None = None,
               retry_failed: bool = False) -> SweepResult:
-    """Evaluate every design not yet in ``out``; ``progress(done, total, row)`` after each."""
+    """Evaluate every design not yet in ``out``; ``progress(done, total, row)`` after each.
+    One run per ``out`` at a time (:func:`designlab.atomic.out_lock`); a killed run's temporary
+    files are removed first."""
+    from designlab.atomic import out_lock
+
     out = Path(out)
+    with out_lock(out, "designlab sweep"):
+        return _run_sweep(config, out, evaluator=evaluator, executor=executor,
+                          progress=progress, retry_failed=retry_failed)
+
+
+def _run_sweep(config: SweepConfig, out: Path, *, evaluator, executor, progress,
+               retry_failed: bool) -> SweepResult:
     store = ResultStore(out)
+    store.recover()
     evaluator = evaluator or default_evaluator
     executor = executor or LocalExecutor()
     tasks = tasks_of(config)

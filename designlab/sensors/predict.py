@@ -143,10 +143,14 @@ def _check_model_path(name: str, model_path: str | Path) -> None:
 def predict(name: str, overrides: dict[str, Any] | None = None, *,
             protocol_path: str | Path | None = None, protocol: dict[str, Any] | None = None,
             settings: dict[str, Any] | None = None, model_path: str | Path | None = None,
-            progress: Callable[[str], None] | None = None) -> Prediction:
+            progress: Callable[[str], None] | None = None,
+            fem_cache: str | Path | None = None) -> Prediction:
     """Run the virtual test of one design of sensor ``name`` with parameter ``overrides``.
     ``protocol_path``/``protocol``: a protocol TOML / overrides; ``settings``: model settings;
-    ``model_path``: a loop's model.json whose learned effects correct the virtual test."""
+    ``model_path``: a loop's model.json whose learned effects correct the virtual test;
+    ``fem_cache``: a folder where FEM stages are kept and reused (sweeps)."""
+    from designlab.fem.cache import FEMCache
+
     from designlab.geometry.parts import make_part
     from designlab.params import as_dict
 
@@ -161,12 +165,16 @@ def predict(name: str, overrides: dict[str, Any] | None = None, *,
     t0 = time.perf_counter()
     part.build()
     t_cad += time.perf_counter() - t0
+    cache = FEMCache(fem_cache)
+    kw = {"cache": cache} if sensor.cached else {}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = sensor.run(part, proto, sett, progress=progress)
+        result = sensor.run(part, proto, sett, progress=progress, **kw)
         report = dict(result.report)
         if sensor.finish is not None:
             sensor.finish(report, result, part, proto)
+        report["mesh_convergence"] = _mesh_convergence(sensor, part, proto, sett, report, kw,
+                                                       progress)
     if model_path is not None:
         report["uncorrected"] = {k: report[k] for k in ("hysteresis_percent", "condition_number",
                                                         "calibration_matrix") if k in report}
@@ -177,6 +185,35 @@ def predict(name: str, overrides: dict[str, Any] | None = None, *,
                                              if isinstance(v, (int, float))))
     return Prediction(name, as_dict(part), proto, sett, report, result,
                       [str(w.message) for w in caught])
+
+
+def _dig(report: dict[str, Any], path: str) -> float:
+    v: Any = report
+    for k in path.split("."):
+        v = v.get(k) if isinstance(v, dict) else None
+    return float(v) if isinstance(v, (int, float)) else float("nan")
+
+
+def _mesh_convergence(sensor, part, protocol, settings, report, kw, progress
+                      ) -> dict[str, Any] | None:
+    """The discretisation error bar: the sensor's convergence metrics at the chosen mesh and at
+    one coarser level (``edge_length x coarse_factor``), and their relative change. None when
+    the prediction rests on no mesh or the setting is off."""
+    if not getattr(settings, "mesh_convergence", False):
+        return None
+    if sensor.meshed is not None and not sensor.meshed(settings):
+        return None
+    coarse_settings = dataclasses.replace(settings, mesh_convergence=False,
+                                          edge_length=settings.edge_length * settings.coarse_factor)
+    say = (lambda s: progress(f"coarse mesh: {s}")) if progress else None
+    coarse = dict(sensor.run(part, protocol, coarse_settings, progress=say, **kw).report)
+    out: dict[str, Any] = {"edge_length_mm": settings.edge_length,
+                           "coarse_edge_length_mm": coarse_settings.edge_length}
+    for path in sensor.convergence:
+        v, c = _dig(report, path), _dig(coarse, path)
+        rel = abs(v - c) / abs(v) if np.isfinite(v) and np.isfinite(c) and v != 0 else None
+        out[path] = {"value": v, "coarse": c, "rel_change": rel}
+    return out
 
 
 def sensor_model(name: str, design: dict[str, Any], report: dict[str, Any], result
@@ -192,24 +229,80 @@ def sensor_model(name: str, design: dict[str, Any], report: dict[str, Any], resu
 
 def write_prediction(prediction: Prediction, out: str | Path) -> list[Path]:
     """prediction.json, model.json (:func:`sensor_model`), the plots, and deformed.vtu
-    (+ deformed.png) in ``out``."""
-    from designlab.atomic import atomic_write_json
+    (+ deformed.png) in ``out``, written as a set: every file goes to a hidden staging folder
+    beside ``out`` first (a full disk or a kill then leaves ``out`` as it was); a new or empty
+    ``out`` is that folder renamed, else the files are renamed into ``out`` with
+    ``prediction.json`` removed first and renamed last (no ``prediction.json``: no complete
+    set). Staging folders of killed writers (their PID is in the name) are removed."""
+    import os
+    import re
+    import shutil
+    import tempfile
+
+    from designlab.atomic import os_error, atomic_write_json, ensure_dir, pid_alive
 
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    result = prediction.result
-    files: list[Path] = list(get_sensor(prediction.sensor).plots(result, prediction.metrics, out))
-    mesh, u = getattr(result, "mesh", None), getattr(result, "displacement", None)
-    if mesh is not None and u is not None:
-        from designlab.fem.output import write_png, write_vtu
+    parent = ensure_dir(out.resolve().parent)
+    final = out.resolve()
+    if final.exists() and not final.is_dir():
+        from designlab.errors import OutputError
 
-        files.append(write_vtu(out / "deformed.vtu", mesh, point_data={"displacement": u}))
-        try:
-            files.append(Path(write_png(out / "deformed.png", mesh, np.asarray(u))))
-        except Exception as exc:  # rendering is a convenience; the VTU is the result
-            prediction.warnings.append(f"deformed.png not rendered: {exc}")
-    prediction.sensor_model().save(out / "model.json")
-    files.append(out / "model.json")
-    atomic_write_json(out / "prediction.json", prediction.to_json())
-    files.append(out / "prediction.json")
-    return files
+        raise OutputError(f"--out={str(out)!r} is not allowed: a directory (it is a file)")
+    stale = re.compile(r"^\." + re.escape(final.name) + r"\.staging\.(\d+)\.")
+    for p in parent.iterdir():
+        m = stale.match(p.name)
+        if m and not pid_alive(int(m[1])):
+            shutil.rmtree(p, ignore_errors=True)
+    try:
+        stage = Path(tempfile.mkdtemp(prefix=f".{final.name}.staging.{os.getpid()}.",
+                                      dir=parent))
+    except OSError as exc:
+        raise os_error(final, exc) from None
+    try:
+        result = prediction.result
+        names: list[str] = [Path(f).name for f in
+                            get_sensor(prediction.sensor).plots(result, prediction.metrics, stage)]
+        mesh, u = getattr(result, "mesh", None), getattr(result, "displacement", None)
+        if mesh is not None and u is not None:
+            from designlab.fem.output import write_png, write_vtu
+
+            write_vtu(stage / "deformed.vtu", mesh, point_data={"displacement": u})
+            names.append("deformed.vtu")
+            try:
+                write_png(stage / "deformed.png", mesh, np.asarray(u))
+                names.append("deformed.png")
+            except Exception as exc:  # rendering is a convenience; the VTU is the result
+                prediction.warnings.append(f"deformed.png not rendered: {exc}")
+        prediction.sensor_model().save(stage / "model.json")
+        names.append("model.json")
+        atomic_write_json(stage / "prediction.json", prediction.to_json())
+        names.append("prediction.json")
+        os.chmod(stage, 0o777 & ~_umask())
+        if not final.exists() or not any(final.iterdir()):
+            if final.exists():
+                final.rmdir()
+            os.rename(stage, final)
+        else:
+            (final / "prediction.json").unlink(missing_ok=True)
+            for name in names:
+                os.replace(stage / name, final / name)  # prediction.json is the last
+            shutil.rmtree(stage, ignore_errors=True)
+    except OSError as exc:  # a full or read-only disk: one line, nothing half-written
+        shutil.rmtree(stage, ignore_errors=True)
+        from designlab.errors import DesignlabError
+
+        if isinstance(exc, DesignlabError):
+            raise
+        raise os_error(final, exc) from None
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise
+    return [out / n for n in names]
+
+
+def _umask() -> int:
+    import os
+
+    m = os.umask(0)
+    os.umask(m)
+    return m
