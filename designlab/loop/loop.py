@@ -3,13 +3,17 @@
 :func:`run_loop` starts from a BASE model (:mod:`designlab.loop.base_models`, or a saved
 model), computes the residual ``measured - predicted`` on the training data and tries every
 applicable mechanism of the effect library (:mod:`designlab.loop.effects`, one class per
-mechanism). A candidate is accepted only when blocked time-series cross-validation on the
-training data (``folds`` contiguous blocks, a guard gap around the held-out block) shows that it
-lowers the held-out RMSE by more than noise: the mean over the blocks of the relative
-improvement of the held-out RMSE must exceed ``n_se`` standard errors of its block-to-block
-spread and ``min_relative``. The best such candidate is fitted on all the training data and
-added; repeat until nothing helps. Errors are then reported on the validation data, with
-how much of the residual remains unexplained and what it still correlates with.
+mechanism). A candidate is accepted only when cross-validation on the training data shows that
+it lowers the held-out RMSE by more than noise. With several training runs the held-out units
+are the runs (leave-one-run-out: fitted on the other runs); with one run they are ``folds``
+contiguous blocks of it (a guard gap around the held-out block). A candidate is acceptable when
+the mean relative improvement of the held-out RMSE exceeds ``min_relative`` and either exceeds
+``n_se`` standard errors of its unit-to-unit spread or is positive on every held-out unit. The
+best such candidate is fitted on all the training data and added; repeat until nothing helps.
+Errors are then reported on the validation data, beside a black-box peer (the NARX network of
+:mod:`designlab.measured.narx`, same inputs and training data), with how much of the residual
+remains unexplained, what it still correlates with, and a verdict (explained / missing
+mechanism / noise).
 
 Model file (JSON, written by :meth:`SensorModel.save`, read by :func:`load_model`)::
 
@@ -130,6 +134,25 @@ def cv_blocks(n: int, folds: int, gap: int) -> list[tuple[np.ndarray, np.ndarray
     return out
 
 
+def cv_runs(data: Dataset) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(fit rows, held-out rows) masks of leave-one-run-out CV over the runs of ``data``."""
+    out = []
+    for s in np.unique(data.segment):
+        held = data.segment == s
+        out.append((~held, held))
+    return out
+
+
+def acceptable(cv: dict, n_se: float, min_relative: float) -> bool:
+    """The acceptance rule: mean relative held-out improvement > ``min_relative`` and either
+    > ``n_se`` standard errors or better on every held-out unit (run or block, at least 2)."""
+    if cv.get("skipped"):
+        return False
+    every = cv["blocks_improved"] == cv["blocks"] >= 2
+    return bool(cv["relative"] > min_relative
+                and (cv["relative"] > n_se * cv["standard_error"] or every))
+
+
 def cross_validate(effect: fx.Effect, ctx: fx.Context, y: np.ndarray,
                    blocks: list[tuple[np.ndarray, np.ndarray]]) -> dict:
     """Held-out RMSE of the current prediction without and with ``effect`` (fitted on the other
@@ -138,8 +161,16 @@ def cross_validate(effect: fx.Effect, ctx: fx.Context, y: np.ndarray,
     spread / sqrt(blocks)) and the mean absolute improvement in output units."""
     e0, e1 = [], []
     for rows, held in blocks:
-        f = fx.fit(effect, ctx, y - ctx.yhat, rows)
-        c = fx.contribution(f, ctx)
+        try:
+            with np.errstate(all="raise"):
+                f = fx.fit(effect, ctx, y - ctx.yhat, rows)
+                c = fx.contribution(f, ctx)
+        except (ModelError, np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
+            return {"skipped": f"fit failed ({type(exc).__name__}: {exc})".splitlines()[0],
+                    "relative": None, "accepted_rule": False}
+        if not np.all(np.isfinite(c)):
+            return {"skipped": "non-finite contribution", "relative": None,
+                    "accepted_rule": False}
         e0.append(rmse(y[held], ctx.yhat[held]))
         e1.append(rmse(y[held], (ctx.yhat + c)[held]))
     e0, e1 = np.array(e0), np.array(e1)
@@ -190,13 +221,15 @@ Progress = Callable[[str, int, int, str], None]   # (output, done, total, what)
 def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[str] | None = None,
              folds: int = 10, max_effects: int = 8, n_se: float = 2.0,
              min_relative: float = 0.01, gap_s: float = 2.0,
-             progress: Progress | None = None) -> LoopResult:
+             progress: Progress | None = None, peer: bool = True) -> LoopResult:
     """Greedy forward selection of effects on top of ``base`` (see the module docstring).
 
     ``data`` must have training and validation samples (card roles or split). ``base`` is a
     base kind (``linear``, ``stretch-fem``, ...) fitted on the training data, or a loaded
-    :class:`SensorModel` to continue from (its parameters are kept)."""
+    :class:`SensorModel` to continue from (its parameters are kept). ``peer``: also fit the
+    NARX peer and give the verdict against it."""
     train, val = data.train(), data.validate()
+    _check_runs(data, peer)
     if len(train) < 10 * folds:
         raise DataError(f"{len(train)} training samples are too few for {folds}-fold "
                         "cross-validation; give more data or a larger [split] train")
@@ -222,25 +255,39 @@ def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[st
     model.inputs = {n: {"unit": data.units.get(n, ""), "quantity": data.quantities.get(n, ""),
                         "kind": data.kinds.get(n, "drive")} for n in data.inputs}
     gap = int(round(gap_s / train.dt))
-    blocks = cv_blocks(len(train), folds, gap)
+    runs = np.unique(train.segment)
+    if runs.size >= 2:
+        blocks, cv_kind = cv_runs(train), "leave-one-run-out"
+    else:
+        blocks, cv_kind = cv_blocks(len(train), folds, gap), "blocked in time"
     report: dict[str, Any] = {"metric": "rmse", "base": base_name, "outputs": {},
-                              "selection": {"folds": folds, "gap_s": gap_s, "n_se": n_se,
+                              "selection": {"cv": cv_kind, "units": len(blocks),
+                                            "folds": folds, "gap_s": gap_s, "n_se": n_se,
                                             "min_relative": min_relative,
                                             "rule": "mean relative held-out RMSE improvement "
-                                                    "over the blocks > n_se standard errors "
-                                                    "and > min_relative"},
+                                                    "over the held-out units (runs or blocks) "
+                                                    "> min_relative, and > n_se standard "
+                                                    "errors or > 0 on every unit"},
                               "data": _data_summary(data)}
     series: dict[str, Any] = {}
     cache_tr: dict = {}
     for o in outs:
         rep, ser = _loop_output(model, o, data, train, val, blocks, max_effects, n_se,
                                 min_relative, cache_tr, progress)
+        if peer:
+            if progress:
+                progress(o, 0, 1, "NARX peer")
+            _add_peer(rep, ser, data, o)
+        else:
+            rep["peer"] = None
+            rep["explained_of_learnable"] = None
+            rep["verdict_kind"] = None
         report["outputs"][o] = rep
         series[o] = ser
     first = report["outputs"][outs[0]]
     report = {"output": outs[0], **{k: first[k] for k in (
-        "effects", "error_before", "error_after", "validation", "unexplained_fraction")},
-        **report}
+        "effects", "error_before", "error_after", "validation", "unexplained_fraction", "peer",
+        "explained_of_learnable", "verdict_kind")}, **report}
     model.provenance = {"loop": {"base": base_name, "card": data.report.get("card"),
                                  "errors": {o: {"before": r["error_before"],
                                                 "after": r["error_after"]}
@@ -273,13 +320,16 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
             if progress:
                 progress(o, i, len(cands), f"round {len(rounds) + 1}: {c.key}")
             cv = cross_validate(c, ctx, y, blocks)
-            cv["accepted_rule"] = bool(cv["relative"] > n_se * cv["standard_error"]
-                                       and cv["relative"] > min_relative)
+            cv["accepted_rule"] = acceptable(cv, n_se, min_relative)
             results[c.key] = cv
         if progress:
             progress(o, len(cands), len(cands), f"round {len(rounds) + 1} done")
         passing = [c for c in cands if results[c.key]["accepted_rule"]]
-        best = max(cands, key=lambda c: results[c.key]["relative"])
+        scored = [c for c in cands if not results[c.key].get("skipped")]
+        if not scored:
+            rounds.append({"candidates": results, "best": None, "accepted": None})
+            break
+        best = max(scored, key=lambda c: results[c.key]["relative"])
         chosen = max(passing, key=lambda c: results[c.key]["relative"]) if passing else None
         rounds.append({"candidates": results, "best": best.key,
                        "accepted": chosen.key if chosen else None})
@@ -312,7 +362,9 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
     unexplained = float(np.var(r_v) / var_y) if var_y > 0 else float("nan")
     corrs = residual_correlations(val, r_v, yhat_v)
     last = rounds[-1] if rounds else None
-    if last is not None and last["accepted"] is None:
+    if last is not None and last["accepted"] is None and last["best"] is None:
+        stop = "every candidate's fit failed (see rounds)"
+    elif last is not None and last["accepted"] is None:
         b = last["candidates"][last["best"]]
         stop = (f"no candidate lowers the held-out error by more than noise (best: "
                 f"{last['best']}, {100 * b['relative']:+.2f} %, {b['z']:.1f} standard errors)")
@@ -339,10 +391,101 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
         "base": model.base.parameters.get(o, {}),
     }
     ser = {"t_val": val.t, "seg_val": val.segment, "y_val": yv, "base_val": y0_val,
+           "corrs": corrs,
            "final_val": yhat_v, "stages": stages, "residual_val": r_v,
            "top_var": corrs[0]["variable"] if corrs else None,
            "top_values": _variable(val, corrs[0]["variable"], yhat_v) if corrs else None}
     return rep, ser
+
+
+def _check_runs(data: Dataset, peer: bool) -> None:
+    """Every run must be longer than the longest lag the loop uses (the NARX peer's input
+    delays, the ``lag`` effect's 2 s): one-line DataError naming the run."""
+    from designlab.measured.narx import NARXParams
+
+    need = NARXParams().input_delays + 2 if peer else 3
+    for s in np.unique(data.segment):
+        n = int(np.sum(data.segment == s))
+        if n < need:
+            path = data.segments[s]["path"] if s < len(data.segments) else f"run {s}"
+            raise DataError(f"run {path!r} has {n} samples; the loop needs at least {need} per "
+                            f"run (the longest lag: the NARX peer's "
+                            f"{NARXParams().input_delays} input delays)")
+
+
+def fit_peer(data: Dataset, output: str) -> tuple[np.ndarray, dict]:
+    """The black-box peer: seed 000's NARX network (:mod:`designlab.measured.narx`, defaults:
+    10 tanh neurons, 50 input delays, seed 0) from every varying input to ``output``, trained
+    on the training runs (one record each) and run over each whole run; returns its prediction
+    of every sample of ``data`` and what it was."""
+    import time
+
+    from designlab.measured import narx
+
+    t0 = time.perf_counter()
+    train = data.train()
+    names = [n for n in data.inputs if np.ptp(train.inputs[n]) > 0]
+    if not names:
+        raise DataError("no input varies in the training data: the peer has nothing to learn")
+    params = narx.NARXParams()
+    recs_u, recs_y = [], []
+    for s in np.unique(train.segment):
+        m = train.segment == s
+        recs_u.append(np.column_stack([train.inputs[n][m] for n in names]))
+        recs_y.append(train.outputs[output][m][:, None])
+    model, fit_rep = narx.fit(recs_u, recs_y, params)
+    pred = np.empty(len(data))
+    for s in np.unique(data.segment):
+        m = data.segment == s
+        pred[m] = model.predict(np.column_stack([data.inputs[n][m] for n in names]))[:, 0]
+    info = {"kind": "narx", "inputs": names, "hidden": params.hidden,
+            "input_delays": params.input_delays, "delay_s": params.input_delays * data.dt,
+            "seed": params.seed, "iterations": fit_rep.iterations,
+            "converged": fit_rep.converged, "time_s": time.perf_counter() - t0}
+    return pred, info
+
+
+def verdict_kind(base: float, after: float, peer: float | None) -> str:
+    """explained: the physics model is within 1.3x of the peer (or the peer does no better
+    than the base while the physics helps); noise: neither lowers the base's error by 5 %;
+    missing mechanism: the peer does much better than the physics model."""
+    if peer is None or not np.isfinite(peer):
+        return "explained" if after < 0.95 * base else "noise"
+    if after >= 0.95 * base and peer >= 0.95 * base:
+        return "noise"
+    if after <= 1.3 * peer:
+        return "explained"
+    return "missing mechanism"
+
+
+def _add_peer(rep: dict, ser: dict, data: Dataset, o: str) -> None:
+    vmask = data.role == "validate"
+    pred, info = fit_peer(data, o)
+    yv = data.outputs[o][vmask]
+    err = rmse(yv, pred[vmask])
+    info["error"] = err
+    base, after = rep["error_before"], rep["error_after"]
+    rep["peer"] = info
+    rep["explained_of_learnable"] = ((base - after) / (base - err) if base - err > 0
+                                     else None)
+    kind = verdict_kind(base, after, err)
+    rep["verdict_kind"] = kind
+    corrs = ser.get("corrs") or []
+    top = (f"{corrs[0]['variable']} (r = {corrs[0]['correlation']:+.2f})" if corrs
+           else "nothing")
+    unit = rep["unit"]
+    if kind == "explained":
+        why = (f"explained: physics {after:.4g} {unit} vs NARX peer {err:.4g} {unit} "
+               f"(base {base:.4g} {unit})")
+    elif kind == "noise":
+        why = (f"noise: neither the physics ({after:.4g} {unit}) nor the NARX peer "
+               f"({err:.4g} {unit}) lowers the base's {base:.4g} {unit} by 5 %")
+    else:
+        why = (f"missing mechanism: the NARX peer reaches {err:.4g} {unit}, the physics "
+               f"{after:.4g} {unit} (base {base:.4g} {unit}); the residual correlates most "
+               f"with {top}")
+    rep["verdict"] = why + "; " + rep["verdict"]
+    ser["peer_val"] = pred[vmask]
 
 
 def _variable(data: Dataset, name: str, yhat: np.ndarray) -> np.ndarray:
@@ -410,14 +553,20 @@ def _plots(o: str, ser: dict, rep: dict, out: Path) -> list[Path]:
                                         > 1 else 1.0)
     ax[0].plot(x, ser["y_val"], "k", lw=0.8, label="measured")
     ax[0].plot(x, ser["base_val"], "C0", lw=0.8,
-               label=f"before (RMSE {rep['error_before']:.4g} {unit})")
+               label=f"base (RMSE {rep['error_before']:.4g} {unit})")
     ax[0].plot(x, ser["final_val"], "C3", lw=0.8,
-               label=f"after (RMSE {rep['error_after']:.4g} {unit})")
+               label=f"physics (RMSE {rep['error_after']:.4g} {unit})")
+    if ser.get("peer_val") is not None:
+        ax[0].plot(x, ser["peer_val"], "C2", lw=0.8, alpha=0.8,
+                   label=f"NARX peer (RMSE {rep['peer']['error']:.4g} {unit})")
     ax[0].set_ylabel(f"{o} ({unit})")
     ax[0].legend(loc="upper right", fontsize=8)
     ax[0].set_title(f"{o}: validation data")
     ax[1].plot(x, ser["y_val"] - ser["base_val"], "C0", lw=0.6, label="residual before")
-    ax[1].plot(x, ser["residual_val"], "C3", lw=0.6, label="residual after")
+    ax[1].plot(x, ser["residual_val"], "C3", lw=0.6, label="residual physics")
+    if ser.get("peer_val") is not None:
+        ax[1].plot(x, ser["y_val"] - ser["peer_val"], "C2", lw=0.6, alpha=0.8,
+                   label="residual peer")
     ax[1].set_ylabel(f"residual ({unit})")
     ax[1].set_xlabel("validation time (s)")
     ax[1].legend(loc="upper right", fontsize=8)

@@ -194,6 +194,13 @@ class Effect:
         """The variable that best shows the effect (for plots) and its label."""
         return self.columns(ctx, f.theta) @ np.asarray(f.beta), self.key
 
+    def solve(self, X: np.ndarray, target: np.ndarray, k: int) -> np.ndarray:
+        """Coefficients of ``X`` (its first ``k`` columns are the effect's regressors, the rest
+        the nuisance) for ``target``: least squares; an effect with constrained coefficients
+        (a non-negative density) overrides it."""
+        coef, *_ = np.linalg.lstsq(X, target, rcond=None)
+        return coef
+
     def extra(self, f: Fitted, ctx: Context, partial: np.ndarray) -> np.ndarray | None:
         """What the effect adds beyond its fitted regressors (None: nothing)."""
         return None
@@ -272,14 +279,19 @@ def fit(effect: Effect, ctx: Context, residual: np.ndarray, rows: np.ndarray,
     n = int(rows.sum())
     best = None
     ctx.cache["rows"] = rows
+    why = "an empty grid"
     for th in (thetas if thetas is not None else effect.grid(ctx)):
         F = effect.columns(ctx, th)
+        if not np.all(np.isfinite(F)):
+            why = f"non-finite regressors at {th}"
+            continue
         if effect.fixed_coefficients:
             X, target = N[rows], r - F[rows].sum(1)
         else:
             X, target = np.column_stack([F[rows], N[rows]]), r
         if X.shape[1]:
-            coef, *_ = np.linalg.lstsq(X, target, rcond=None)
+            coef = (np.linalg.lstsq(X, target, rcond=None)[0] if effect.fixed_coefficients
+                    else effect.solve(X, target, F.shape[1]))
             sse = float(np.sum((target - X @ coef) ** 2))
         else:
             coef, sse = np.zeros(0), float(np.sum(target ** 2))
@@ -290,6 +302,8 @@ def fit(effect: Effect, ctx: Context, residual: np.ndarray, rows: np.ndarray,
             beta = (1.0,) * F.shape[1] if effect.fixed_coefficients else tuple(coef[:nb])
             best = (aic, th, beta, tuple(coef[nb:]), sse)
     ctx.cache.pop("rows", None)
+    if best is None:
+        raise ModelError(f"effect {effect.key}: no setting could be fitted ({why})")
     _, th, beta, alpha, sse = best
     return Fitted(effect, th, tuple(map(float, beta)), tuple(map(float, alpha)),
                   tuple(ctx.base_inputs), sse)
