@@ -105,6 +105,8 @@ def test_bad_parameters_raise_one_line_errors():
     with pytest.raises(ParameterError, match="wire_radius"):
         sp.HelicalSpring(wire_radius=-1)
     with pytest.raises(ParameterError, match="inactive_coils"):
+        sp.HelicalSpring(coils=1.0, inactive_coils=1.0)
+    with pytest.raises(ParameterError, match=r"coils=2\.0 .*>= 2\.5 turns for closed and ground"):
         sp.HelicalSpring(coils=2.0, inactive_coils=2.0)
     with pytest.raises(ParameterError, match="wire_radius"):
         sp.HelicalSpring(wire_radius=15.0, mean_diameter=20.0)
