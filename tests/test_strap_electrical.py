@@ -178,3 +178,17 @@ def test_cli_bad_finger_exits_2_and_writes_nothing(tmp_path):
     assert r.returncode == 2
     assert "width=60.0 is not allowed" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert not out.exists()
+
+
+@pytest.mark.slow
+def test_fit_strap_writes_3mf_and_fit_json_under_60_s(tmp_path):
+    import json
+    import time
+
+    t0 = time.perf_counter()
+    res = sf.fit_strap(sf.Finger(16.0, 14.0, 25.0), tmp_path)
+    assert time.perf_counter() - t0 < 60
+    assert res["prestrain"]["initial_strain"] == pytest.approx(sf.default_target(), abs=2e-4)
+    assert (tmp_path / "strap" / "strap.3mf").stat().st_size > 1000
+    data = json.loads((tmp_path / "fit.json").read_text())
+    assert data["resolution_mN"]["F_n"] > 0 and data["material_stand_ins"]

@@ -182,3 +182,32 @@ def test_viscoelastic_materials_give_hysteresis(flat_mesh):
     assert h["overall"] > 0.5
     assert h["by_location"]["sum"] > 0.5
     assert r["premise"]["normal_same_sign"] and r["premise"]["shear_opposite_sign"]
+
+
+def test_report_has_the_derived_electrical_design_and_the_paper_slots(prediction):
+    """The paper's geometry reads 1.8 kOhm by construction; resolution = noise / sensitivity;
+    the three slots on the 9 mm finger give increasing initial strain, falling sensitivity."""
+    r = prediction.report
+    el = r["electrical"]
+    assert el["resistance_ohm"]["total"] == pytest.approx(1800.0)
+    assert el["resolution_mN"]["F_n"] == pytest.approx(
+        1e3 * el["noise"]["sum_or_diff_V_rms"] / r["sensitivity"]["V_per_N"]["sum"]["F_n"])
+    rows = r["slots"]["slots"]
+    assert [x["initial_strain"] for x in rows] == sorted(x["initial_strain"] for x in rows)
+    assert rows[0]["sum_F_n_V_per_N"] > rows[1]["sum_F_n_V_per_N"] > rows[2]["sum_F_n_V_per_N"]
+    assert r["prestrain"] is None
+    assert any("PI-ETPU: gauge_factor" in n for n in r["material_stand_ins"])
+
+
+def test_prestrained_run_matches_the_slot_table(flat_mesh, prediction):
+    """slot=2: the worn strap at the medium slot's initial strain; its sensitivity equals the
+    stress-free run's slot-table entry (same FEM, operating point and tangent applied)."""
+    p = st.run(PART, StrapLoadTest(), dataclasses.replace(COARSE, slot=2),
+               materials=_elastic(), mesh=flat_mesh).report
+    assert p["prestrain"]["initial_strain"] == pytest.approx(0.1729, abs=2e-4)
+    row = prediction.report["slots"]["slots"][1]
+    assert p["sensitivity"]["V_per_N"]["sum"]["F_n"] == pytest.approx(row["sum_F_n_V_per_N"],
+                                                                      rel=0.02)
+    assert p["electrical"]["resistance_at_rest_ohm"] > 1800.0
+    with pytest.raises(ParameterError, match="slot"):
+        st.StrapModelSettings(slot=2, configuration="flat")
