@@ -140,6 +140,8 @@ def sweep(config: Path = typer.Argument(..., help="Sweep config (TOML): part, pa
     from designlab.optimize.space import load_sweep_config
     from designlab.optimize.sweep import run_sweep
 
+    _check_out(out)
+    _check_options(("--workers", workers, 1, 512))
     cfg = load_sweep_config(config)
     executor = _executor(scheduler, workers)
     try:
@@ -151,6 +153,8 @@ def sweep(config: Path = typer.Argument(..., help="Sweep config (TOML): part, pa
         raise typer.Exit(130)
     write_report(out, res.rows, cfg, res.pareto_keys, res.best_key, title=f"designlab sweep: {config.name}")
     _summary_table(res.rows, cfg, res.pareto_keys, res.best_key)
+    for w in res.warnings:
+        err_console.print(_plain(("warning:", "yellow"), " ", w), highlight=False)
     console.print(f"{res.new} evaluated, {res.reused} from the store, {res.failed} failed -> "
                   f"{res.table_path}, {out / 'report.html'}", markup=False, highlight=False)
 
@@ -169,6 +173,14 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
     from designlab.optimize.space import load_sweep_config
     from designlab.atomic import atomic_write_json
 
+    from designlab.errors import ParameterError
+    from designlab.geometry.export import parse_formats
+
+    _check_out(out)
+    _check_options(("--workers", workers, 1, 512), ("--maxiter", maxiter, 1, 1000))
+    if method not in ("auto", "surrogate", "de", "pareto"):
+        raise ParameterError("--method", method, "one of auto, surrogate, de, pareto")
+    parse_formats(formats)
     cfg = load_sweep_config(config)
     executor = _executor(scheduler, workers)
     try:
@@ -265,7 +277,7 @@ def _parts_from_cli(part: str, set_: Optional[List[str]], config: Optional[Path]
     from designlab.params import load_toml, parse_sets
 
     overrides = parse_sets(set_)
-    cfg = load_toml(config) if config is not None else None
+    cfg = _part_config(part, load_toml(config)) if config is not None else None
     return resolve_parts(part, overrides, cfg)
 
 
@@ -287,6 +299,7 @@ def export(part: str = typer.Argument(..., help="strap | fingertip | flexure | a
     from designlab.geometry.export import export_parts, parse_formats
     from designlab.geometry.printability import PrintabilityError, reports_table
 
+    _check_out(out)
     fmts = parse_formats(formats)
     for name, v, lo, hi in (("--nozzle", nozzle, 0.05, 2.0), ("--layer-height", layer, 0.01, 1.0)):
         if not lo <= v <= hi:
@@ -370,6 +383,13 @@ def compensate(model: Optional[List[str]] = typer.Option(
     from designlab.measured import compensation as comp
     from designlab.errors import ParameterError
 
+    _check_out(out)
+    _check_options(("--dt", dt, 1e-9, 1e6), ("--cells", cells, 0, 1000), ("--order", order, 0, 20),
+                   ("--narx-delays", narx_delays, 0, 10000),
+                   ("--narx-output-delays", narx_output_delays, 0, 10000),
+                   ("--segments", segments, 2, 10000), ("--seed", seed, 0, 2 ** 32 - 1))
+    if update not in ("exact", "euler"):
+        raise ParameterError("--update", update, "exact or euler")
     models = _names(model) or list(comp.MODELS)
     inputs, outputs = _names(input_), _names(output)
     opts = comp.CompensationOptions(mix=mix, mpl_cells=cells, mpl_order=order, mpl_update=update,
@@ -432,8 +452,11 @@ def loop_cmd(
     from designlab.measured.dataset import load_card
     from designlab.loop.loop import load_model, run_loop, write_outputs
 
-    ds = load_card(data)
+    _check_out(out)
+    _check_options(("--folds", folds, 3, 1000), ("--max-effects", max_effects, 0, 100),
+                   ("--n-se", n_se, 0.0, 100.0), ("--min-relative", min_relative, 0.0, 0.99))
     start = load_model(base) if base.endswith(".json") else base
+    ds = load_card(data)
     with progress_bar("loop", 1) as bar:
         def step(o: str, done: int, total: int, what: str) -> None:
             bar(f"{o}: {what}", completed=done, total=max(total, 1))
@@ -540,6 +563,8 @@ def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure, 
     from designlab.mesh.meshing import mesh_part_detailed, mesh_stl, save_mesh
     from designlab.params import load_toml, parse_sets
 
+    _check_out(out)
+    _check_options(("--order", order, 1, 2), ("--edge-length", edge_length, 1e-3, 1e3))
     if part.lower().endswith(".stl"):
         if set_ or config is not None:
             raise ParameterError("--set/--config", part, "none with an STL (it has no parameters)")
@@ -549,7 +574,8 @@ def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure, 
             res = mesh_stl(part, edge_length=edge_length, order=order, quality=quality)
             vtu, js = save_mesh(res, out)
     else:
-        obj = make_part(part, parse_sets(set_), load_toml(config) if config is not None else None)
+        obj = make_part(part, parse_sets(set_),
+                        _part_config(part, load_toml(config)) if config is not None else None)
         with progress_bar(f"meshing {part}"):
             res = mesh_part_detailed(obj, refine=refine, order=order, edge_length=edge_length,
                                      quality=quality, mesher=mesher)
@@ -591,9 +617,10 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
     from designlab.sensors.registry import get_sensor
 
     get_sensor(part)
+    _check_out(out)
     overrides = {}
     if config is not None:
-        data = load_toml(config)
+        data = _part_config(part, load_toml(config))
         overrides.update(data.get(part, data))
     overrides.update(parse_sets(set_))
     settings = parse_sets(setting)
@@ -674,6 +701,82 @@ def fit_strap(finger: Optional[str] = typer.Option(None, "--finger", metavar="WI
 
 
 # --- commands (each helper inserts its command above this line) ---
+
+
+def _check_options(*specs) -> None:
+    """Options before any work: ``(name, value, lo, hi)`` -> a finite number in [lo, hi]
+    (an integer when ``lo`` is an int); None values (unset options) are skipped."""
+    import math
+
+    from designlab.errors import ParameterError
+
+    for name, value, lo, hi in specs:
+        if value is None:
+            continue
+        if isinstance(lo, int) and not isinstance(lo, bool):
+            if not isinstance(value, int) or not lo <= value <= hi:
+                raise ParameterError(name, value, f"an integer, {lo} <= value <= {hi}")
+        elif not (math.isfinite(value) and lo <= value <= hi):
+            raise ParameterError(name, value, f"a finite number, {lo:g} <= value <= {hi:g}")
+
+
+def _check_out(out: Optional[Path]) -> None:
+    """``--out`` before any work: not a file, not under /proc, /sys or /dev, and the nearest
+    existing folder on its path writable (nothing is created yet)."""
+    import os
+
+    from designlab.errors import OutputError
+
+    if out is None:
+        return
+    real = os.path.realpath(out)
+    if real in ("/proc", "/sys", "/dev") or real.startswith(("/proc/", "/sys/", "/dev/")):
+        raise OutputError(f"--out={str(out)!r} is not allowed: a folder on a normal file system "
+                          "(not under /proc, /sys or /dev)")
+    p = Path(real)
+    if p.exists() and not p.is_dir():
+        raise OutputError(f"--out={str(out)!r} is not allowed: a folder (it is a file)")
+    while not p.exists():
+        p = p.parent
+    if not p.is_dir():
+        raise OutputError(f"--out={str(out)!r} is not allowed: {p} is a file, not a folder")
+    if not os.access(p, os.W_OK | os.X_OK):
+        try:
+            ro = bool(os.statvfs(p).f_flag & os.ST_RDONLY)
+        except OSError:
+            ro = False
+        raise OutputError(f"cannot write --out={str(out)!r}: {p} is "
+                          + ("on a read-only file system" if ro else "not writable"))
+
+
+def _part_config(target: str, cfg: Optional[dict], where: str = "--config") -> Optional[dict]:
+    """A part config as ``make_part`` reads it, checked: either the part's own parameters or
+    ``[PART]`` tables (required for ``all``); a table inside a part's table, or a top-level
+    table that is not a part, is an error (never dropped)."""
+    from designlab.errors import ParameterError
+    from designlab.geometry.parts import PARTS
+    from designlab.params import _short, did_you_mean
+
+    if cfg is None:
+        return None
+    names = list(PARTS) if target == "all" else [target]
+    per_part = any(k in PARTS for k in cfg) or target == "all"
+    tables = {}
+    if per_part:
+        for k, v in cfg.items():
+            if k not in PARTS or not isinstance(v, dict):
+                raise ParameterError(f"{where}: {k}", _short(v), "a [PART] table with PART one "
+                                     "of " + ", ".join(PARTS) + did_you_mean(k, PARTS))
+            tables[k] = v
+    else:
+        tables[target] = cfg
+    for part, table in tables.items():
+        for k, v in table.items():
+            if isinstance(v, (dict, list)):
+                raise ParameterError(f"{part}.{k}" if per_part else k, _short(v),
+                                     "a single value (a number, text or true/false), not a "
+                                     + ("table" if isinstance(v, dict) else "list"))
+    return {n: tables.get(n, {}) for n in names} if per_part else cfg
 
 
 def _plain(*parts):

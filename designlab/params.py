@@ -9,12 +9,19 @@ parameter and its allowed range in a one-line :class:`ParameterError` when somet
 from __future__ import annotations
 
 import dataclasses
+import difflib
+import json
 import math
 import tomllib
 from pathlib import Path
-from typing import Any, Mapping, TypeVar
+from typing import Any, Iterable, Mapping, TypeVar
 
 from designlab.errors import ParameterError
+
+#: limits of what the input layer reads (a config or card is small; data files are read elsewhere)
+MAX_TEXT_BYTES = 8 * 1024 * 1024       # a TOML/JSON document
+MAX_DEPTH = 32                         # nesting of tables/arrays in it
+REL_TOL = 1e-9                         # boundaries: a value this close to a bound is on it
 
 T = TypeVar("T")
 
@@ -53,15 +60,133 @@ def check_field(name: str, value: Any, meta: Mapping[str, Any]) -> None:
     if not math.isfinite(value):
         raise ParameterError(name, value, "a finite number, " + allowed_text(meta))
     lo, hi = meta.get("lo"), meta.get("hi")
-    if lo is not None and (value < lo or (meta.get("lo_open") and value == lo)):
+    if lo is not None and not above(value, lo, open_=bool(meta.get("lo_open"))):
         raise ParameterError(name, value, allowed_text(meta))
-    if hi is not None and (value > hi or (meta.get("hi_open") and value == hi)):
+    if hi is not None and not above(hi, value, open_=bool(meta.get("hi_open"))):
         raise ParameterError(name, value, allowed_text(meta))
+
+
+def close(a: float, b: float, rel: float = REL_TOL) -> bool:
+    """``a`` and ``b`` equal up to rounding (relative ``rel``, absolute ``rel`` near 0)."""
+    return abs(a - b) <= rel * max(1.0, abs(a), abs(b))
+
+
+def above(value: float, bound: float, *, open_: bool = False, rel: float = REL_TOL) -> bool:
+    """``value >= bound`` (``>`` when ``open_``) with rounding tolerance: a value that prints
+    as the bound is on the bound, so ``2.4 >= 2.4000000000000004`` holds."""
+    if open_:
+        return value > bound and not close(value, bound, rel)
+    return value >= bound or close(value, bound, rel)
+
+
+def fmt_bound(x: float) -> str:
+    """A bound as the user would type it: 12 significant digits, rounding noise below
+    1e-12 shown as 0 (never ``-2.78e-17``)."""
+    if abs(x) < 1e-12:
+        x = 0.0
+    return f"{x:.12g}"
+
+
+def did_you_mean(name: str, choices: Iterable[str]) -> str:
+    """`` (did you mean 'x'?)`` when ``name`` is close to one of ``choices``, else ``""``."""
+    m = difflib.get_close_matches(str(name), [str(c) for c in choices], n=1, cutoff=0.6)
+    return f" (did you mean {m[0]!r}?)" if m else ""
+
+
+def check_keys(data: Mapping[str, Any], known: Iterable[str], where: str = "") -> None:
+    """Unknown keys of a table -> :class:`ParameterError` naming the key, the allowed keys and
+    the closest one (a typo such as ``unti`` must never be ignored)."""
+    known = list(known)
+    for k, v in data.items():
+        if k not in known:
+            name = f"{where}.{k}" if where else str(k)
+            raise ParameterError(name, _short(v), "a key of " + (where or "the file") + ": "
+                                 + ", ".join(sorted(known)) + did_you_mean(k, known))
+
+
+def _short(v: Any, limit: int = 60) -> Any:
+    """A value for an error message: scalars as they are, containers abbreviated."""
+    if isinstance(v, (dict, list, tuple)):
+        text = repr(v)
+        return text if len(text) <= limit else text[:limit - 3] + "..."
+    if isinstance(v, str) and len(v) > limit:
+        return v[:limit - 3] + "..."
+    return v
+
+
+def check_tree(data: Any, where: str, max_depth: int = MAX_DEPTH) -> None:
+    """Nesting at most ``max_depth`` and every float finite (TOML and JSON allow ``inf``/``nan``
+    literals; none of the package's inputs means them). Iterative: no recursion limit."""
+    stack = [(data, where, 0)]
+    while stack:
+        v, path, depth = stack.pop()
+        if depth > max_depth:
+            raise ParameterError(path, "...", f"nesting of at most {max_depth} levels")
+        if isinstance(v, float) and not math.isfinite(v):
+            raise ParameterError(path, v, "a finite number")
+        if isinstance(v, dict):
+            stack.extend((w, f"{path}.{k}", depth + 1) for k, w in v.items())
+        elif isinstance(v, (list, tuple)):
+            stack.extend((w, f"{path}[{i}]", depth + 1) for i, w in enumerate(v))
+
+
+def read_text(path: str | Path, what: str, kind: str, max_bytes: int = MAX_TEXT_BYTES) -> str:
+    """The UTF-8 text of a small input file; missing, a directory, unreadable, too big, binary
+    or not UTF-8 -> one-line :class:`ParameterError` naming ``what`` (never the contents)."""
+    p = Path(path)
+    allowed = f"an existing {kind} file"
+    try:
+        if not p.exists():
+            raise ParameterError(what, str(p), allowed)
+        if p.is_dir():
+            raise ParameterError(what, str(p), f"{allowed} (it is a directory)")
+        if not p.is_file():
+            raise ParameterError(what, str(p), f"{allowed} (not a regular file)")
+        size = p.stat().st_size
+        if size > max_bytes:
+            raise ParameterError(what, str(p), f"a {kind} file of at most {max_bytes} bytes "
+                                 f"(it has {size})")
+        raw = p.read_bytes()
+    except PermissionError:
+        raise ParameterError(what, str(p), f"a readable {kind} file (permission denied)") from None
+    except OSError as exc:
+        raise ParameterError(what, str(p), f"a readable {kind} file ({exc.strerror})") from None
+    if b"\x00" in raw:
+        raise ParameterError(what, str(p), f"a {kind} text file (it is binary)")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ParameterError(what, str(p), f"a UTF-8 {kind} file (byte {exc.start} is not "
+                             "UTF-8)") from None
+
+
+def check_type(name: str, value: Any, default: Any) -> None:
+    """The value's type agrees with the field's default: a bool for a bool, an integer for an
+    int, a number for a float, text for a string, a list for a tuple."""
+    if isinstance(default, bool):
+        ok, want = isinstance(value, bool), "true or false"
+    elif isinstance(default, int):
+        ok = isinstance(value, int) and not isinstance(value, bool)
+        want = "an integer"
+    elif isinstance(default, float):
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        want = "a number"
+    elif isinstance(default, str):
+        ok, want = isinstance(value, str), "text"
+    elif isinstance(default, tuple):
+        ok, want = isinstance(value, tuple), "a list"
+    else:
+        return
+    if not ok:
+        raise ParameterError(name, _short(value), want)
 
 
 def validate(obj: Any) -> None:
-    """Check every field of a parameter dataclass against its declared range."""
+    """Check every field of a parameter dataclass: its type (as its default's) and its
+    declared range."""
     for f in dataclasses.fields(obj):
+        if f.default is not dataclasses.MISSING:
+            check_type(f.name, getattr(obj, f.name), f.default)
         if f.metadata:
             check_field(f.name, getattr(obj, f.name), f.metadata)
 
@@ -97,16 +222,41 @@ def parse_sets(pairs: list[str] | None) -> dict[str, str]:
     return out
 
 
-def load_toml(path: str | Path) -> dict[str, Any]:
-    """Read a TOML file; a missing or malformed file raises a one-line ParameterError."""
-    p = Path(path)
+def load_toml(path: str | Path, what: str = "--config") -> dict[str, Any]:
+    """Read a TOML file: missing, binary, not UTF-8, malformed, too deep or with non-finite
+    numbers -> a one-line ParameterError naming ``what``."""
+    text = read_text(path, what, "TOML")
     try:
-        with p.open("rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError:
-        raise ParameterError("--config", str(p), "an existing TOML file") from None
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ParameterError("--config", str(p), f"valid TOML ({exc})") from None
+        raise ParameterError(what, str(path), f"valid TOML ({_one_line(exc)})") from None
+    except RecursionError:
+        raise ParameterError(what, str(path), f"TOML nested at most {MAX_DEPTH} levels") from None
+    check_tree(data, what)
+    return data
+
+
+def load_json(path: str | Path, what: str, max_bytes: int = MAX_TEXT_BYTES) -> Any:
+    """Read a JSON file (same checks as :func:`load_toml`; ``NaN``/``Infinity`` are refused:
+    the package writes null)."""
+    text = read_text(path, what, "JSON", max_bytes)
+
+    def no_constant(name: str):
+        raise ValueError(f"{name} is not a JSON number")
+
+    try:
+        data = json.loads(text, parse_constant=no_constant)
+    except RecursionError:
+        raise ParameterError(what, str(path), f"JSON nested at most {MAX_DEPTH} levels") from None
+    except ValueError as exc:
+        msg = exc.msg if isinstance(exc, json.JSONDecodeError) else str(exc)
+        raise ParameterError(what, str(path), f"valid JSON ({msg})") from None
+    check_tree(data, what)
+    return data
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())[:200]
 
 
 def with_overrides(cls_or_obj: type[T] | T, values: Mapping[str, Any]) -> T:
@@ -119,8 +269,8 @@ def with_overrides(cls_or_obj: type[T] | T, values: Mapping[str, Any]) -> T:
     kwargs = {}
     for k, v in values.items():
         if k not in fields:
-            raise ParameterError(k, v, "a parameter of " + type(base).__name__ + ": "
-                                 + ", ".join(sorted(fields)))
+            raise ParameterError(k, _short(v), "a parameter of " + type(base).__name__ + ": "
+                                 + ", ".join(sorted(fields)) + did_you_mean(k, fields))
         default = getattr(base, k)
         kwargs[k] = _coerce(k, v, default) if isinstance(v, str) else (
             float(v) if isinstance(default, float) and isinstance(v, int)

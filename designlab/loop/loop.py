@@ -95,26 +95,47 @@ class SensorModel:
         atomic_write_json(Path(path), self.to_json())
 
 
-def load_model(path: str | Path) -> SensorModel:
-    """Read a model JSON written by :meth:`SensorModel.save` (``loop`` or ``predict``)."""
+def load_model(path: str | Path, what: str = "--base") -> SensorModel:
+    """Read a model JSON written by :meth:`SensorModel.save` (``loop`` or ``predict``): size,
+    encoding, nesting, finite numbers, ``format``/``version`` and the section types are checked;
+    anything else is a one-line :class:`ModelError` (the file is data: nothing in it runs)."""
+    from designlab.errors import DesignlabError, ParameterError
+    from designlab.params import load_json
+
     p = Path(path)
     try:
-        doc = json.loads(p.read_text())
-    except FileNotFoundError:
-        raise ModelError(f"{p}: model file not found") from None
-    except json.JSONDecodeError as exc:
-        raise ModelError(f"{p}: not valid JSON ({exc})") from None
-    m = doc.get("model") if isinstance(doc, dict) else None
-    if not isinstance(m, dict) or "base" not in m:
-        raise ModelError(f"{p}: no 'model' section with a 'base'; expected a {FORMAT} file")
+        doc = load_json(p, what, max_bytes=64 * 1024 * 1024)
+    except ParameterError as exc:
+        raise ModelError(f"{p}: {what} needs {exc.allowed}") from None
+    if not isinstance(doc, dict):
+        raise ModelError(f"{p}: a JSON object is needed; expected a {FORMAT} file")
+    if doc.get("format") != FORMAT:
+        raise ModelError(f"{p}: format={str(doc.get('format'))[:60]!r} is not allowed: "
+                         f"{FORMAT!r}")
+    if doc.get("version") != 1 or isinstance(doc.get("version"), bool):
+        raise ModelError(f"{p}: version={str(doc.get('version'))[:20]!r} is not allowed: 1 "
+                         "(this designlab reads version 1)")
+    m = doc.get("model")
+    if not isinstance(m, dict) or not isinstance(m.get("base"), dict):
+        raise ModelError(f"{p}: no 'model' section with a 'base' table; expected a {FORMAT} file")
+    outs, inputs, prov = m.get("outputs", {}), m.get("inputs", {}), doc.get("provenance", {})
+    for name, v in (("model.outputs", outs), ("model.inputs", inputs), ("provenance", prov)):
+        if not isinstance(v, dict):
+            raise ModelError(f"{p}: {name} is not allowed: a JSON object")
+    for o, v in outs.items():
+        if not isinstance(v, dict) or not isinstance(v.get("effects", []), list):
+            raise ModelError(f"{p}: model.outputs.{o} is not allowed: an object with an "
+                             "'effects' list")
     try:
         base = Base.from_json(m["base"])
-        outs = m.get("outputs", {})
         eff = {o: [fx.Fitted.from_json(e) for e in v.get("effects", [])] for o, v in outs.items()}
-    except (KeyError, TypeError) as exc:
-        raise ModelError(f"{p}: malformed model section ({exc!r})") from None
-    return SensorModel(base, eff, {o: v.get("unit", "") for o, v in outs.items()},
-                       m.get("inputs", {}), doc.get("provenance", {}))
+    except DesignlabError:
+        raise
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+        raise ModelError(f"{p}: malformed model section ({type(exc).__name__}: "
+                         f"{str(exc)[:80]})") from None
+    return SensorModel(base, eff, {o: str(v.get("unit", "")) for o, v in outs.items()},
+                       inputs, prov)
 
 
 # --------------------------------------------------------------------------- helpers

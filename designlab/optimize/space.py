@@ -20,6 +20,7 @@ A sweep config (TOML)::
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,7 +30,8 @@ import numpy as np
 from scipy.stats import qmc
 
 from designlab.errors import ParameterError
-from designlab.params import load_toml
+from designlab.params import (_short, check_field, check_keys, check_tree, did_you_mean,
+                              load_toml, with_overrides)
 
 METHODS = ("grid", "lhs", "sobol")
 
@@ -86,75 +88,190 @@ class SweepConfig:
         return [{d.name: float(v) for d, v in zip(self.dimensions, p)} for p in pts]
 
 
-def _dimension(name: str, spec: Any) -> Dimension:
+MAX_DESIGNS = 100_000      # designs of one sweep (grid product or samples)
+MAX_LEVELS = 10_000        # grid levels or listed values of one parameter
+
+#: metrics a design's row has (``designlab.optimize.evaluate``): exact names, and families whose
+#: members depend on the sensor (``hysteresis_percent.overall``, ``sensitivity.V_per_N.z``...)
+METRICS = ("printed_volume_mm3", "printable", "min_wall_mm", "condition_number",
+           "geometric_condition_number", "linearity_percent_span", "k_x_N_per_m",
+           "k_y_N_per_m", "k_z_N_per_m", "K_f_target_error", "axial_share_through_sensors")
+METRIC_FAMILIES = ("hysteresis_percent.", "sensitivity.", "timings_s.",
+                   "linearity_percent_span.")
+SETTINGS = ("model", "K_f_target_N_per_m")
+
+
+def _number(name: str, v: Any, allowed: str = "a finite number") -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+        raise ParameterError(name, _short(v), allowed)
+    return float(v)
+
+
+def _integer(name: str, v: Any, lo: int, hi: int) -> int:
+    if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+        raise ParameterError(name, _short(v), f"an integer, {lo} <= value <= {hi}")
+    return v
+
+
+def _table(name: str, v: Any) -> dict[str, Any]:
+    if not isinstance(v, dict):
+        raise ParameterError(name, _short(v), f"a table ([{name}] or {name} = {{...}})")
+    return v
+
+
+def _metric(where: str, name: str) -> None:
+    if name in METRICS or any(name.startswith(f) and len(name) > len(f) for f in METRIC_FAMILIES):
+        return
+    raise ParameterError(f"{where}.{name}", name, "a metric of a design: " + ", ".join(METRICS)
+                         + " or " + ", ".join(f + "..." for f in METRIC_FAMILIES)
+                         + did_you_mean(name, METRICS))
+
+
+def _dimension(name: str, spec: Any, meta: Any = None) -> Dimension:
     allowed = "[lo, hi], {range = [lo, hi], levels = n} or {values = [...]}"
+    where = f"parameters.{name}"
     if isinstance(spec, list) and len(spec) == 2:
         spec = {"range": spec}
     if not isinstance(spec, dict):
-        raise ParameterError(f"parameters.{name}", spec, allowed)
+        raise ParameterError(where, _short(spec), allowed)
     if "values" in spec:
-        vals = tuple(float(v) for v in spec["values"])
-        if not vals:
-            raise ParameterError(f"parameters.{name}.values", spec["values"], "a non-empty list")
-        return Dimension(name, min(vals), max(vals), len(vals), vals)
-    r = spec.get("range")
-    if not (isinstance(r, list) and len(r) == 2 and all(isinstance(x, (int, float)) for x in r)
-            and r[0] <= r[1]):
-        raise ParameterError(f"parameters.{name}.range", r, "[lo, hi] with lo <= hi")
-    levels = spec.get("levels", 3)
-    if not isinstance(levels, int) or levels < 1:
-        raise ParameterError(f"parameters.{name}.levels", levels, "an integer >= 1")
-    return Dimension(name, float(r[0]), float(r[1]), levels)
+        check_keys(spec, ("values",), where)
+        raw = spec["values"]
+        if not isinstance(raw, list) or not raw or len(raw) > MAX_LEVELS:
+            raise ParameterError(f"{where}.values", _short(raw),
+                                 f"a non-empty list of at most {MAX_LEVELS} numbers")
+        vals = tuple(_number(f"{where}.values[{i}]", v) for i, v in enumerate(raw))
+        if len(set(vals)) != len(vals):
+            raise ParameterError(f"{where}.values", _short(raw), "distinct values")
+        ends = (min(vals), max(vals))
+        dim = Dimension(name, ends[0], ends[1], len(vals), vals)
+    else:
+        check_keys(spec, ("range", "levels"), where)
+        r = spec.get("range")
+        if not (isinstance(r, list) and len(r) == 2):
+            raise ParameterError(f"{where}.range", _short(r), "[lo, hi] with lo <= hi")
+        lo, hi = (_number(f"{where}.range", x, "[lo, hi]: finite numbers, lo <= hi") for x in r)
+        if lo > hi:
+            raise ParameterError(f"{where}.range", _short(r), "[lo, hi] with lo <= hi")
+        levels = _integer(f"{where}.levels", spec.get("levels", 3), 1, MAX_LEVELS)
+        if lo == hi and levels > 1:
+            raise ParameterError(f"{where}.levels", levels, "1 when lo == hi (or a range lo < hi)")
+        ends = (lo, hi)
+        dim = Dimension(name, lo, hi, levels)
+    if meta is not None:  # both ends must be allowed values of the part
+        for x in ends:
+            try:
+                check_field(name, x, meta)
+            except ParameterError as exc:
+                raise ParameterError(where, _short(spec.get("values", spec.get("range"))),
+                                     "values within " + exc.allowed) from None
+    return dim
 
 
 def _direction(name: str, spec: Any) -> Any:
+    _metric("objectives", name)
     if spec in ("min", "max"):
         return spec
     if isinstance(spec, dict) and set(spec) == {"target"}:
         t = spec["target"]
-        if isinstance(t, (int, float)) or (isinstance(t, list)):
+        if isinstance(t, list) and t:
+            for i, x in enumerate(t):
+                _number(f"objectives.{name}.target[{i}]", x)
             return spec
-    raise ParameterError(f"objectives.{name}", spec, '"min", "max" or {target = value}')
+        _number(f"objectives.{name}.target", t)
+        return spec
+    raise ParameterError(f"objectives.{name}", _short(spec), '"min", "max" or {target = value}')
+
+
+def _constraint(name: str, v: Any) -> Any:
+    _metric("constraints", name)
+    if v is True:
+        return v
+    if isinstance(v, dict) and v and set(v) <= {"min", "max"}:
+        for k, x in v.items():
+            _number(f"constraints.{name}.{k}", x)
+        if "min" in v and "max" in v and v["min"] > v["max"]:
+            raise ParameterError(f"constraints.{name}", _short(v), "min <= max")
+        return v
+    raise ParameterError(f"constraints.{name}", _short(v), "true, {min = x} and/or {max = x}")
 
 
 def sweep_config(data: dict[str, Any]) -> SweepConfig:
-    """Validate a parsed config dict (see module docstring)."""
-    known = {"part", "method", "samples", "seed", "parameters", "fixed", "settings",
-             "objectives", "constraints", "protocol"}
-    for k in data:
-        if k not in known:
-            raise ParameterError(k, data[k], "a sweep config key: " + ", ".join(sorted(known)))
+    """Validate a parsed config dict (see module docstring) against the part (swept and fixed
+    parameters, their ranges), its protocol and model settings, and the metrics a design has
+    (objectives, constraints): a config that would fail every design is an error here."""
+    known = ("part", "method", "samples", "seed", "parameters", "fixed", "settings",
+             "objectives", "constraints", "protocol")
+    check_keys(data, known)
+    check_tree(data, "config")
+    from designlab.geometry.parts import PARTS
     from designlab.sensors.registry import get_sensor
 
     part = data.get("part")
+    if not isinstance(part, str):
+        raise ParameterError("part", _short(part), "a part name: " + ", ".join(PARTS))
     get_sensor(part)
     method = data.get("method", "grid")
     if method not in METHODS:
-        raise ParameterError("method", method, "one of " + ", ".join(METHODS))
-    samples = data.get("samples", 8)
-    if not isinstance(samples, int) or samples < 1:
-        raise ParameterError("samples", samples, "an integer >= 1")
+        raise ParameterError("method", _short(method), "one of " + ", ".join(METHODS)
+                             + did_you_mean(str(method), METHODS))
+    samples = _integer("samples", data.get("samples", 8), 1, MAX_DESIGNS)
+    seed = _integer("seed", data.get("seed", 0), 0, 2 ** 32 - 1)
     params = data.get("parameters", {})
     if not isinstance(params, dict) or not params:
-        raise ParameterError("parameters", params, "a table with at least one swept parameter")
-    dims = tuple(_dimension(k, v) for k, v in params.items())
-    fixed = dict(data.get("fixed", {}))
+        raise ParameterError("parameters", _short(params),
+                             "a table with at least one swept parameter")
+    fields = {f.name: f for f in dataclasses.fields(PARTS[part])}
+    check_keys(params, fields, "parameters")
+    dims = tuple(_dimension(k, v, fields[k].metadata or None) for k, v in params.items())
+    if method == "grid":
+        n = int(np.prod([len(d.grid()) if d.values else d.levels for d in dims], dtype=float))
+        if n > MAX_DESIGNS:
+            raise ParameterError("parameters", f"{n:.3g} grid designs",
+                                 f"at most {MAX_DESIGNS} designs (fewer levels, or lhs/sobol)")
+    elif method == "sobol" and 2 ** int(np.ceil(np.log2(samples))) > MAX_DESIGNS:
+        raise ParameterError("samples", samples, f"at most {MAX_DESIGNS} designs after sobol "
+                             "rounds up to a power of 2")
+    fixed = dict(_table("fixed", data.get("fixed", {})))
     overlap = set(fixed) & set(params)
     if overlap:
         name = sorted(overlap)[0]
-        raise ParameterError(f"fixed.{name}", fixed[name], "not also a swept parameter")
-    objectives = {k: _direction(k, v) for k, v in data.get("objectives", {}).items()}
-    constraints = dict(data.get("constraints", {}))
-    for k, v in constraints.items():
-        if not (v is True or (isinstance(v, dict) and set(v) <= {"min", "max"} and v)):
-            raise ParameterError(f"constraints.{k}", v, "true, {min = x} and/or {max = x}")
-    return SweepConfig(part, dims, method, samples, int(data.get("seed", 0)), fixed,
-                       dict(data.get("settings", {})), objectives, constraints,
-                       dict(data.get("protocol", {})))
+        raise ParameterError(f"fixed.{name}", _short(fixed[name]), "not also a swept parameter")
+    check_keys(fixed, fields, "fixed")
+    try:
+        with_overrides(PARTS[part], fixed)
+    except ParameterError as exc:
+        raise ParameterError(f"fixed.{exc.name}", exc.value, exc.allowed) from None
+    settings = dict(_table("settings", data.get("settings", {})))
+    check_keys(settings, SETTINGS, "settings")
+    from designlab.sensors.predict import model_settings, protocol_from
+
+    if "model" in settings:
+        model_settings(part, _table("settings.model", settings["model"]))
+    if "K_f_target_N_per_m" in settings:
+        if _number("settings.K_f_target_N_per_m", settings["K_f_target_N_per_m"],
+                   "a number > 0 N/m") <= 0:
+            raise ParameterError("settings.K_f_target_N_per_m", settings["K_f_target_N_per_m"],
+                                 "a number > 0 N/m")
+    protocol = dict(_table("protocol", data.get("protocol", {})))
+    if protocol:
+        try:
+            protocol_from(part, None, protocol)
+        except ParameterError as exc:
+            name = exc.name if exc.name.startswith("protocol.") else f"protocol.{exc.name}"
+            raise ParameterError(name, exc.value, exc.allowed) from None
+        except (TypeError, ValueError) as exc:
+            raise ParameterError("protocol", _short(protocol), f"a valid protocol ({exc})") from None
+    objectives = {k: _direction(k, v)
+                  for k, v in _table("objectives", data.get("objectives", {})).items()}
+    constraints = {k: _constraint(k, v)
+                   for k, v in _table("constraints", data.get("constraints", {})).items()}
+    return SweepConfig(part, dims, method, samples, seed, fixed, settings, objectives,
+                       constraints, protocol)
 
 
 def load_sweep_config(path: str | Path) -> SweepConfig:
-    return sweep_config(load_toml(path))
+    return sweep_config(load_toml(path, "config"))
 
 
 def objective_value(value: float, spec: Any) -> float:

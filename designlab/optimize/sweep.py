@@ -3,6 +3,7 @@ executor, caching and storing results as they finish; resumable with the same co
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -51,6 +52,10 @@ class SweepResult:
     pareto_keys: list[str]
     best_key: str | None
     table_path: Path
+    warnings: list[str] = dataclasses.field(default_factory=list)
+    #: designs whose first objective differs from the best design's by less than the
+    #: discretisation error of that difference (see :func:`indistinguishable`)
+    tie_keys: list[str] = dataclasses.field(default_factory=list)
 
 
 def materials_fingerprint() -> str:
@@ -110,6 +115,8 @@ def _run_sweep(config: SweepConfig, out: Path, *, evaluator, executor, progress,
     evaluator = evaluator or default_evaluator
     executor = executor or LocalExecutor()
     tasks = tasks_of(config)
+    for t in tasks:            # one FEM per distinct model, shared by the sweep's designs
+        t["fem_cache"] = str(out / "fem")
     done_keys = store.keys()
     if retry_failed:
         failed = {r["key"] for r in store.rows() if r.get("status") != "ok"}
@@ -154,8 +161,61 @@ def _run_sweep(config: SweepConfig, out: Path, *, evaluator, executor, progress,
                 lo, hi = Fp.min(0), Fp.max(0)
                 z = (Fp - lo) / np.where(hi > lo, hi - lo, 1)
                 best = pareto[int(np.argmin(np.linalg.norm(z, axis=1)))]
+    warnings = []
+    ok = [r for r in rows if r.get("status") == "ok"]
+    for name in [*config.objectives, *config.constraints]:
+        if ok and all(r.get(name) is None for r in ok):
+            warnings.append(f"no design has the metric {name!r} (objective or constraint): it "
+                            "cannot rank or admit any design")
+    ties = indistinguishable(rows, config, best) if best is not None else []
     return SweepResult(rows, len(remaining), reused, sum(r.get("status") != "ok" for r in rows),
-                       pareto, best, table_path)
+                       pareto, best, table_path, warnings, ties)
+
+
+def error_bar(row: dict[str, Any], name: str) -> float:
+    """Discretisation error bar of metric ``name`` of a design: |value - value on the coarser
+    mesh| (0 when the prediction rests on no mesh, NaN when unknown)."""
+    v, c = row.get(name), row.get(f"mesh_convergence.{name}.coarse")
+    if row.get("mesh_convergence") is None and c is None:
+        return 0.0 if "mesh_convergence" in row else float("nan")
+    if v is None or c is None:
+        return float("nan")
+    return abs(float(v) - float(c))
+
+
+def difference_error(a: dict[str, Any], b: dict[str, Any], name: str) -> float:
+    """Error bar of the difference ``a - b`` of metric ``name``. Designs that share one FEM
+    (same ``fem_key``) share its discretisation error: their difference is compared at both
+    mesh levels, |(a - b) - (a_c - b_c)|; otherwise the bars add."""
+    fa, fb = a.get("fem_key"), b.get("fem_key")
+    if fa is not None and fa == fb:
+        ca, cb = a.get(f"mesh_convergence.{name}.coarse"), b.get(f"mesh_convergence.{name}.coarse")
+        if None not in (ca, cb, a.get(name), b.get(name)):
+            return abs((float(a[name]) - float(b[name])) - (float(ca) - float(cb)))
+    return error_bar(a, name) + error_bar(b, name)
+
+
+def indistinguishable(rows: list[dict[str, Any]], config: SweepConfig, best_key: str
+                      ) -> list[str]:
+    """Keys of the feasible designs (other than the best) whose first objective differs from
+    the best design's by no more than the error bar of that difference: the prediction
+    cannot tell them apart, so no choice between them rests on it."""
+    if not config.objectives:
+        return []
+    name = next(iter(config.objectives))
+    best = next(r for r in rows if r["key"] == best_key)
+    out = []
+    for r in rows:
+        if r["key"] == best_key or r.get("status") != "ok" or not r.get("feasible", False):
+            continue
+        if r.get(name) is None or best.get(name) is None:
+            continue
+        d = abs(float(r[name]) - float(best[name]))
+        err = difference_error(r, best, name)
+        r_err = err if np.isfinite(err) else 0.0
+        if d <= r_err:
+            out.append(r["key"])
+    return out
 
 
 def _row(task: dict[str, Any], metrics: dict[str, Any], error: str | None, elapsed: float,
