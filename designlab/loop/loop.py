@@ -467,14 +467,15 @@ def fit_peer(data: Dataset, output: str) -> tuple[np.ndarray, dict]:
 
 
 def verdict_kind(base: float, after: float, peer: float | None) -> str:
-    """explained: the physics model is within 1.3x of the peer (or the peer does no better
-    than the base while the physics helps); noise: neither lowers the base's error by 5 %;
-    missing mechanism: the peer does much better than the physics model."""
+    """noise: neither the physics model nor the peer lowers the base's validation error by
+    5 %; explained: the physics model does (by 5 %) and is within 1.3x of the peer; missing
+    mechanism: otherwise (the peer does much better than the physics model)."""
+    phys = after < 0.95 * base
     if peer is None or not np.isfinite(peer):
-        return "explained" if after < 0.95 * base else "noise"
-    if after >= 0.95 * base and peer >= 0.95 * base:
+        return "explained" if phys else "noise"
+    if not phys and peer >= 0.95 * base:
         return "noise"
-    if after <= 1.3 * peer:
+    if phys and after <= 1.3 * peer:
         return "explained"
     return "missing mechanism"
 

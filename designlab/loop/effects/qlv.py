@@ -6,6 +6,7 @@ import numpy as np
 
 from designlab.loop.effects.base import Context, Effect, Fitted, highpass, varying_drives
 from designlab.loop.effects.relaxation import prony_grid
+from designlab.measured.dataset import ELECTRICAL
 
 
 class QuasiLinearViscoelastic(Effect):
@@ -15,26 +16,32 @@ class QuasiLinearViscoelastic(Effect):
     ``G = G_inf + sum g_i exp(-t / tau_i)``. Linear in its coefficients: the static terms
     ``u^2, u^3`` (the relaxed nonlinear response; ``u`` is in the base) and the Prony terms
     ``highpass(u^k, tau_i)``, k = 1..3 (the part that relaxes, with time constants ``tau_i``
-    in s). Source: Y. C. Fung, Biomechanics (1993), ch. 7."""
+    in s, at most T/20 of the longest run T: with its three Prony terms per time constant a
+    slower one fits a run's drift and does not carry over to another run). Source: Y. C.
+    Fung, Biomechanics (1993), ch. 7. Mechanical outputs (the matrix's stress)."""
 
     name = "qlv"
     summary = "quasi-linear viscoelasticity: a nonlinear elastic response that relaxes"
     regressors_doc = ("`u^2, u^3` and Prony terms `highpass(u^k, tau_i)`, k = 1..3 "
                       "(u: input normalised to its range)")
-    settings_doc = "1 or 2 `tau` of the `relaxation` grid"
-    applies_doc = "each varying drive input"
+    settings_doc = "1 or 2 `tau` of the `relaxation` grid up to T/20"
+    applies_doc = "each varying drive input; mechanical outputs"
     per_input = True
     rank = 12
 
     @classmethod
     def applies(cls, train, output, base_inputs):
+        if train.quantities.get(output, "") in ELECTRICAL:
+            return ("electrical output: its 9 free Prony coefficients fit one run's drift "
+                    "(stretch resistance: 204 -> 452 ohm on another run); see piezo_relaxation")
         return [cls(x) for x in varying_drives(train)]
 
     def grid(self, ctx: Context) -> list[dict]:
         x = ctx.data.inputs[self.channel]
         lo, hi = np.percentile(x, [1, 99])
         ref = {"x0": float(np.min(x)), "R": float(max(hi - lo, 1e-12))}
-        return [{**g, **ref} for g in prony_grid(ctx)]
+        top = float(np.max(ctx.data.time_in_run())) / 20
+        return [{**g, **ref} for g in prony_grid(ctx) if max(g["tau"]) <= top]
 
     def features(self, ctx: Context, theta: dict) -> np.ndarray:
         d = ctx.data
