@@ -371,22 +371,27 @@ class ContactProblem:
             dx = np.linalg.solve(J, -R[..., None])[..., 0].reshape(Bn, m, 3)
             # backtracking on the residual norm, per load history (stick/slip and open/closed
             # switches make the residual only piecewise smooth)
+            # switches make the residual only piecewise smooth); when no step length reduces
+            # it, the full step is taken (the next tangent is the one of the new stick/slip set)
             r0 = np.linalg.norm(R, axis=1)
             lam = np.ones(Bn)
-            for _ in range(12):
+            for _ in range(8):
                 g_try = g + lam[:, None, None] * dx
                 R_try, D_try = residual(g_try)
                 worse = np.linalg.norm(R_try, axis=1) > r0 * (1 - 1e-4 * lam) + 1e-15 * scale
                 if not np.any(worse):
                     break
                 lam = np.where(worse, 0.5 * lam, lam)
+            else:
+                lam = np.where(worse, 1.0, lam)
+                g_try = g + lam[:, None, None] * dx
+                R_try, D_try = residual(g_try)
             g, R, D = g_try, R_try, D_try
-            if np.abs(lam[:, None, None] * dx).max() <= self.tol * scale \
-                    or np.abs(R).max() <= self.tol * scale:
+            if np.abs(R).max() <= self.tol * scale:
                 break
         else:
             raise ModelError(f"contact increment did not converge in {self.max_iter} Newton "
-                             f"iterations (last correction {np.abs(dx).max():.3g} mm)")
+                             f"iterations (residual {np.abs(R).max():.3g} mm)")
         p, _ = contact_forces(self._la, g, state, self.gap0)
         return g, p, it
 

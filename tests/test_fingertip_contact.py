@@ -1,0 +1,250 @@
+"""Contact mechanics at the fingertip's ball (issue 12): closed-form checks of the Hertz,
+Mindlin and Coulomb laws and the incremental solver, the fingertip contact model on a lumped
+3-fold symmetric structure (fast) and on the meshed Table II design (slow)."""
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
+from designlab.errors import ParameterError
+from designlab.fem import Material, Model, solve_static
+from designlab.fem.contact import (ContactLaw, ContactProblem, ContactState, HertzContact,
+                                   condense, contact_forces)
+from designlab.geometry.fingertip import CantileverFingertip
+from designlab.mesh.tetmesh import box_tet_mesh
+from designlab.sensors.fingertip_contact import (ContactSettings, lumped_condensed,
+                                                 run_contact_test, tighten, _problem)
+from designlab.sensors.protocols import HangingWeightTest
+
+STEEL = dict(E1=210000.0, nu1=0.3, E2=210000.0, nu2=0.3)
+
+
+# ------------------------------------------------------------------------------ laws
+
+def test_hertz_force_approach_law_closed_form():
+    hz = HertzContact(R1=4.7, R2=0.8, **STEEL)
+    R = 1 / (1 / 4.7 + 1 / 0.8)
+    E = 210000.0 / (2 * (1 - 0.09))
+    delta = np.array([1e-5, 1e-4, 1e-3])
+    N = 4 / 3 * E * math.sqrt(R) * delta ** 1.5                       # Johnson eq. 4.23
+    np.testing.assert_allclose(hz.force(delta), N, rtol=1e-12)
+    np.testing.assert_allclose(hz.approach(N), delta, rtol=1e-12)
+    a = np.sqrt(R * delta)                                           # a^2 = R delta
+    np.testing.assert_allclose(hz.radius(N), a, rtol=1e-12)
+    G = 210000.0 / 2.6
+    np.testing.assert_allclose(hz.tangential_stiffness(N), 8 * a / (2 * (2 - 0.3) / G),
+                               rtol=1e-12)                           # Mindlin 8 G* a
+    # dN/d delta = 2 E* a (finite difference)
+    d = 1e-4
+    fd = (hz.force(d * (1 + 1e-6)) - hz.force(d * (1 - 1e-6))) / (2e-6 * d)
+    assert abs(fd / hz.normal_stiffness(hz.force(d)) - 1) < 1e-8
+    # Hertz in series with a 500 N/mm sensor: delta = N/k + delta_H(N), both solvers
+    law = ContactLaw(0.0, hz, 500.0)
+    Nq = np.array([0.1, 1.0, 10.0, 40.0])
+    dq = Nq / 500.0 + hz.approach(Nq)
+    np.testing.assert_allclose(law.normal(dq)[0], Nq, rtol=1e-12)
+    p, D = contact_forces([law], np.column_stack([-dq, 0 * dq, 0 * dq])[:, None, :],
+                          ContactState.zero(4, 1))
+    np.testing.assert_allclose(p[:, 0, 0], Nq, rtol=1e-12)
+    assert np.all(law.normal(np.array([-1e-3, 0.0]))[0] == 0)             # unilateral
+
+
+def _block_on_plane(mu, N0=10.0, k=100.0, Q_max=6.0, n=120):
+    """A block on a rough rigid plane, tied to the wall by a tangential spring k (N/mm; the
+    normal tie is 0.01 N/mm, so the plane carries N0 to 1e-9), pressed by N0, under a cyclic tangential
+    force 0 -> Q_max -> -Q_max -> Q_max."""
+    law = ContactLaw(mu, None, k_series=1e7, kt_series=1e7)
+    prob = ContactProblem(np.diag([100.0, 1 / k, 1 / k]), np.eye(3)[None], [law])
+    Q = np.concatenate([np.linspace(0, Q_max, n), np.linspace(Q_max, -Q_max, 2 * n)[1:],
+                        np.linspace(-Q_max, Q_max, 2 * n)[1:]])
+    f = np.stack([np.full_like(Q, -N0), Q, 0 * Q], -1)[None]
+    res = prob.solve_path(f, ContactState.zero(1, 1), n_sub=1)
+    return Q, res.g[0, :, 0, 1], res.p[0, :, 0]
+
+
+def test_block_on_plane_coulomb_loop_has_width_2_mu_N():
+    mu, N0, k = 0.3, 10.0, 100.0
+    Q, x, p = _block_on_plane(mu, N0, k)
+    n = 120
+    down, up = slice(n, 3 * n - 1), slice(3 * n - 1, None)
+    assert np.allclose(p[:, 0], N0, rtol=1e-8)                    # normal force is N0
+    assert np.abs(p[:, 1]).max() <= mu * N0 * (1 + 1e-12)           # inside the cone
+    # on the sliding parts of the branches x = (Q -/+ mu N)/k: the loop is 2 mu N wide in Q
+    for sl, sign in ((down, +1), (up, -1)):
+        slide = np.abs(np.abs(p[sl, 1]) - mu * p[sl, 0]) < 1e-9
+        assert slide.sum() > 50
+        np.testing.assert_allclose(x[sl][slide], (Q[sl][slide] + sign * mu * N0) / k,
+                                   atol=mu * N0 / 1e7 * 2)
+    xs = np.linspace(-0.02, 0.02, 5)
+    q_down = np.interp(xs, x[down][::-1], Q[down][::-1])
+    q_up = np.interp(xs, x[up], Q[up])
+    np.testing.assert_allclose(q_up - q_down, 2 * mu * N0, rtol=1e-4)   # Q_up(x) = k x + mu N
+    # no friction: no loop
+    Q0, x0, _ = _block_on_plane(0.0, N0, k)
+    np.testing.assert_allclose(x0, Q0 / k, rtol=1e-9, atol=1e-12)
+
+
+def test_condense_is_exact_for_a_linear_model():
+    mesh = box_tet_mesh(10, 4, 4, 3, 2, 2, origin=(-5, -2, -12))
+    model = Model(mesh, {"block": Material("m", 2000.0, 0.35)})
+    model.fix("zmin")
+    ball = model.free_body("ball", (0.0, 0.0, 0.0))
+    top = model.distributing_coupling("top", "zmax")
+    model.spring("s1", a=(ball, (1.0, 0.5, -2.0)), b=top, k=300.0, axis=(0.2, 0.1, -1.0))
+    model.spring("s2", a=(ball, (-1.0, 0.5, -2.0)), b=top, k=300.0, axis=(-0.3, 0.2, -1.0))
+    model.spring("s3", a=(ball, (0.0, -1.0, -2.0)), b=top, k=300.0, axis=(0.0, -0.4, -1.0))
+    model.spring("hold", a=ball, k=50.0)
+    model.spring("twist", a=(ball, (3.0, 0.0, 0.0)), k=50.0)
+    model.force(ball, force=(0.3, -0.2, 1.0), moment=(2.0, 1.0, -0.5), case="w")
+    ref = solve_static(model).twist("ball", "w")
+    C, R = condense(model, [ball, top], keep_cases=("w",))
+    assert np.allclose(C, C.T)
+    f = np.r_[0.3, -0.2, 1.0, 2.0, 1.0, -0.5, np.zeros(6)]
+    np.testing.assert_allclose((C @ f)[:6], np.r_[ref[3:], ref[:3]], rtol=1e-9, atol=1e-14)
+    np.testing.assert_allclose(R["w"], C @ f, rtol=1e-9, atol=1e-14)
+
+
+# ------------------------------------------------------------------------------ fingertip
+
+PART = CantileverFingertip.tested()
+SHORT = HangingWeightTest(g1_locations=("h1", "h5", "h9"), g2_locations=("r1", "r5"),
+                          rotations=2)
+
+
+def test_preload_without_load_gives_equal_sensor_forces():
+    cf = lumped_condensed(PART)
+    s = ContactSettings(bolt_preload_N=20.0)
+    st, f_pre, tension = tighten(_problem(PART, cf, s), cf, s)
+    assert abs(tension - 20.0) < 1e-8
+    N = st.N[0]
+    np.testing.assert_allclose(N, N.mean(), rtol=1e-9)
+    # friction during tightening: the ball slides down the buttons, |T| = mu N
+    np.testing.assert_allclose(np.linalg.norm(st.T[0], axis=1), 0.25 * N, rtol=1e-6)
+    # frictionless: the rigid-ball equilibrium N = F / (3 sin 45 deg)
+    s0 = ContactSettings(bolt_preload_N=20.0, friction_coefficient=0.0)
+    st0, _, _ = tighten(_problem(PART, cf, s0), cf, s0)
+    np.testing.assert_allclose(st0.N[0], 20.0 / (3 * math.sin(math.pi / 4)), rtol=1e-9)
+
+
+def _linear_readings(cf, protocol, part):
+    """The linear model's tared readings (V) per run, from its unit-wrench sensor forces."""
+    from designlab.sensors.fingertip import FSS015_V_PER_N, wrench_at_ball
+    out = {}
+    for name in (*protocol.g1_locations, *protocol.g2_locations):
+        p, d = part.load_points(0.0)[name]
+        out[name] = FSS015_V_PER_N * np.outer(protocol.loads_N, wrench_at_ball(p, d)
+                                              @ cf.linear_unit)
+    return out
+
+
+def _noise_free(**kw):
+    return ContactSettings(repeatability_percent_fs=0.0, daq_bits=32, **kw)
+
+
+@pytest.mark.parametrize("hertz", [False, True])
+def test_zero_friction_zero_hysteresis_and_linear_readings(hertz):
+    cf = lumped_condensed(PART)
+    s = _noise_free(friction_coefficient=0.0, hertz=hertz)
+    rep = run_contact_test(PART, SHORT, s, cf)
+    for v in ("robust_eq1_span10_noise_free", "paper_eq1_all_sensors_noise_free"):
+        h = rep["hysteresis_definitions"][v]["by_location"]
+        assert max(h.values()) < 1e-9, (v, h)
+    if not hertz:       # the sensor spring alone: the linear model's readings
+        lin = _linear_readings(cf, SHORT, PART)
+        for name, loop in rep["loops"].items():
+            got = np.array(loop["readings_noise_free_V"])
+            np.testing.assert_allclose(got, lin[name], rtol=1e-9,
+                                       atol=1e-9 * np.abs(lin[name]).max())
+
+
+def test_friction_gives_hysteresis_that_falls_with_height():
+    cf = lumped_condensed(PART)
+    rep = run_contact_test(PART, SHORT, _noise_free(), cf)
+    h = rep["hysteresis_definitions"]["robust_eq1_span10_noise_free"]["by_location"]
+    assert h["h1"] > h["h5"] > h["h9"] >= 0 and h["h1"] > 1e-3
+    # same input -> same output (the noise is seeded)
+    a = run_contact_test(PART, SHORT, ContactSettings(), cf)["hysteresis_percent"]
+    b = run_contact_test(PART, SHORT, ContactSettings(), cf)["hysteresis_percent"]
+    assert a == b
+
+
+def test_increments_converge_to_a_fine_step_reference():
+    cf = lumped_condensed(PART)
+    one = HangingWeightTest(g1_locations=("h1",), g2_locations=(), rotations=1)
+    ref = run_contact_test(PART, one, _noise_free(increments_per_step=200), cf)
+    got = run_contact_test(PART, one, _noise_free(), cf)
+    F_ref = np.array(ref["loops"]["h1"]["sensor_force_N"])
+    F = np.array(got["loops"]["h1"]["sensor_force_N"])
+    assert np.abs(F - F_ref).max() < 1e-3 * np.abs(F_ref).max()
+
+
+def test_bad_friction_and_preload_are_one_line_errors():
+    for mu in (-0.1, 2.5):
+        with pytest.raises(ParameterError, match="friction_coefficient") as e:
+            ContactSettings(friction_coefficient=mu)
+        assert "\n" not in str(e.value)
+    cf = lumped_condensed(PART)
+    with pytest.raises(ParameterError, match="bolt_preload_N") as e:
+        run_contact_test(PART, SHORT, ContactSettings(bolt_preload_N=200.0), cf)
+    assert "\n" not in str(e.value)
+    # within the overforce alone, beyond it with the load: preload 45 N - half the load's rise
+    s = ContactSettings(bolt_preload_N=80.0)
+    rep = run_contact_test(PART, SHORT, s, cf)
+    pre = max(rep["preload"]["sensor_preload_N"])
+    rise = rep["peak_sensor_force_N"] - pre
+    assert rise > 0.1
+    with pytest.raises(ParameterError, match="bolt_preload_N.*with the load"):
+        run_contact_test(PART, SHORT, ContactSettings(
+            bolt_preload_N=80.0 * (45.0 - rise / 2) / pre), cf)
+
+
+def test_lift_off_is_a_warning_with_location_and_weight():
+    cf = lumped_condensed(PART)
+    with pytest.warns(UserWarning, match=r"lifts off the ball at h1 .* weight \d+ g"):
+        rep = run_contact_test(PART, SHORT, ContactSettings(bolt_preload_N=0.2), cf)
+    assert any("h1" in w for w in rep["lift_off_warnings"])
+    assert np.isfinite(rep["hysteresis_percent"]["by_location"]["h1"])
+
+
+# ------------------------------------------------------------------------------ meshed design
+
+@pytest.fixture(scope="module")
+def meshed():
+    from designlab.sensors.fingertip import FingertipModelSettings, mesh_fingertip
+    from designlab.sensors.fingertip_contact import condense_fingertip
+    fs = FingertipModelSettings(edge_length=5.0)
+    mesh = mesh_fingertip(PART, fs)
+    return condense_fingertip(PART, mesh, fs)
+
+
+@pytest.mark.slow
+def test_meshed_zero_friction_reproduces_the_linear_fem(meshed):
+    s = _noise_free(friction_coefficient=0.0, hertz=False)
+    rep = run_contact_test(PART, SHORT, s, meshed)
+    lin = _linear_readings(meshed, SHORT, PART)
+    for name, loop in rep["loops"].items():
+        got = np.array(loop["readings_noise_free_V"])
+        np.testing.assert_allclose(got, lin[name], rtol=1e-9, atol=1e-9 * np.abs(lin[name]).max())
+    assert max(rep["hysteresis_definitions"]["robust_eq1_span10_noise_free"]
+               ["by_location"].values()) < 1e-9
+
+
+@pytest.mark.slow
+def test_meshed_table_ii_protocol_under_2_s_and_fine_step_check(meshed):
+    import time
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rep = run_contact_test(PART, HangingWeightTest(), ContactSettings(), meshed)
+    assert time.perf_counter() - t0 < 4.0          # 2 s target on an unloaded machine
+    assert set(rep["hysteresis_percent"]["by_location"]) == {
+        *(f"h{i}" for i in range(1, 10)), *(f"r{i}" for i in range(1, 6))}
+    one = HangingWeightTest(g1_locations=("h1",), g2_locations=(), rotations=1)
+    ref = run_contact_test(PART, one, _noise_free(increments_per_step=100), meshed)
+    got = run_contact_test(PART, one, _noise_free(), meshed)
+    F_ref = np.array(ref["loops"]["h1"]["sensor_force_N"])
+    F = np.array(got["loops"]["h1"]["sensor_force_N"])
+    assert np.abs(F - F_ref).max() < 5e-3 * np.abs(F_ref).max()
