@@ -60,6 +60,31 @@ def test_resistance_is_reported_honestly(result):
     assert res["error_after"] <= 1.02 * res["error_before"]
     assert 0 < res["unexplained_fraction"] < 1
     assert res["residual_correlations"] and res["verdict"]
+    # one run cannot show what carries over: the NARX peer does a little better
+    assert res["peer"]["kind"] == "narx" and res["peer"]["error"] < res["error_before"]
+    assert res["verdict_kind"] == "missing mechanism"
+
+
+def test_force_beside_the_peer(result):
+    force = result.report["outputs"]["force"]
+    assert force["peer"]["error"] > 0 and force["verdict_kind"] == "explained"
+    assert force["error_after"] <= 1.3 * force["peer"]["error"]
+
+
+def test_two_runs_find_the_resistance_hysteresis(shared):
+    """Selection across two runs of the specimen (leave-one-run-out): rate-independent
+    hysteresis of the resistance carries over from the multisine to the sawtooth and back, and
+    cuts the error on the third run by 30 %, level with the NARX
+    peer."""
+    ds = load_card(ROOT / "examples" / "stretch_runs_card.toml")
+    res = run_loop(ds, "stretch-fem", outputs=["resistance"])
+    assert res.report["selection"]["cv"] == "leave-one-run-out"
+    out = res.report["outputs"]["resistance"]
+    assert out["effects"] and out["effects"][0]["name"] == "hysteresis", out["verdict"]
+    assert out["effects"][0]["evidence"]["cv"]["blocks_improved"] == 2
+    assert out["error_after"] <= 0.7 * out["error_before"]
+    assert out["error_after"] <= 1.3 * out["peer"]["error"]
+    assert out["verdict_kind"] == "explained" and out["explained_of_learnable"] > 0.9
 
 
 def _cli(base: str, out: Path) -> subprocess.CompletedProcess:
