@@ -423,3 +423,30 @@ def test_unexplained_residual_is_reported():
     assert out["unexplained_fraction"] > 0.5 * expected
     assert out["residual_correlations"]
     assert "correlates most with" in out["verdict"]
+
+
+def test_seed001_staircase_friction_times_moment_arm():
+    """Seed 001's hanging-weight test: weights stepped up and down (a staircase, 4 s per step)
+    at 7 heights of the load; the reading carries a friction hysteresis proportional to the
+    moment arm. The product effect is found first and explains it."""
+    rng = np.random.default_rng(7)
+    weights = np.array([0.0, 0.5, 1.0, 2.0, 3.0, 4.0, 5.0])        # N, up then down
+    stair = np.r_[weights, weights[-2::-1]]
+    heights = np.array([5.0, 10.0, 15.0, 20.0, 25.0, 30.0, 35.0])  # mm
+    w, loc = [], []
+    for _ in range(3):
+        for h in rng.permutation(heights):
+            w.append(np.repeat(stair, 40))
+            loc.append(np.full(stair.size * 40, h))
+    w, loc = np.concatenate(w), np.concatenate(loc)
+    t = np.arange(w.size) * DT
+    seg = np.zeros(w.size, int)
+    z = fx.dahl(w, np.array([0.3]), seg)[:, 0]
+    y = 0.1 + 0.8 * w + 0.01 * loc * z + rng.normal(0, 0.005, w.size)
+    role = np.where(t <= 0.6 * t[-1], "train", "validate")
+    ds = from_arrays(t, {"load": w, "location": loc}, {"force": y}, segment=seg, role=role)
+    out = run_loop(ds, "linear:load", max_effects=2, peer=False).report["outputs"]["force"]
+    e = out["effects"][0]
+    assert e["key"] == "friction_arm[load]", out["rounds"][0]["candidates"]
+    assert e["parameters"]["friction_per_arm"] == pytest.approx(0.01, rel=0.3)
+    assert e["error_after"] < 0.5 * out["error_before"]
