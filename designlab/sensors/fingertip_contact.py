@@ -536,7 +536,8 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
 
 def _compressed_change(runs, S, kmax, group, first, last) -> float | None:
     """Mean over rotations of the change (%) of the most compressed sensor's reading change at
-    the heaviest weight from location ``first`` to ``last`` (the sensor chosen at ``first``)."""
+    the heaviest weight from location ``first`` to ``last`` (the sensor most compressed at
+    ``last``, where the moment arm is largest: h1 in G1, r5 in G2)."""
     by = {}
     for b, (g, name, rot, *_) in enumerate(runs):
         by[(name, rot)] = S[b, kmax] - S[b, 0]
@@ -544,7 +545,7 @@ def _compressed_change(runs, S, kmax, group, first, last) -> float | None:
     for (name, rot), s in by.items():
         if name != first or (last, rot) not in by:
             continue
-        k = int(np.argmax(s))
+        k = int(np.argmax(by[(last, rot)]))
         out.append(100.0 * (by[(last, rot)][k] - s[k]) / s[k])
     return float(np.mean(out)) if out else None
 
@@ -556,7 +557,9 @@ def compare_with_paper(report, runs, seq, S_true, protocol) -> dict[str, Any]:
     g1 = list(protocol.g1_locations)
     g2 = list(protocol.g2_locations)
     out: dict[str, Any] = {"paper": PAPER}
-    for key, label in (("robust_eq1_span10", "robust"), ("paper_eq1_all_sensors", "paper_def")):
+    for key, label in (("robust_eq1_span10", "robust"), ("paper_eq1_all_sensors", "paper_def"),
+                       ("robust_eq1_span10_noise_free", "robust_noise_free"),
+                       ("paper_eq1_all_sensors_noise_free", "paper_def_noise_free")):
         h = report["hysteresis_definitions"][key]["by_location"]
         gs = report["hysteresis_definitions"][key]["by_group"]
         d = {"G1_by_location": [h[n] for n in g1], "G2_by_location": [h[n] for n in g2]}

@@ -1,0 +1,130 @@
+"""Seed 001 hanging-weight test with contact mechanics at the ball, end to end on the Table II
+design (``CantileverFingertip.tested()``): mesh, condense once, run the full protocol, print the
+numbers beside the paper's, the effect of the bolt preload, the friction coefficient that would
+match the paper, and a fine-step check.
+
+    .venv/bin/python examples/fingertip_contact.py [--json out.json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import time
+import warnings
+
+import numpy as np
+
+from designlab.geometry.fingertip import CantileverFingertip
+from designlab.sensors.fingertip import FingertipModelSettings, mesh_fingertip
+from designlab.sensors.fingertip_contact import (PAPER, ContactSettings, condense_fingertip,
+                                                 run_contact_test)
+from designlab.sensors.protocols import HangingWeightTest
+
+
+def quiet(fn, *a, **k):
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        out = fn(*a, **k)
+    return out, w
+
+
+def lowest(rep, key="robust_eq1_span10"):
+    g = rep["hysteresis_definitions"][key]["by_group"]
+    return g["G1"]["lowest"], g["G2"]["lowest"]
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--json", help="write the report here")
+    args = ap.parse_args(argv)
+    part = CantileverFingertip.tested()
+    fs = FingertipModelSettings()
+    protocol = HangingWeightTest()
+    t0 = time.perf_counter()
+    mesh = mesh_fingertip(part, fs)
+    t_mesh = time.perf_counter() - t0
+    cf = condense_fingertip(part, mesh, fs)
+    print(f"mesh {mesh.n_points} points ({t_mesh:.1f} s); condensed FEM "
+          f"{cf.n_dofs_fem} dofs -> 24 ({sum(cf.timings_s.values()):.1f} s)")
+    s = ContactSettings()
+    t0 = time.perf_counter()
+    rep, w = quiet(run_contact_test, part, protocol, s, cf)
+    print(f"full Table II protocol (14 locations x 6 rotations x 2 loops): "
+          f"{time.perf_counter() - t0:.2f} s; warnings: {len(w)}")
+    pre = rep["preload"]
+    print(f"\npreload: bolt {pre['bolt_tension_N']:.1f} N -> sensors "
+          f"{np.round(pre['sensor_preload_N'], 2).tolist()} N; tangential after tightening "
+          f"{np.round(np.linalg.norm(pre['tangential_force_after_tightening_N'], axis=1), 2).tolist()} N")
+    print(f"friction coefficient {s.friction_coefficient} (chromium on steel, Wypych 2018)")
+
+    H = rep["hysteresis_definitions"]
+    print("\nhysteresis by location, % (eq. 1; mean over 6 rotations)")
+    print(f"{'loc':>4} {'robust':>9} {'paper-def':>10} {'robust, no noise':>17} "
+          f"{'first loop, no noise':>21}")
+    for n in rep["hysteresis_percent"]["by_location"]:
+        print(f"{n:>4} {H['robust_eq1_span10']['by_location'][n]:9.3f} "
+              f"{H['paper_eq1_all_sensors']['by_location'][n]:10.3f} "
+              f"{H['robust_eq1_span10_noise_free']['by_location'][n]:17.4f} "
+              f"{H['robust_eq1_span10_noise_free_first_loop']['by_location'][n]:21.3f}")
+    pc = rep["paper_comparison"]
+    print("\n                                   model      paper")
+    for key, lab in (("robust_eq1_span10", "robust"), ("paper_eq1_all_sensors", "paper def"),
+                     ("robust_eq1_span10_noise_free", "robust no noise")):
+        g1, g2 = lowest(rep, key)
+        print(f"lowest mean G1 ({lab:>15})   {g1:8.3f} %  {PAPER['lowest_mean_G1_pct']:6.2f} %")
+        print(f"lowest mean G2 ({lab:>15})   {g2:8.3f} %  {PAPER['lowest_mean_G2_pct']:6.2f} %")
+    for lab in ("robust", "robust_noise_free"):
+        r = pc[lab]
+        print(f"G1 falls monotonically h1->h9 ({lab}): {r['G1_monotonic_decrease_h1_to_h9']} "
+              f"(paper: decreases exponentially); h1/h9 = {r['G1_ratio_first_to_last']:.3g}")
+    print(f"compressed sensor change h9->h1    {pc['compressed_change_G1_pct']:8.1f} %  "
+          f"{PAPER['compressed_change_h9_to_h1_pct']:6.1f} %")
+    print(f"compressed sensor change r1->r5    {pc['compressed_change_G2_pct']:8.1f} %  "
+          f"{PAPER['compressed_change_r1_to_r5_pct']:6.1f} %")
+    e = pc["relative_error_per_axis"]
+    print(f"rel. error P_x, P_y, P_z           {e['x']:.3f} {e['y']:.3f} {e['z']:.3f}  "
+          f"(paper Fig. 9: P_z worst); P_z / max(P_x, P_y) = {pc['Pz_error_over_xy']:.2f}")
+    print(f"cond(A), Table II design           {rep['condition_number']:8.2f}   "
+          f"(paper, Table III design: {PAPER['condition_number']})")
+
+    print("\nbolt preload (bolt tension N): lowest G1 / G2 robust %, noise free; h1 %")
+    for P in (5.0, 10.0, 20.0, 40.0, 60.0):
+        rp, _ = quiet(run_contact_test, part, protocol,
+                      dataclasses.replace(s, bolt_preload_N=P), cf)
+        hn = rp["hysteresis_definitions"]["robust_eq1_span10_noise_free"]
+        print(f"  {P:5.1f} N: sensors {np.mean(rp['preload']['sensor_preload_N']):5.2f} N, "
+              f"G1 {hn['by_group']['G1']['lowest']:.4f} / G2 {hn['by_group']['G2']['lowest']:.4f}"
+              f", h1 {hn['by_location']['h1']:.2f}, lift-offs {len(rp['lift_off_warnings'])}")
+
+    print("\nfriction coefficient scan (default preload): G1 / G2 lowest robust % (readout "
+          "noise included | noise free), G1 h1 noise free")
+    for mu in (0.0, 0.002, 0.003, 0.004, 0.005, 0.007, 0.01, 0.02, 0.05, 0.1, 0.25, 0.5, 1.0):
+        rm, _ = quiet(run_contact_test, part, protocol,
+                      dataclasses.replace(s, friction_coefficient=mu), cf)
+        g1, g2 = lowest(rm)
+        n1, n2 = lowest(rm, "robust_eq1_span10_noise_free")
+        h1 = rm["hysteresis_definitions"]["robust_eq1_span10_noise_free"]["by_location"]["h1"]
+        print(f"  mu {mu:5.3f}: {g1:7.3f} / {g2:7.3f} | {n1:8.4f} / {n2:8.4f}   h1 {h1:7.3f}")
+
+    one = HangingWeightTest(g1_locations=("h1",), g2_locations=(), rotations=1)
+    nf = dataclasses.replace(s, repeatability_percent_fs=0.0, daq_bits=32)
+    ref, _ = quiet(run_contact_test, part, one, dataclasses.replace(nf, increments_per_step=200), cf)
+    got, _ = quiet(run_contact_test, part, one, nf, cf)
+    F_ref = np.array(ref["loops"]["h1"]["sensor_force_N"])
+    F = np.array(got["loops"]["h1"]["sensor_force_N"])
+    print(f"\nfine-step check (h1, rotation 0): {s.increments_per_step} vs 200 increments per "
+          f"weight: max force difference {np.abs(F - F_ref).max():.2e} N "
+          f"(of {np.abs(F_ref).max():.2f} N); hysteresis "
+          f"{got['hysteresis_percent']['by_location']['h1']:.4f} vs "
+          f"{ref['hysteresis_percent']['by_location']['h1']:.4f} %")
+    if args.json:
+        from designlab.atomic import atomic_write_json
+        atomic_write_json(args.json, rep)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
