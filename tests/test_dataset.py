@@ -216,6 +216,80 @@ def test_bad_data_gives_one_line_error(tmp_path, mutate, message):
     assert message in text and "\n" not in text
 
 
+CARD_FAULTS = [  # (what the card says, the words of the one-line error)
+    ('unti = "m"', "unknown key unti"),
+    ('[inputs.displacement]\ncolumn = "P"\nunti = "m"', "unknown key inputs.displacement.unti"),
+    ("[preprocess]\nrat = 5.0", "unknown key preprocess.rat (allowed: rate"),
+    ('files = [1]', "files[1]"),
+    ('[time]\ncolumn = "t"\nunit = 3', "time.unit=3"),
+    ('[preprocess]\nrate = "abc"', "preprocess.rate='abc' is not allowed"),
+    ("[repair]\nwindow = 0", "repair.window=0 is not allowed: an integer, 3 <= value"),
+    ("[preprocess]\nlowpass_hz = -1", "preprocess.lowpass_hz=-1 is not allowed"),
+    ("[preprocess]\nbias_seconds = -1", "preprocess.bias_seconds=-1 is not allowed"),
+    ("[preprocess]\nrate = 1e6", "preprocess.rate=1000000.0 is not allowed"),
+    ("[preprocess]\nrate = inf", "is not allowed: a finite number"),
+    ("[split]\ntrain = 1.5", "split.train=1.5"),
+    ("allow_outside_paths = 1", "allow_outside_paths=1"),
+]
+
+
+@pytest.mark.parametrize("extra, message", CARD_FAULTS)
+def test_every_card_key_and_value_is_checked(tmp_path, extra, message):
+    """Typos and wrong types are errors naming the key (never ignored: ``unti = "m"`` would
+    read metres as millimetres)."""
+    t, P, F = signals(50)
+    write_csv(tmp_path / "run.csv", {"t": t, "P": P, "F": F})
+    body = BASIC.format(punit="mm")
+    if extra.startswith("files"):
+        body = extra + "\n" + body.replace('[[files]]\npath = "run.csv"\n', "")
+    elif extra.startswith("[inputs.displacement]"):
+        body = body.replace('displacement = { column = "P", unit = "mm" }\n', "") + extra
+    elif extra.startswith("[time]"):
+        body = body.replace('[time]\ncolumn = "t"\n', "") + extra
+    elif extra.startswith("[split]"):
+        body = body.replace("[split]\ntrain = 0.6\n", "") + extra
+    elif extra.startswith("["):
+        body = body + extra
+    else:
+        body = extra + "\n" + body
+    with pytest.raises(Exception) as exc:
+        load_card(card(tmp_path, body))
+    from designlab.errors import DesignlabError
+
+    assert isinstance(exc.value, DesignlabError)
+    assert message in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_card_paths_stay_in_the_card_folder_and_errors_never_quote_files(tmp_path):
+    secret = tmp_path / "secret.txt"
+    secret.write_text("hunter2:*:19000:0:99999:7:::\nsecondline:x\n")
+    folder = tmp_path / "cards"
+    folder.mkdir()
+    for name in (str(secret), "../secret.txt"):
+        body = BASIC.format(punit="mm").replace("run.csv", name)
+        with pytest.raises(DataError, match="outside the card's folder") as exc:
+            load_card(card(folder, body))
+        assert "hunter2" not in str(exc.value)
+    (folder / "link.csv").symlink_to(secret)
+    with pytest.raises(DataError, match="outside the card's folder"):
+        load_card(card(folder, BASIC.format(punit="mm").replace("run.csv", "link.csv")))
+    # allowed explicitly: the file is read, and its parse error does not quote it
+    body = "allow_outside_paths = true\n" + BASIC.format(punit="mm").replace("run.csv",
+                                                                              str(secret))
+    with pytest.raises(DataError) as exc:
+        load_card(card(folder, body))
+    assert "hunter2" not in str(exc.value) and "secondline" not in str(exc.value)
+
+
+def test_repeated_columns_and_binary_parquet_are_one_line_errors(tmp_path):
+    (tmp_path / "run.csv").write_text("t,P,P,F\n0,1,1,1\n1,2,2,2\n2,3,3,3\n3,4,4,4\n4,5,5,5\n")
+    with pytest.raises(DataError, match="'P' appear more than once"):
+        load_card(card(tmp_path, BASIC.format(punit="mm")))
+    (tmp_path / "run.parquet").write_bytes(b"\x00\x01garbage" * 100)
+    with pytest.raises(DataError, match="not a readable Parquet file"):
+        load_card(card(tmp_path, BASIC.format(punit="mm").replace("run.csv", "run.parquet")))
+
+
 def test_headerless_csv_needs_columns_and_parquet_reads(tmp_path):
     import pyarrow as pa
     import pyarrow.parquet as pq
@@ -257,7 +331,9 @@ displacement = {{ column = "P", unit = "mm", sign = "auto" }}
 force = {{ column = "F", unit = "N" }}
 resistance = {{ column = "Ri", unit = "ohm", sign = "auto" }}
 """.replace("'", '"')
-    ds = load_card(card(tmp_path, body))
+    with pytest.raises(DataError, match="outside the card's folder"):
+        load_card(card(tmp_path, body))
+    ds = load_card(card(tmp_path, "allow_outside_paths = true\n" + body))
     reps = {f["path"].rsplit("/", 1)[-1]: f for f in ds.report["files"]}
     # single-sample encoder dropouts: ~3 % of the multisine samples, all repaired and counted
     ms = reps["multisine_600s_1.csv"]

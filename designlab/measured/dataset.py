@@ -158,6 +158,125 @@ def make_channel(name: str, spec: Any, where: str, time_spec: Any) -> Channel:
                    scale=float(scale), offset=float(offset))
 
 
+MAX_FILE_BYTES = 2 * 1024 ** 3     # one data file
+MAX_SAMPLES = 20_000_000           # samples of one run on the common clock (rate x duration)
+MAX_RATE_HZ = 100_000.0
+
+_CARD_KEYS = ("files", "columns", "time", "inputs", "outputs", "split", "repair", "preprocess",
+              "allow_outside_paths")
+_FILE_KEYS = ("path", "role", "columns", "header", "sign")
+_CHANNEL_KEYS = ("column", "unit", "quantity", "kind", "sign")
+# key -> (type, lo, hi, lo_open): the numbers a card may hold, and where
+_REPAIR = {"dropouts": (bool,), "spikes": (bool,), "spike_k": (float, 0.0, 1e6, True),
+           "spike_floor": (float, 0.0, 1.0, False), "window": (int, 3, 100_001, False),
+           "max_run": (int, 1, 100_000, False)}
+_PREPROCESS = {"rate": (float, 0.0, MAX_RATE_HZ, True), "skip_s": (float, 0.0, 1e9, False),
+               "bias_seconds": (float, 0.0, 1e9, True), "bias_channels": (list,),
+               "lowpass_hz": (float, 0.0, MAX_RATE_HZ, True), "filter_order": (int, 1, 10, False)}
+_SPLIT = {"train": (float, 0.0, 1.0, True)}
+
+
+def _card_error(where: str, name: str, value: Any, allowed: str) -> DataError:
+    from designlab.params import _short
+
+    return DataError(f"{where}: {name}={_short(value)!r} is not allowed: {allowed}")
+
+
+def _check_keys(where: str, table: Any, known: tuple, section: str) -> None:
+    from designlab.params import did_you_mean
+
+    if not isinstance(table, Mapping):
+        raise _card_error(where, section, table, "a table")
+    for k in table:
+        if k not in known:
+            raise DataError(f"{where}: unknown key {section + '.' if section else ''}{k} "
+                            f"(allowed: {', '.join(known)}){did_you_mean(k, known)}")
+
+
+def _check_numbers(where: str, section: str, table: Mapping, spec: dict) -> None:
+    _check_keys(where, table, tuple(spec), section)
+    for k, v in table.items():
+        kind, *rng = spec[k]
+        name = f"{section}.{k}"
+        if kind is bool:
+            if not isinstance(v, bool):
+                raise _card_error(where, name, v, "true or false")
+        elif kind is list:
+            if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+                raise _card_error(where, name, v, "a list of channel names")
+        else:
+            lo, hi, lo_open = rng
+            ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+            if kind is int:
+                ok = ok and isinstance(v, int)
+            ok = ok and (v > lo if lo_open else v >= lo) and v <= hi
+            if not ok:
+                what = "an integer" if kind is int else "a number"
+                raise _card_error(where, name, v, f"{what}, {lo:g} {'<' if lo_open else '<='} "
+                                  f"value <= {hi:g}")
+
+
+def check_card(card: Mapping[str, Any], where: str) -> None:
+    """Every key and value of a dataset card before any file is read: unknown keys (with a
+    did-you-mean: ``unti`` is never read as millimetres), types, ranges, finite numbers."""
+    _check_keys(where, card, _CARD_KEYS, "")
+    if not isinstance(card.get("allow_outside_paths", False), bool):
+        raise _card_error(where, "allow_outside_paths", card["allow_outside_paths"],
+                          "true or false")
+    files = card.get("files")
+    if not isinstance(files, list) or not files:
+        raise DataError(f"{where}: needs at least one [[files]] entry with a path")
+    for i, f in enumerate(files):
+        sec = f"files[{i + 1}]"
+        _check_keys(where, f, _FILE_KEYS, sec)
+        if not isinstance(f.get("path"), str) or not f["path"]:
+            raise _card_error(where, f"{sec}.path", f.get("path"), "a file name (text)")
+        if "header" in f and not isinstance(f["header"], bool):
+            raise _card_error(where, f"{sec}.header", f["header"], "true or false")
+        if "sign" in f and not isinstance(f["sign"], Mapping):
+            raise _card_error(where, f"{sec}.sign", f["sign"], "a table channel = 1 | -1")
+    for sec, cols in [("columns", card.get("columns"))] + [
+            (f"files[{i + 1}].columns", f.get("columns")) for i, f in enumerate(files)]:
+        if cols is not None:
+            if not isinstance(cols, list) or not cols or not all(isinstance(c, str) for c in cols):
+                raise _card_error(where, sec, cols, "a list of column names")
+            if len(set(cols)) != len(cols):
+                raise _card_error(where, sec, cols, "distinct column names")
+    time = card.get("time", {})
+    _check_keys(where, time, ("column", "unit"), "time")
+    col = time.get("column")
+    if col is not None and not (isinstance(col, str) or (
+            isinstance(col, Mapping) and all(isinstance(v, str) for v in col.values()))):
+        raise _card_error(where, "time.column", col, 'a column name, or {CHANNEL = "COLUMN"}')
+    if "unit" in time and not isinstance(time["unit"], str):
+        raise _card_error(where, "time.unit", time["unit"], ", ".join(UNITS["time"]))
+    for group in ("inputs", "outputs"):
+        chans = card.get(group, {})
+        if not isinstance(chans, Mapping):
+            raise _card_error(where, group, chans, "a table of channels")
+        for name, spec in chans.items():
+            if isinstance(spec, str):
+                continue
+            _check_keys(where, spec, _CHANNEL_KEYS, f"{group}.{name}")
+            for k in ("column", "unit", "quantity", "kind"):
+                if k in spec and not isinstance(spec[k], str):
+                    raise _card_error(where, f"{group}.{name}.{k}", spec[k], "text")
+    _check_numbers(where, "repair", card.get("repair", {}), _REPAIR)
+    _check_numbers(where, "preprocess", card.get("preprocess", {}), _PREPROCESS)
+    _check_numbers(where, "split", card.get("split", {}), _SPLIT)
+
+
+def data_path(card_path: Path, name: str, allow_outside: bool) -> Path:
+    """A data file named in a card, confined to the card's folder (symbolic links resolved)
+    unless outside paths are allowed (``allow_outside_paths = true`` or the caller's flag)."""
+    base = card_path.parent.resolve()
+    p = (base / name).resolve()
+    if not allow_outside and not p.is_relative_to(base):
+        raise DataError(f"{card_path}: file {name!r} is outside the card's folder {base}; "
+                        "set allow_outside_paths = true in the card to read it")
+    return p
+
+
 # --------------------------------------------------------------------------- reading
 
 
@@ -169,9 +288,15 @@ def read_table(path: Path, columns: list[str] | None = None, header: bool | None
 
     if not path.is_file():
         raise DataError(f"{path}: file not found")
+    size = path.stat().st_size
+    if size > MAX_FILE_BYTES:
+        raise DataError(f"{path}: {size} bytes; at most {MAX_FILE_BYTES} bytes per data file")
     if path.suffix.lower() in (".parquet", ".pq"):
         import pyarrow.parquet as pq
-        table = pq.read_table(path)
+        try:
+            table = pq.read_table(path)
+        except (pa.ArrowException, OSError):  # the reason may quote the file: not shown
+            raise DataError(f"{path}: not a readable Parquet file") from None
     else:
         if header is None:
             header = columns is None
@@ -183,14 +308,24 @@ def read_table(path: Path, columns: list[str] | None = None, header: bool | None
                                    null_values=["", "nan", "NaN", "NA", "null"])
         try:
             table = pcsv.read_csv(path, read_options=read, convert_options=conv)
-        except pa.ArrowInvalid as exc:
-            msg = str(exc).splitlines()[0]
-            raise DataError(f"{path}: cannot parse as CSV ({msg})") from None
+        except (pa.ArrowException, OSError, UnicodeDecodeError) as exc:
+            # arrow's message quotes the offending row: keep only its shape, never the text
+            import re
+
+            m = re.search(r"Expected \d+ columns, got \d+", str(exc))
+            why = m.group(0) if m else ("not UTF-8 text" if "UTF8" in str(exc).replace("-", "")
+                                        else "not a CSV table")
+            raise DataError(f"{path}: cannot parse as CSV ({why})") from None
         if header and columns is not None:
             if len(columns) != table.num_columns:
                 raise DataError(f"{path}: columns = {columns} names {len(columns)} columns but "
                                 f"the file has {table.num_columns}")
             table = table.rename_columns(list(columns))
+    names = [str(n) for n in table.column_names]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise DataError(f"{path}: column name(s) {', '.join(map(repr, dup))} appear more than "
+                        "once; name the columns with columns = [...]")
     out = {}
     for name in table.column_names:
         col = table.column(name)
@@ -204,8 +339,15 @@ def read_table(path: Path, columns: list[str] | None = None, header: bool | None
 
 def _numeric(data: dict, col: str, path: Path) -> np.ndarray:
     if col not in data:
-        raise DataError(f"{path}: column '{col}' not found; the file has "
-                        f"{', '.join(map(str, data))}")
+        import re
+
+        names = [str(n) for n in data]
+        # list the header only when it looks like column names (never quote other text)
+        plain = len(names) <= 50 and all(re.fullmatch(r"[A-Za-z_][\w .()/%\[\]-]{0,40}", n)
+                                         for n in names)
+        has = f"the file has {', '.join(names)}" if plain else \
+            f"the file's first row holds no such name ({len(names)} column(s))"
+        raise DataError(f"{path}: column '{col}' not found; {has}")
     arr = data[col]
     if not isinstance(arr, np.ndarray):
         raise DataError(f"{path}: column '{col}' is not numeric")
@@ -387,13 +529,16 @@ def _resample(tt: np.ndarray, x: np.ndarray, grid: np.ndarray, rate_in: float,
     return np.interp(grid, tt, x)
 
 
-def load_card(path: str | Path) -> Dataset:
-    """Read a dataset card and every file it names into one :class:`Dataset`."""
+def load_card(path: str | Path, allow_outside: bool = False) -> Dataset:
+    """Read a dataset card and every file it names into one :class:`Dataset`. The card is
+    checked whole first (:func:`check_card`); its files must lie in its folder unless it says
+    ``allow_outside_paths = true`` (or ``allow_outside``)."""
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: dataset card not found")
-    card = load_toml(path)
-    base = path.parent
+    card = load_toml(path, "--data")
+    check_card(card, str(path))
+    allow_outside = allow_outside or bool(card.get("allow_outside_paths", False))
     files = card.get("files")
     if not files or not isinstance(files, list):
         raise DataError(f"{path}: needs at least one [[files]] entry with a path")
@@ -426,7 +571,7 @@ def load_card(path: str | Path) -> Dataset:
     for i, f in enumerate(files):
         if "path" not in f:
             raise DataError(f"{where}: [[files]] entry {i + 1} has no path")
-        fpath = (base / f["path"]).resolve()
+        fpath = data_path(path, f["path"], allow_outside)
         role = f.get("role")
         if role not in (None, "train", "validate"):
             raise DataError(f"{where}: file {f['path']} role={role!r} is not allowed: "
@@ -454,7 +599,12 @@ def load_card(path: str | Path) -> Dataset:
                 r["report"]["trimmed"][name]["skipped_start"] = int(np.sum(
                     (tt >= t0) & (tt < t0 + skip)))
             t0 = t0 + skip
-        n = int(math.floor((t1 - t0) * rate + 1e-9)) + 1
+        n_f = math.floor((t1 - t0) * rate + 1e-9) + 1
+        if n_f > MAX_SAMPLES:
+            raise DataError(f"{r['path']}: {n_f:.3g} samples at {rate:g} Hz over "
+                            f"{t1 - t0:.3g} s; at most {MAX_SAMPLES} per run (lower "
+                            "[preprocess] rate)")
+        n = int(n_f)
         if n < 4:
             raise DataError(f"{r['path']}: the channels' clocks overlap for only "
                             f"{max(t1 - t0, 0):.3g} s; nothing to resample")
