@@ -174,7 +174,7 @@ def test_friction_gives_hysteresis_that_falls_with_height():
 def test_increments_converge_to_a_fine_step_reference():
     cf = lumped_condensed(PART)
     one = HangingWeightTest(g1_locations=("h1",), g2_locations=(), rotations=1)
-    ref = run_contact_test(PART, one, _noise_free(increments_per_step=200), cf)
+    ref = run_contact_test(PART, one, _noise_free(increments_per_step=40), cf)
     got = run_contact_test(PART, one, _noise_free(), cf)
     F_ref = np.array(ref["loops"]["h1"]["sensor_force_N"])
     F = np.array(got["loops"]["h1"]["sensor_force_N"])
