@@ -105,27 +105,33 @@ def _executor(scheduler: Optional[str], workers: Optional[int]):
     return LocalExecutor(workers)
 
 
-def _summary_table(rows, config, pareto_keys, best_key, limit: int = 20):
+def _summary_table(rows, config, pareto_keys, best_key, limit: int = 20, tie_keys=()):
     from rich.table import Table
+
+    from designlab.optimize.sweep import error_bar
 
     t = Table(title=f"{config.part} sweep: {len(rows)} designs "
                     f"({sum(r.get('status') == 'ok' for r in rows)} ok)")
     dims = [d.name for d in config.dimensions]
     objs = list(config.objectives)
-    for c in ["", *dims, *objs, "feasible", "s"]:
+    for c in ["", *dims, *(x for o in objs for x in (o, "+-")), "feasible", "s"]:
         t.add_column(c, justify="right")
     def fmt(v):
         return f"{v:.4g}" if isinstance(v, float) else ("" if v is None else str(v))
     for r in rows[:limit]:
-        mark = "*" if r["key"] == best_key else ("P" if r["key"] in pareto_keys else "")
+        mark = ("*" if r["key"] == best_key else "~" if r["key"] in tie_keys
+                else "P" if r["key"] in pareto_keys else "")
         if r.get("status") != "ok":
             mark = "x"
-        t.add_row(mark, *[fmt(r.get(f"param.{d}")) for d in dims], *[fmt(r.get(o)) for o in objs],
+        vals = [x for o in objs for x in (fmt(r.get(o)), fmt(error_bar(r, o)))]
+        t.add_row(mark, *[fmt(r.get(f"param.{d}")) for d in dims], *vals,
                   "yes" if r.get("feasible") else "no", fmt(r.get("elapsed_s")))
     if len(rows) > limit:
         t.caption = f"first {limit} of {len(rows)} designs; all in results.parquet / report.html"
     console.print(t)
-    console.print("* chosen design, P Pareto set, x failed")
+    console.print("* chosen design, ~ not distinguishable from it (difference within the mesh "
+                  "error bars), P Pareto set, x failed; +- the discretisation error bar (value "
+                  "minus the value on one coarser mesh)", highlight=False, markup=False)
 
 
 @app.command()
@@ -151,8 +157,13 @@ def sweep(config: Path = typer.Argument(..., help="Sweep config (TOML): part, pa
     except KeyboardInterrupt:
         err_console.print("interrupted: finished designs are stored; run the same command to resume")
         raise typer.Exit(130)
-    write_report(out, res.rows, cfg, res.pareto_keys, res.best_key, title=f"designlab sweep: {config.name}")
-    _summary_table(res.rows, cfg, res.pareto_keys, res.best_key)
+    write_report(out, res.rows, cfg, res.pareto_keys, res.best_key,
+                 title=f"designlab sweep: {config.name}", tie_keys=res.tie_keys)
+    _summary_table(res.rows, cfg, res.pareto_keys, res.best_key, tie_keys=res.tie_keys)
+    if res.tie_keys:
+        console.print(f"{len(res.tie_keys) + 1} designs are not distinguishable by "
+                      f"{next(iter(cfg.objectives))}: their differences are within the mesh "
+                      "error bars", highlight=False, markup=False)
     for w in res.warnings:
         err_console.print(_plain(("warning:", "yellow"), " ", w), highlight=False)
     console.print(f"{res.new} evaluated, {res.reused} from the store, {res.failed} failed -> "
@@ -190,18 +201,38 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
     except KeyboardInterrupt:
         err_console.print("interrupted: finished designs are stored; run the same command to resume")
         raise typer.Exit(130)
-    write_report(out, res.sweep.rows, cfg, res.sweep.pareto_keys, res.chosen["key"],
-                 title=f"designlab optimize: {config.name}")
-    _summary_table(res.sweep.rows, cfg, res.sweep.pareto_keys, res.chosen["key"])
+    from designlab.optimize.sweep import indistinguishable
+
+    rows = list({r["key"]: r for r in [*res.sweep.rows, res.chosen]}.values())
+    ties = indistinguishable(rows, cfg, res.chosen["key"]) if cfg.objectives else []
+    chosen, chosen_params, choice = res.chosen, res.chosen_params, (
+        f"{res.method}: best {next(iter(cfg.objectives), '')} beyond the mesh error bars")
+    if ties:
+        # the prediction cannot rank these: none is chosen on the objective; the exported one
+        # is the tied design that needs the least material
+        group = [res.chosen] + [r for r in rows if r["key"] in ties]
+        chosen = min(group, key=lambda r: (r.get("printed_volume_mm3") or float("inf"), r["key"]))
+        chosen_params = {d.name: chosen[f"param.{d.name}"] for d in cfg.dimensions}
+        choice = (f"{len(group)} designs are not distinguishable by "
+                  f"{next(iter(cfg.objectives))} (differences within the mesh error bars): none "
+                  "is chosen on it; exported the one with the least printed volume "
+                  f"({chosen.get('printed_volume_mm3', float('nan')):.4g} mm^3)")
+    write_report(out, res.sweep.rows, cfg, res.sweep.pareto_keys, chosen["key"],
+                 title=f"designlab optimize: {config.name}", tie_keys=ties)
+    _summary_table(res.sweep.rows, cfg, res.sweep.pareto_keys, chosen["key"], tie_keys=ties)
     design_dir = out / "chosen"
     from designlab.optimize.evaluate import export_design
 
-    files = export_design(cfg.part, {**cfg.fixed, **res.chosen_params}, design_dir,
-                          formats=formats, settings=cfg.settings, protocol=cfg.protocol)
-    summary = {"method": res.method, "chosen_params": res.chosen_params, "chosen": res.chosen,
+    files = export_design(cfg.part, {**cfg.fixed, **chosen_params}, design_dir,
+                          formats=formats, settings=cfg.settings, protocol=cfg.protocol,
+                          fem_cache=out / "fem")
+    summary = {"method": res.method, "chosen_params": chosen_params, "chosen": chosen,
+               "choice": choice, "not_distinguishable": ties,
                "surrogate": res.surrogate, "files": [str(f) for f in files]}
     atomic_write_json(out / "optimize.json", summary)
-    console.print(f"chosen ({res.method}): " + ", ".join(f"{k}={v:.4g}" for k, v in res.chosen_params.items()))
+    console.print(choice, highlight=False, markup=False)
+    console.print("exported: " + ", ".join(f"{k}={v:.4g}" for k, v in chosen_params.items()),
+                  highlight=False, markup=False)
     console.print(f"exported {len(files)} files to {design_dir}", markup=False, highlight=False)
 
 

@@ -150,3 +150,69 @@ def test_default_protocol_keeps_the_load_points_a_design_has():
     explicit = protocol_from("fingertip", values={"g1_locations": ["h1"]}, design=short)
     with pytest.raises(ParameterError, match="g1_locations='h1'"):
         check_locations(short, explicit)               # asked for explicitly: an error
+
+
+def test_load_only_parameters_leave_the_meshed_bodies_unchanged(tmp_path):
+    """The FEM key ignores LOAD_ONLY_PARAMS: the meshed bodies' exact B-rep must not change
+    with them (else two designs would share a FEM they do not have)."""
+    from build123d import export_brep
+
+    from designlab.sensors.fingertip import LOAD_ONLY_PARAMS
+
+    a = CantileverFingertip()
+    b = CantileverFingertip(h=12.0, r=7.0, fingertip_radius=10.0, load_table="II",
+                            load_patch_radius=2.0, skin_thickness=1.0)
+    assert {f for f in LOAD_ONLY_PARAMS} <= set(vars(a))
+    for name in ("base", "cap"):
+        pa, pb = tmp_path / f"a_{name}.brep", tmp_path / f"b_{name}.brep"
+        export_brep(a.build()[name].shape, str(pa))
+        export_brep(b.build()[name].shape, str(pb))
+        assert pa.read_bytes() == pb.read_bytes(), name
+
+
+def test_designs_that_share_the_fem_solve_it_once(tmp_path):
+    """Two (h, r) designs: the second reuses the first one's FEM from the cache folder and its
+    numbers equal an uncached run's exactly; a base parameter changes the key."""
+    from designlab.fem.cache import FEMCache, clear_memory
+    from designlab.sensors.fingertip import fem_key, run
+    from designlab.sensors.protocols import HangingWeightTest
+
+    settings = FingertipModelSettings(edge_length=4.0, order=1)
+    prot = HangingWeightTest(g1_locations=("h4", "h5"), g2_locations=("r1", "r4"))
+    a, b = CantileverFingertip(h=0.0, r=9.0), CantileverFingertip(h=6.0, r=8.0)
+    assert fem_key(a, prot, settings) == fem_key(b, prot, settings)
+    assert fem_key(a, prot, settings) != fem_key(CantileverFingertip(base_radius=10.0), prot,
+                                                 settings)
+    clear_memory()
+    cache = FEMCache(tmp_path / "fem")
+    ra = run(a, prot, settings, cache=cache)
+    clear_memory()                                     # the second design reads the folder
+    rb = run(b, prot, settings, cache=cache)
+    assert (cache.misses, cache.hits) == (1, 1)
+    assert not ra.report["fem_reused"] and rb.report["fem_reused"]
+    assert len(list((tmp_path / "fem").glob("*.npz"))) == 1
+    clear_memory()
+    fresh = run(b, prot, settings)                     # no cache: solved again
+    assert fresh.report["condition_number"] == rb.report["condition_number"]
+    assert fresh.report["hysteresis_percent"] == rb.report["hysteresis_percent"]
+
+
+@pytest.mark.slow
+def test_predict_twice_gives_identical_numbers_and_a_mesh_error_bar(tmp_path):
+    """Deterministic meshing: two predicts of one design agree to the last bit, and the
+    prediction carries its discretisation estimate."""
+    from designlab.fem.cache import clear_memory
+    from designlab.sensors.predict import predict
+
+    clear_memory()
+    p1 = predict("fingertip", {}, settings={"edge_length": 4.0}).to_json()
+    clear_memory()
+    p2 = predict("fingertip", {}, settings={"edge_length": 4.0}).to_json()
+    for k in ("condition_number", "hysteresis_percent", "calibration_matrix",
+              "mesh_convergence"):
+        assert p1[k] == p2[k], k
+    mc = p1["mesh_convergence"]
+    assert mc["coarse_edge_length_mm"] == pytest.approx(6.0)
+    for k in ("condition_number", "hysteresis_percent.overall"):
+        assert mc[k]["value"] == p1["condition_number"] if k == "condition_number" else True
+        assert mc[k]["rel_change"] is not None and mc[k]["rel_change"] >= 0

@@ -21,8 +21,14 @@ class FEMSettings:
     mesh_quality: str = field(default="coarse", metadata=rng(
         choices=tuple(MESH_QUALITY), doc="meshing preset: scales the edge length and the "
         "part's local refinement"))
-    solver: str = field(default="direct", metadata=rng(choices=SOLVERS,
-                        doc="linear solver (designlab.fem.solvers)"))
+    solver: str = field(default="auto", metadata=rng(choices=SOLVERS,
+                        doc="linear solver (designlab.fem.solvers; auto: SuperLU on small "
+                            "models, PARDISO/CHOLMOD on large ones where installed)"))
+    mesh_convergence: bool = field(default=True, metadata=rng(
+        doc="also solve one coarser mesh (edge_length x coarse_factor) and report each "
+            "metric's change: the prediction's discretisation error bar"))
+    coarse_factor: float = field(default=1.5, metadata=rng(1.1, 4, doc="edge length ratio of "
+                                                          "the coarser mesh"))
 
     def __post_init__(self):
         validate(self)

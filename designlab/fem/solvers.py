@@ -1,11 +1,13 @@
 """Linear solvers for SPD stiffness systems: factor once, solve many right-hand sides.
 
 ``factorize(K, solver="auto", near_null=None)`` returns a :class:`LinearSolver` whose
-``.solve(F)`` takes (n,) or (n, k). Choices: ``"direct"`` (SuperLU, scipy), ``"cholmod"``
-(scikit-sparse, when installed), ``"amg"`` (CG preconditioned by pyamg smoothed aggregation with
-rigid-body modes as near-null space; for TET10 with a TET4 p-multigrid level). ``"auto"``:
-cholmod if installed, else direct up to :data:`DIRECT_MAX_DOFS` unknowns (more when many
-right-hand sides reuse the factorisation), else amg.
+``.solve(F)`` takes (n,) or (n, k). Choices: ``"direct"`` (SuperLU, scipy), ``"pardiso"``
+(Intel MKL PARDISO via pypardiso, x86_64), ``"cholmod"`` (scikit-sparse, when installed),
+``"amg"`` (CG preconditioned by pyamg smoothed aggregation with rigid-body modes as near-null
+space; for TET10 with a TET4 p-multigrid level). ``"auto"``: SuperLU up to
+:data:`PARDISO_MIN_DOFS` unknowns, then pardiso or cholmod where installed, else direct up to
+:data:`DIRECT_MAX_DOFS` unknowns (more when many right-hand sides reuse the factorisation),
+else amg.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ try:  # optional: scikit-sparse's CHOLMOD
 except ImportError:  # pragma: no cover - depends on the environment
     _cholmod_cholesky = None
 
-SOLVERS = ("auto", "direct", "cholmod", "amg")
+SOLVERS = ("auto", "direct", "pardiso", "cholmod", "amg")
 #: "auto" uses SuperLU up to this many unknowns for one or a few right-hand sides (its
 #: fill-in on 3D TET10 meshes grows fast: ~6 s for 14k, ~400 s for 108k unknowns here) ...
 DIRECT_MAX_DOFS = 12_000
@@ -33,6 +35,10 @@ DIRECT_MAX_DOFS = 12_000
 #: measured at 28k DOF, 100 steps cost 3 static direct solves but 67 AMG-CG solves
 DIRECT_MAX_DOFS_MANY_RHS = 150_000
 MANY_RHS = 20
+#: below this many unknowns SuperLU beats PARDISO on one thread (measured on the fingertip's
+#: TET10 model, CPU s: 14.8k DOF 5.8 vs 8.3 for a viscoelastic run; 44.6k DOF static 25.1 vs
+#: 7.1; benchmarks/bench_fem_solvers.py)
+PARDISO_MIN_DOFS = 20_000
 
 
 def has_cholmod() -> bool:
@@ -101,6 +107,65 @@ class CholmodSolver(LinearSolver):  # pragma: no cover - needs scikit-sparse
 
     def _solve(self, F):
         return self._f(F)
+
+
+class PardisoSolver(LinearSolver):
+    """Intel MKL PARDISO (pypardiso), sparse direct LDL^T/LU with a nested-dissection
+    ordering: the fastest direct solver here on 3-D TET10 matrices. Run on one thread with
+    MKL's conditional numerical reproducibility, so the same matrix gives the same solution
+    bit for bit."""
+
+    kind = "pardiso"
+
+    def __init__(self, K):
+        super().__init__(K)
+        if not has_pardiso():
+            raise ParameterError("solver", "pardiso", "pypardiso installed (pip install "
+                                 "pypardiso; x86_64 only), or direct/cholmod/amg")
+        import pypardiso
+
+        t = time.perf_counter()
+        _mkl_single_thread()
+        self._s = pypardiso.PyPardisoSolver(mtype=11)
+        self._s.set_statistical_info_off()
+        self._K = sp.csr_matrix(K)
+        self._K.sort_indices()
+        try:
+            self._s.factorize(self._K)
+        except Exception as exc:  # PyPardisoError: zero pivot, singular
+            raise ModelError(f"model is under-constrained or singular: {exc}") from None
+        self.setup_seconds = time.perf_counter() - t
+
+    def _solve(self, F):
+        _mkl_single_thread()
+        return np.asarray(self._s.solve(self._K, np.ascontiguousarray(F)), float).reshape(F.shape)
+
+
+def has_pardiso() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("pypardiso") is not None
+
+
+def _mkl_single_thread() -> None:
+    """One MKL thread: reproducible results and no oversubscription of sweep workers."""
+    try:
+        import mkl  # mkl-service, when present
+
+        mkl.set_num_threads(1)
+    except ImportError:
+        import ctypes
+        import ctypes.util
+
+        for name in ("libmkl_rt.so.2", "libmkl_rt.so", ctypes.util.find_library("mkl_rt")):
+            if not name:
+                continue
+            try:
+                lib = ctypes.CDLL(name)
+                lib.MKL_Set_Num_Threads(ctypes.c_int(1))
+                return
+            except (OSError, AttributeError):
+                continue
 
 
 class AMGSolver(LinearSolver):
@@ -173,6 +238,10 @@ def choose_solver(n: int, solver: str = "auto", n_rhs: int = 1) -> str:
     if solver not in SOLVERS:
         raise ParameterError("solver", solver, "one of " + ", ".join(SOLVERS))
     if solver == "auto":
+        if n < PARDISO_MIN_DOFS:
+            return "direct"
+        if has_pardiso():
+            return "pardiso"
         if has_cholmod():
             return "cholmod"
         limit = DIRECT_MAX_DOFS_MANY_RHS if n_rhs >= MANY_RHS else DIRECT_MAX_DOFS
@@ -189,6 +258,8 @@ def factorize(K: sp.spmatrix, solver: str = "auto", near_null=None, coarse=None,
     solver = choose_solver(K.shape[0], solver, n_rhs)
     if solver == "direct":
         return DirectSolver(K)
+    if solver == "pardiso":
+        return PardisoSolver(K)
     if solver == "cholmod":
         return CholmodSolver(K)
     ev = lambda v: v() if callable(v) else v  # noqa: E731

@@ -38,9 +38,10 @@ def evaluate_design(task: dict[str, Any]) -> dict[str, Any]:
     part = make_part(part_name, params)
     out = geometry_metrics(part_name, part)
     pred = predict(part_name, params, protocol=task.get("protocol") or None,
-                   settings=settings.get("model")).to_json()
+                   settings=settings.get("model"), fem_cache=task.get("fem_cache")).to_json()
     keep = ("hysteresis_percent", "condition_number", "geometric_condition_number",
-            "sensitivity", "linearity_percent_span", "timings_s", "warnings")
+            "sensitivity", "linearity_percent_span", "timings_s", "warnings",
+            "mesh_convergence", "fem_key")
     out.update({k: pred[k] for k in keep if k in pred})
     if pred.get("K_f") is not None:
         K = np.asarray(pred["K_f"])
@@ -57,7 +58,8 @@ def evaluate_design(task: dict[str, Any]) -> dict[str, Any]:
 
 def export_design(part_name: str, params: dict[str, Any], out: str | Path, *,
                   formats: str = "stl,3mf,step", settings: dict[str, Any] | None = None,
-                  protocol: dict[str, Any] | None = None) -> list[Path]:
+                  protocol: dict[str, Any] | None = None,
+                  fem_cache: str | Path | None = None) -> list[Path]:
     """Export the chosen design for printing and write its full prediction report."""
     from designlab.sensors.predict import predict, write_prediction
     from designlab.geometry.export import export_parts
@@ -67,5 +69,5 @@ def export_design(part_name: str, params: dict[str, Any], out: str | Path, *,
     part = make_part(part_name, params)
     res = export_parts({part_name: part}, out, formats=formats, png=True)
     pred = predict(part_name, params, protocol=protocol or None,
-                   settings=(settings or {}).get("model"))
+                   settings=(settings or {}).get("model"), fem_cache=fem_cache)
     return list(res.files) + write_prediction(pred, out / "prediction")

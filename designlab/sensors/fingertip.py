@@ -28,6 +28,7 @@ tension-side sensor with a tiny span inflates eq. (1)), then over the rotations.
 from __future__ import annotations
 
 import dataclasses
+import json
 import time
 from pathlib import Path
 from dataclasses import dataclass, field
@@ -181,29 +182,55 @@ def _readings_for(unit: np.ndarray, w: np.ndarray) -> np.ndarray:
     return np.einsum("tcs,c->ts", unit, w)
 
 
-def run(part, protocol: HangingWeightTest | None = None,
-        settings: FingertipModelSettings | None = None, *, materials=None, mesh=None,
-        progress: Callable[[str], None] | None = None) -> FingertipPrediction:
-    """Mesh (unless given), build, run the load history, and evaluate the metrics."""
+#: part parameters the FEM does not depend on while the fingertip is not meshed: they only move
+#: the load points (h, r, the table) or shape the detachable fingertip, which passes the load to
+#: the ball whatever its own compliance (tests/test_fingertip_test.py checks that the meshed
+#: bodies' B-rep does not change with them)
+LOAD_ONLY_PARAMS = ("h", "r", "fingertip_radius", "load_table", "load_patch_radius",
+                    "skin_thickness")
+
+
+def fem_key(part, protocol: HangingWeightTest, settings: FingertipModelSettings,
+            materials=None) -> str:
+    """Key of the FEM stage: the part's parameters except :data:`LOAD_ONLY_PARAMS` (all of them
+    when the fingertip is meshed), the model settings except the rotations, the material
+    library, and the time grid of the step responses."""
+    from designlab.fem.cache import fem_key as key
+    from designlab.fem.materials import MATERIALS
+    from designlab.params import as_dict
+
+    params = as_dict(part)
+    if not settings.mesh_fingertip:
+        params = {k: v for k, v in params.items() if k not in LOAD_ONLY_PARAMS}
+    sett = {k: v for k, v in as_dict(settings).items()
+            if k not in ("rotations_deg", "mesh_convergence", "coarse_factor")}
+    t, _, _ = protocol.time_history()
+    lib = materials if materials is not None else MATERIALS
+    return key("fingertip-unit-wrench", params=params, settings=sett,
+               materials=repr(sorted(lib.items())), dt_s=protocol.dt_s, t_end=float(t[-1]))
+
+
+def solve_fem(part, protocol: HangingWeightTest, settings: FingertipModelSettings,
+              materials=None, mesh=None, say: Callable[[str], None] = lambda s: None
+              ) -> dict[str, Any]:
+    """The FEM stage: mesh, model, and the sensor forces per unit wrench at the ball.
+
+    Returns plain arrays: ``H`` (n_h, 6, 3) step responses on the grid ``dt_s`` (one row when
+    no material relaxes), ``U_unit`` (6, n_points, 3) displacement per unit wrench (long time),
+    the mesh (``points``, ``cells``, ``region``), ``dofs``, ``viscoelastic`` and timings (s)."""
     from designlab.fem import solve_static
 
-    protocol = protocol or HangingWeightTest()
-    settings = settings or FingertipModelSettings()
-    check_locations(part, protocol)
-    timings: dict[str, float] = {}
-    say = progress or (lambda s: None)
+    timings = {}
     t0 = time.perf_counter()
     if mesh is None:
         say("meshing")
         mesh = mesh_fingertip(part, settings)
     timings["mesh"] = time.perf_counter() - t0
-
     t0 = time.perf_counter()
     say("assembling")
     model, names = build_model(part, mesh, settings, materials)
     timings["assemble"] = time.perf_counter() - t0
-
-    t, load, step = protocol.time_history()
+    t, _, _ = protocol.time_history()
     t0 = time.perf_counter()
     taus = [tau for m in model.region_materials.values() if m.prony is not None
             for tau in (*m.prony.tau, *m.prony.k_tau)]
@@ -211,28 +238,77 @@ def run(part, protocol: HangingWeightTest | None = None,
         say("viscoelastic step responses")
         H, U_unit = step_responses(model, names["sensors"], max(taus), protocol.dt_s, t[-1],
                                    settings.solver)
-        unit = superpose_steps(H, protocol.dt_s, t, load)
     else:
         say("static solve")
         res = solve_static(model, solver=settings.solver)
-        per = np.array([[res.spring_force(s, c) for s in names["sensors"]] for c in WRENCH])
-        unit = np.broadcast_to(per, (len(t), 6, 3)).copy()
+        H = np.array([[[res.spring_force(s, c) for s in names["sensors"]] for c in WRENCH]])
         U_unit = np.stack([res.displacement(c) for c in WRENCH])
     timings["solve"] = time.perf_counter() - t0
+    return {"H": H, "U_unit": U_unit, "points": mesh.points, "cells": mesh.cells,
+            "region": mesh.region, "region_names": np.array([mesh.region_names[k]
+                                                             for k in sorted(mesh.region_names)]),
+            "region_materials": np.array([mesh.materials[mesh.region_names[k]]
+                                          for k in sorted(mesh.region_names)]),
+            "dofs": np.array(model.n_dofs), "viscoelastic": np.array(bool(taus)),
+            "material_relaxation": np.array(json.dumps(
+                {m.name: m.source for m in model.region_materials.values()})),
+            "timings": np.array([timings["mesh"], timings["assemble"], timings["solve"]])}
+
+
+def run(part, protocol: HangingWeightTest | None = None,
+        settings: FingertipModelSettings | None = None, *, materials=None, mesh=None,
+        progress: Callable[[str], None] | None = None, cache=None) -> FingertipPrediction:
+    """Mesh (unless given), build, run the load history, and evaluate the metrics. ``cache``
+    (:class:`~designlab.fem.cache.FEMCache`): the FEM stage is computed once per
+    :func:`fem_key` and reused by every design that shares it (an (h, r) sweep)."""
+    from designlab.fem.cache import FEMCache
+    from designlab.mesh.tetmesh import TetMesh
+
+    protocol = protocol or HangingWeightTest()
+    settings = settings or FingertipModelSettings()
+    check_locations(part, protocol)
+    say = progress or (lambda s: None)
+    t0 = time.perf_counter()
+    key = None
+    if mesh is not None:
+        fem = solve_fem(part, protocol, settings, materials, mesh, say)
+        reused = False
+    else:
+        cache = cache if cache is not None else FEMCache()
+        hits = cache.hits
+        key = fem_key(part, protocol, settings, materials)
+        fem = cache.get_or_compute(key,
+                                   lambda: solve_fem(part, protocol, settings, materials, None,
+                                                     say))
+        reused = cache.hits > hits
+    wall = time.perf_counter() - t0
+    t, load, step = protocol.time_history()
+    if bool(fem["viscoelastic"]):
+        unit = superpose_steps(fem["H"], protocol.dt_s, t, load)
+    else:
+        unit = np.broadcast_to(fem["H"][0], (len(t), 6, 3)).copy()
     t0 = time.perf_counter()
     report = evaluate(part, protocol, settings, t, load, step, unit)
-    timings["metrics"] = time.perf_counter() - t0
-    report["timings_s"] = timings
+    mesh_t, assemble_t, solve_t = (float(x) for x in fem["timings"])
+    report["timings_s"] = ({"mesh": 0.0, "assemble": 0.0, "solve": 0.0, "fem_cache": wall}
+                           if reused else {"mesh": mesh_t, "assemble": assemble_t,
+                                           "solve": solve_t})
+    report["timings_s"]["metrics"] = time.perf_counter() - t0
+    names = [str(n) for n in fem["region_names"]]
+    mesh = TetMesh(fem["points"], fem["cells"], fem["region"], dict(enumerate(names)),
+                   dict(zip(names, (str(m) for m in fem["region_materials"]))))
     report["mesh"] = {"points": int(mesh.n_points), "cells": int(mesh.n_cells),
-                      "order": int(mesh.order), "dofs": int(model.n_dofs)}
-    report["viscoelastic"] = bool(taus)
-    report["material_relaxation"] = {m.name: m.source for m in model.region_materials.values()}
+                      "order": int(mesh.order), "dofs": int(fem["dofs"])}
+    report["fem_reused"] = reused
+    report["fem_key"] = key[:16] if key is not None else None
+    report["viscoelastic"] = bool(fem["viscoelastic"])
+    report["material_relaxation"] = json.loads(str(fem["material_relaxation"]))
     first = protocol.g1_locations[0] if protocol.g1_locations else protocol.g2_locations[0]
     pts = part.load_points(settings.rotations_deg[0])
     u = None
     if first in pts:
         w = wrench_at_ball(*pts[first]) * float(load.max())
-        u = np.einsum("c,cpk->pk", w, U_unit)
+        u = np.einsum("c,cpk->pk", w, fem["U_unit"])
         report["vtu_load"] = {"location": first, "load_N": float(load.max())}
     return FingertipPrediction(t, load, unit, report, mesh, u)
 
@@ -440,4 +516,4 @@ def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path) ->
 SENSOR = Sensor(
     name="fingertip", paper="seed 001 (cantilever fingertip on a ball and three FSS015 sensors)",
     protocol=HangingWeightTest, settings=FingertipModelSettings, run=run, plots=plots,
-    gains=gains, finish=finish, design_protocol=design_protocol)
+    gains=gains, finish=finish, design_protocol=design_protocol, cached=True)

@@ -143,10 +143,14 @@ def _check_model_path(name: str, model_path: str | Path) -> None:
 def predict(name: str, overrides: dict[str, Any] | None = None, *,
             protocol_path: str | Path | None = None, protocol: dict[str, Any] | None = None,
             settings: dict[str, Any] | None = None, model_path: str | Path | None = None,
-            progress: Callable[[str], None] | None = None) -> Prediction:
+            progress: Callable[[str], None] | None = None,
+            fem_cache: str | Path | None = None) -> Prediction:
     """Run the virtual test of one design of sensor ``name`` with parameter ``overrides``.
     ``protocol_path``/``protocol``: a protocol TOML / overrides; ``settings``: model settings;
-    ``model_path``: a loop's model.json whose learned effects correct the virtual test."""
+    ``model_path``: a loop's model.json whose learned effects correct the virtual test;
+    ``fem_cache``: a folder where FEM stages are kept and reused (sweeps)."""
+    from designlab.fem.cache import FEMCache
+
     from designlab.geometry.parts import make_part
     from designlab.params import as_dict
 
@@ -161,12 +165,16 @@ def predict(name: str, overrides: dict[str, Any] | None = None, *,
     t0 = time.perf_counter()
     part.build()
     t_cad += time.perf_counter() - t0
+    cache = FEMCache(fem_cache)
+    kw = {"cache": cache} if sensor.cached else {}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        result = sensor.run(part, proto, sett, progress=progress)
+        result = sensor.run(part, proto, sett, progress=progress, **kw)
         report = dict(result.report)
         if sensor.finish is not None:
             sensor.finish(report, result, part, proto)
+        report["mesh_convergence"] = _mesh_convergence(sensor, part, proto, sett, report, kw,
+                                                       progress)
     if model_path is not None:
         report["uncorrected"] = {k: report[k] for k in ("hysteresis_percent", "condition_number",
                                                         "calibration_matrix") if k in report}
@@ -177,6 +185,35 @@ def predict(name: str, overrides: dict[str, Any] | None = None, *,
                                              if isinstance(v, (int, float))))
     return Prediction(name, as_dict(part), proto, sett, report, result,
                       [str(w.message) for w in caught])
+
+
+def _dig(report: dict[str, Any], path: str) -> float:
+    v: Any = report
+    for k in path.split("."):
+        v = v.get(k) if isinstance(v, dict) else None
+    return float(v) if isinstance(v, (int, float)) else float("nan")
+
+
+def _mesh_convergence(sensor, part, protocol, settings, report, kw, progress
+                      ) -> dict[str, Any] | None:
+    """The discretisation error bar: the sensor's convergence metrics at the chosen mesh and at
+    one coarser level (``edge_length x coarse_factor``), and their relative change. None when
+    the prediction rests on no mesh or the setting is off."""
+    if not getattr(settings, "mesh_convergence", False):
+        return None
+    if sensor.meshed is not None and not sensor.meshed(settings):
+        return None
+    coarse_settings = dataclasses.replace(settings, mesh_convergence=False,
+                                          edge_length=settings.edge_length * settings.coarse_factor)
+    say = (lambda s: progress(f"coarse mesh: {s}")) if progress else None
+    coarse = dict(sensor.run(part, protocol, coarse_settings, progress=say, **kw).report)
+    out: dict[str, Any] = {"edge_length_mm": settings.edge_length,
+                           "coarse_edge_length_mm": coarse_settings.edge_length}
+    for path in sensor.convergence:
+        v, c = _dig(report, path), _dig(coarse, path)
+        rel = abs(v - c) / abs(v) if np.isfinite(v) and np.isfinite(c) and v != 0 else None
+        out[path] = {"value": v, "coarse": c, "rel_change": rel}
+    return out
 
 
 def sensor_model(name: str, design: dict[str, Any], report: dict[str, Any], result

@@ -32,6 +32,11 @@ class Sensor:
     apply_model: ``(report, result, model_path, protocol, settings) -> report``: the effects a
                loop learned on a measured sensor added to this design's virtual test (loop ->
                predict); None where not supported
+    cached:    ``run`` takes ``cache=`` (a :class:`~designlab.fem.cache.FEMCache`) and computes
+               its FEM stage once per distinct model
+    meshed:    ``meshed(settings) -> bool``: the prediction rests on a mesh (then it carries a
+               discretisation estimate, ``mesh_convergence``); None: always
+    convergence: the metrics (dotted paths into the report) whose mesh convergence is reported
     """
 
     name: str
@@ -44,6 +49,9 @@ class Sensor:
     finish: Callable[[dict, Any, Any, Any], None] | None = None
     design_protocol: Callable[[Any, Any, dict | None], Any] | None = None
     apply_model: Callable[..., dict] | None = None
+    cached: bool = False
+    meshed: Callable[[Any], bool] | None = None
+    convergence: tuple[str, ...] = ("condition_number", "hysteresis_percent.overall")
 
     @property
     def part(self) -> type:

@@ -348,4 +348,4 @@ def gains(report: dict[str, Any], prediction: FlexurePrediction) -> tuple[dict, 
 SENSOR = Sensor(
     name="flexure", paper="seed 002 (fingertip on a helical spring flexure, Visiflex)",
     protocol=FlexureWrenchTest, settings=FlexureModelSettings, run=run, plots=plots,
-    gains=gains)
+    gains=gains, meshed=lambda settings: settings.truth == "fem")
