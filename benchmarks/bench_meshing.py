@@ -1,10 +1,11 @@
-"""Meshing benchmark: the three default parts through ``mesh_part`` (fTetWild, TET10).
+"""Meshing benchmark: the three default parts through ``mesh_part`` (TET10), gmsh from the
+B-rep (ours, the default) side by side with the previous pipeline as the peer (tessellate, then
+fTetWild: ``mesher="tetwild"``) at the same settings, in the same run.
 
-Goal: each default part in seconds to tens of seconds at ~1e4-1e5 DOF. Reported per part and
-setting: cells, nodes, DOF, wall and CPU seconds, worst region volume error and element quality.
-Peer in the same run: fTetWild's own CSG mode (``pytetwild.tetrahedralize_csg`` with a union
-tree, which tags regions itself, but takes no absolute edge length and no sizing field) on the
-same tessellated bodies of the strap, against this module's union + winding-number tagging.
+Goal: a part in about a second (the fingertip <= 2 s). Reported per part, mesher and setting:
+cells, nodes, DOF, wall and CPU seconds, worst region volume error and element quality, and
+the peer/ours CPU ratio. A second peer (full run only): fTetWild's own CSG mode
+(``pytetwild.tetrahedralize_csg`` with a union tree) on the strap's tessellated bodies.
 
 Run from the project root:  OMP_NUM_THREADS=1 python benchmarks/bench_meshing.py [--quick]
 (``--quick``: coarse preset only, no CSG peer.) The machine load makes wall times noisy; the
@@ -44,7 +45,8 @@ def run(name: str, **kw) -> dict:
     q = mesh_quality(res.mesh)
     vol = res.region_volumes()
     err = max(abs(vol[b] / v - 1) for b, v in res.body_volumes.items())
-    return {"part": name, "setting": ", ".join(f"{k}={v}" for k, v in kw.items()),
+    return {"part": name, "mesher": res.mesher,
+            "setting": ", ".join(f"{k}={v}" for k, v in kw.items() if k != "mesher"),
             "cells": res.mesh.n_cells, "nodes": res.mesh.n_points, "dof": 3 * res.mesh.n_points,
             "wall_s": wall, "cpu_s": cpu, "vol_err_pct": 100 * err,
             "min_dihedral": q.min_dihedral_deg, "rr_mean": q.radius_ratio_mean,
@@ -90,7 +92,7 @@ def csg_peer(edge_length: float) -> dict:
     vols = grid.compute_cell_sizes(length=False, area=False)["Volume"]
     body = [built[n].shape.volume for n in names]
     err = max(abs(vols[marker == k + 1].sum() / v - 1) for k, v in enumerate(body))
-    return {"part": "strap (CSG peer)", "setting": f"edge_length={edge_length:.3g}, refine=False",
+    return {"part": "strap (CSG peer)", "mesher": "fTetWild CSG", "setting": f"edge_length={edge_length:.3g}, refine=False",
             "cells": grid.n_cells, "nodes": grid.n_points, "dof": float("nan"), "wall_s": wall,
             "cpu_s": cpu, "vol_err_pct": 100 * err, "min_dihedral": float("nan"),
             "rr_mean": float("nan"), "edge_mm": edge_length}
@@ -99,21 +101,27 @@ def csg_peer(edge_length: float) -> dict:
 def main() -> None:
     quick = "--quick" in sys.argv
     rows = []
-    for name in ("strap", "fingertip", "flexure"):
-        rows.append(run(name, quality="coarse", refine=False))
-        if not quick:
-            rows.append(run(name, quality="default", refine=False))
-            rows.append(run(name, quality="default", refine=True))
+    settings = [dict(quality="coarse", refine=False)]
     if not quick:
-        ours = next(r for r in rows if r["setting"] == "quality=default, refine=False")
+        settings += [dict(quality="default", refine=False), dict(quality="default", refine=True)]
+    for name in ("strap", "fingertip", "flexure"):
+        for kw in settings:
+            ours = run(name, mesher="gmsh", **kw)
+            peer = run(name, mesher="tetwild", **kw)
+            peer["peer/ours cpu"] = peer["cpu_s"] / ours["cpu_s"]
+            rows += [ours, peer]
+    if not quick:
+        ours = next(r for r in rows if r["part"] == "strap" and r["mesher"] == "tetwild"
+                    and r["setting"] == "quality=default, refine=False")
         rows.append(csg_peer(ours["edge_mm"]))
     table = Table(title="designlab mesh: default parts (TET10)")
-    cols = ["part", "setting", "edge_mm", "cells", "nodes", "dof", "wall_s", "cpu_s", "vol_err_pct",
-            "min_dihedral", "rr_mean"]
+    cols = ["part", "mesher", "setting", "edge_mm", "cells", "dof", "wall_s", "cpu_s",
+            "peer/ours cpu", "vol_err_pct", "min_dihedral", "rr_mean"]
     for c in cols:
-        table.add_column(c, justify="left" if c in ("part", "setting") else "right")
+        table.add_column(c, justify="left" if c in ("part", "mesher", "setting") else "right")
     for r in rows:
-        table.add_row(*[f"{r[c]:.3g}" if isinstance(r[c], float) else str(r[c]) for c in cols])
+        table.add_row(*[f"{r.get(c):.3g}" if isinstance(r.get(c), float) else str(r.get(c, ""))
+                        for c in cols])
     Console(width=170).print(table)
 
 

@@ -1,28 +1,75 @@
-"""End-to-end ``predict fingertip`` (CAD -> mesh -> FEM -> full G1 + G2 protocol, six rotations)
-for the default design, with the time split by stage. Goal: under 60 s on a 2-core machine.
+"""``designlab predict`` end to end, by stage, with the peak memory after each stage; ours (gmsh
+mesh, auto solver) side by side with the previous pipeline (``mesher=tetwild``,
+``solver=direct``) in the same run.
 
-    OMP_NUM_THREADS=2 python benchmarks/bench_predict.py [edge_length_mm ...]
+    OMP_NUM_THREADS=1 python benchmarks/bench_predict.py [fingertip strap ...] [--no-peer]
+
+Each prediction runs in a fresh process (no FEM cache from an earlier one), so the times are
+what a user's first ``designlab predict PART`` costs, including the coarser mesh of the
+discretisation error bar (``mesh_convergence``). Goals (issue 11): fingertip <= 10 s, its mesh
+<= 2 s; strap <= 15 s.
 """
 
+import json
+import multiprocessing as mp
+import resource
 import sys
 import time
 
-from designlab.sensors.predict import predict
+
+def _one(part: str, settings: dict, conn) -> None:
+    from designlab.sensors.predict import predict
+
+    marks = []
+
+    def progress(stage: str) -> None:
+        marks.append((stage, time.perf_counter(),
+                      resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024))
+
+    t0 = time.perf_counter()
+    pred = predict(part, {}, settings=settings, progress=progress)
+    wall = time.perf_counter() - t0
+    cpu = time.process_time()
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    m = pred.metrics
+    conn.send({"wall": wall, "cpu": cpu, "peak_MB": peak, "timings": m["timings_s"],
+               "dofs": m.get("mesh", {}).get("dofs") or m.get("mesh", {}).get("dof"),
+               "marks": [(s, t - t0, r) for s, t, r in marks],
+               "cond": m.get("condition_number"),
+               "hyst": m.get("hysteresis_percent", {}).get("overall"),
+               "mesh_convergence": m.get("mesh_convergence")})
+    conn.close()
 
 
-def main(edges) -> None:
-    print(f"{'edge mm':>8} {'dofs':>8} {'cad':>6} {'mesh':>6} {'assem':>6} {'solve':>6} "
-          f"{'metric':>6} {'total':>7} {'wall':>7}  cond   hyst%")
-    for e in edges:
-        t0 = time.perf_counter()
-        pred = predict("fingertip", {}, settings={"edge_length": e}).to_json()
-        wall = time.perf_counter() - t0
-        ts = pred["timings_s"]
-        print(f"{e:8.2f} {pred['mesh']['dofs']:8d} {ts['cad']:6.2f} {ts['mesh']:6.2f} "
-              f"{ts['assemble']:6.2f} {ts['solve']:6.2f} {ts['metrics']:6.2f} {ts['total']:7.2f} "
-              f"{wall:7.2f}  {pred['condition_number']:.2f}  "
-              f"{pred['hysteresis_percent']['overall']:.4f}", flush=True)
+def run(part: str, settings: dict) -> dict:
+    ctx = mp.get_context("fork")
+    recv, send = ctx.Pipe(duplex=False)
+    p = ctx.Process(target=_one, args=(part, settings, send))
+    p.start()
+    send.close()
+    out = recv.recv()
+    p.join()
+    return out
+
+
+def main(parts, peer: bool) -> None:
+    for part in parts:
+        rows = [("ours", {})]
+        if peer:
+            rows.append(("peer: fTetWild + SuperLU", {"mesher": "tetwild", "solver": "direct"}))
+        for label, settings in rows:
+            r = run(part, settings)
+            ts = r["timings"]
+            print(f"{part:9s} {label:26s} wall {r['wall']:6.1f} s  cpu {r['cpu']:6.1f} s  "
+                  f"peak RSS {r['peak_MB']:6.0f} MB  dofs {r['dofs']}  "
+                  + "  ".join(f"{k} {v:.2f}" for k, v in ts.items() if isinstance(v, float)),
+                  flush=True)
+            print("    stages (s, peak MB): " + ", ".join(f"{s} @ {t:.1f} s {m:.0f} MB"
+                                                       for s, t, m in r["marks"]))
+            print(f"    condition number {r['cond']:.4g}, hysteresis {r['hyst']:.4g} %, "
+                  f"mesh_convergence {json.dumps(r['mesh_convergence'])}", flush=True)
 
 
 if __name__ == "__main__":
-    main([float(x) for x in sys.argv[1:]] or [2.5])
+    names = [a for a in sys.argv[1:] if not a.startswith("--")] or ["fingertip", "strap"]
+    main(names, "--no-peer" not in sys.argv)

@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from designlab.fem.solvers import SOLVERS
+from designlab.mesh.meshing import MESHERS
 from designlab.mesh.meshing import PRESETS as MESH_QUALITY
 from designlab.params import rng, validate
 
@@ -21,6 +22,9 @@ class FEMSettings:
     mesh_quality: str = field(default="coarse", metadata=rng(
         choices=tuple(MESH_QUALITY), doc="meshing preset: scales the edge length and the "
         "part's local refinement"))
+    mesher: str = field(default="auto", metadata=rng(
+        choices=MESHERS, doc="auto: gmsh from the B-rep, fTetWild if gmsh fails; tetwild: the "
+        "previous pipeline (tessellate, then fTetWild)"))
     solver: str = field(default="auto", metadata=rng(choices=SOLVERS,
                         doc="linear solver (designlab.fem.solvers; auto: SuperLU on small "
                             "models, PARDISO/CHOLMOD on large ones where installed)"))

@@ -251,7 +251,10 @@ def _tetwild_call(vertices, faces, edge_length, epsilon, stop_energy, sizing, th
     return np.asarray(points, float), np.asarray(cells, np.int64)
 
 
-def _child(conn, args):
+def _child(conn, args, parent_pid=None):
+    from designlab.atomic import die_with_parent
+
+    die_with_parent(parent_pid)            # a killed caller takes fTetWild with it
     try:
         # fTetWild writes __tracked_surface.stl into the working directory: give it a temp one
         os.chdir(tempfile.mkdtemp(prefix="designlab-tetwild-"))
@@ -273,7 +276,7 @@ def _tetwild(vertices, faces, edge_length, epsilon, stop_energy, sizing, threads
         return _tetwild_call(*args)
     ctx = mp.get_context("fork")
     recv, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(send, args), daemon=True)
+    proc = ctx.Process(target=_child, args=(send, args, os.getpid()), daemon=True)
     proc.start()
     send.close()
     try:

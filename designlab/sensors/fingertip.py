@@ -44,8 +44,10 @@ from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
 from designlab.sensors.protocols import HangingWeightTest
 from designlab.sensors.sensor import Sensor
 from designlab.errors import ParameterError
+from designlab.fem.contact import MU_MAX
 from designlab.fem.settings import FEMSettings
 from designlab.params import rng, validate
+from designlab.sensors.protocols import FSS015_RANGE_N
 
 #: Honeywell FSS015WNSX: "low deflection, approximately 30 microns typical at full scale" (FSS
 #: series datasheet) over the 15 N range -> about 500 N/mm.
@@ -56,9 +58,85 @@ FSS015_V_PER_N = 2.4e-3 * 5.0 * 5.0
 WRENCH = ("f_x", "f_y", "f_z", "m_x", "m_y", "m_z")
 
 
+#: Friction of plated steel on steel: chromium on steel, static 0.25 (kinetic 0.21), Wypych,
+#: Handbook of Surface Improvement and Modification (ChemTec, 2018), Table 11.1. The paper
+#: says only "plated"; chromium is the usual plating of steel balls. One coefficient is used for
+#: stick and slip (the micro-slip of the test is slow, the static value applies).
+FRICTION_CHROMIUM_ON_STEEL = 0.25
+#: Bolt tension after tightening: torque-tension T = K F d (Shigley's Mechanical Engineering
+#: Design, 10th ed., eq. 8-27), nut factor K = 0.2 (Shigley Table 8-15, as received steel),
+#: d = 2.5 mm (M2.5), finger-tight T = 0.01 N m (about 2 N at the 5 mm radius of a precision
+#: screwdriver handle: the screw pulls a ball onto three 15 N sensors, a standard M2.5 torque of
+#: ~0.5 N m would give ~1 kN and crush them): F = 0.01 / (0.2 x 0.0025) = 20 N, i.e.
+#: 20 / (3 sin 45 deg) = 9.4 N on each sensor, 63 % of its 15 N range.
+BOLT_TIGHTENING_TORQUE_NM = 0.01
+NUT_FACTOR = 0.2
+DEFAULT_BOLT_PRELOAD_N = BOLT_TIGHTENING_TORQUE_NM / (NUT_FACTOR * 2.5e-3)
+#: FSS015 sensing ball: the FSS series plunger is a stainless-steel ball; its radius is the
+#: part's ``button_radius`` (0.8 mm, approximate outline). Stainless 302/304: E 193 GPa,
+#: nu 0.29 (ASM handbook typical); the central ball: steel E 210 GPa, nu 0.30 (materials.py).
+BUTTON_E_MPA, BUTTON_NU = 193000.0, 0.29
+BALL_E_MPA, BALL_NU = 210000.0, 0.30
+#: NI PCI-6229 (the paper's DAQ): 16-bit ADC, widest input range +-10 V (NI datasheet).
+DAQ_BITS = 16
+DAQ_RANGE_V = 10.0
+#: paper numbers (../shared/data/papers/fingertip_xu2014.json)
+
+
 @dataclass(frozen=True)
-class FingertipModelSettings(FEMSettings):
-    """FEM settings of the fingertip test (mesh and solver: :class:`FEMSettings`)."""
+class ContactSettings:
+    """Contact, preload, readout and solver settings of the contact model (defaults sourced in
+    the module constants)."""
+
+    friction_coefficient: float = field(default=FRICTION_CHROMIUM_ON_STEEL, metadata=rng(
+        0, MU_MAX, doc="Coulomb coefficient ball/sensor ball (chromium on steel, Wypych 2018)"))
+    bolt_preload_N: float = field(default=DEFAULT_BOLT_PRELOAD_N, metadata=rng(
+        0, None, unit="N", doc="bolt tension after tightening (T = K F d at 0.01 N m)"))
+    hertz: bool = field(default=True, metadata=rng(
+        choices=(True, False), doc="Hertz compliance in series with the sensor (False: the "
+        "sensor spring alone, the linear model's normal law)"))
+    sensor_lateral_stiffness: float = field(default=0.0, metadata=rng(
+        0, None, unit="N/mm", doc="tangential stiffness of the sensor in its well in series "
+        "with Mindlin's; 0 = rigid"))
+    structure_moduli: str = field(default="long_time", metadata=rng(
+        choices=("long_time", "instantaneous"), doc="ABS moduli of the condensed structure"))
+    increments_per_step: int = field(default=4, metadata=rng(1, 10000))
+    preconditioning_cycles: int = field(default=1, metadata=rng(
+        0, 100, doc="loops run at each location before the measured one: the first loop after "
+        "tightening ratchets (the ball settles down the buttons); the paper's sensor had been "
+        "through many loops (over 2000 tests)"))
+    preload_increments: int = field(default=8, metadata=rng(1, 10000))
+    repeatability_percent_fs: float = field(default=0.2, metadata=rng(
+        0, 10, unit="% FS", doc="FSS015 repeatability +-0.2 % span (Table I), read as a 2-sigma "
+        "band on each 3-s reading"))
+    zero_drift_percent_fs: float = field(default=0.0, metadata=rng(
+        0, 10, unit="% FS", doc="zero drift over one loop (linear ramp, random sign). The "
+        "datasheet's null shift (+-0.5 mV at 5 V, ~0.3 % FS) is over 25 K; a loop lasts "
+        "~150 s at room temperature, hence 0"))
+    daq_bits: int = field(default=DAQ_BITS, metadata=rng(1, 32))
+    daq_range_V: float = field(default=DAQ_RANGE_V, metadata=rng(0, None, lo_open=True,
+                                                                unit="V"))
+    seed: int = field(default=0, metadata=rng(0, 2 ** 32 - 1))
+
+    def __post_init__(self):
+        validate(self)
+
+    @property
+    def daq_lsb_V(self) -> float:
+        return 2.0 * self.daq_range_V / 2 ** self.daq_bits
+
+
+@dataclass(frozen=True)
+class FingertipModelSettings(ContactSettings, FEMSettings):
+    """Settings of the fingertip test: mesh and solver (:class:`FEMSettings`), the structure
+    below, and, with ``contact`` (default), the contact model at the ball
+    (:class:`ContactSettings`: friction, bolt preload, Hertz, readout noise; each a
+    ``--setting NAME=VALUE`` of its own). ``contact=false``: the linear test (bilateral sensor
+    springs, ABS relaxation; its hysteresis is the relaxation alone)."""
+
+    contact: bool = field(default=True, metadata=rng(
+        doc="contact model at the ball (Hertz + Mindlin + Coulomb, bolt preload, FSS015 "
+            "readout: designlab.sensors.fingertip_contact); false: bilateral linear springs"))
 
     edge_length: float = field(default=2.5, metadata=rng(0.2, 10, unit="mm"))
     cap_support: str = field(default="rim", metadata=rng(
@@ -90,6 +168,7 @@ def mesh_fingertip(part, settings: FingertipModelSettings):
             if settings.mesh_fingertip or not (k == "ball_seat" or k.startswith("load_"))}
     return mesh_bodies([built[n] for n in names], sets, order=settings.order,
                        edge_length=settings.edge_length, quality=settings.mesh_quality,
+                       mesher=settings.mesher,
                        refinement=part.refinement() if settings.refine else ())
 
 
@@ -148,6 +227,8 @@ class FingertipPrediction:
     report: dict[str, Any]
     mesh: Any = None                      # the FEM mesh and its displacement (n_points, 3) mm
     displacement: Any = None              # under the largest load at the first G1 location
+    condensed: Any = None                 # contact model: the CondensedFingertip it ran on
+    settings: Any = None                  # the FingertipModelSettings of the run
 
 
 def step_responses(model, sensors, tau_max: float, dt: float, t_end: float,
@@ -190,11 +271,19 @@ LOAD_ONLY_PARAMS = ("h", "r", "fingertip_radius", "load_table", "load_patch_radi
                     "skin_thickness")
 
 
+#: settings of the contact model that act after the condensation (friction, preload, readout,
+#: increments): a sweep over them reuses one FEM. ``structure_moduli`` chooses the moduli of the
+#: condensed structure, so it is part of the FEM key.
+CONTACT_ONLY_SETTINGS = tuple(f.name for f in dataclasses.fields(ContactSettings)
+                              if f.name != "structure_moduli")
+
+
 def fem_key(part, protocol: HangingWeightTest, settings: FingertipModelSettings,
             materials=None) -> str:
     """Key of the FEM stage: the part's parameters except :data:`LOAD_ONLY_PARAMS` (all of them
-    when the fingertip is meshed), the model settings except the rotations, the material
-    library, and the time grid of the step responses."""
+    when the fingertip is meshed), the model settings except the rotations and
+    :data:`CONTACT_ONLY_SETTINGS`, the material library, and the time grid of the step
+    responses."""
     from designlab.fem.cache import fem_key as key
     from designlab.fem.materials import MATERIALS
     from designlab.params import as_dict
@@ -202,8 +291,10 @@ def fem_key(part, protocol: HangingWeightTest, settings: FingertipModelSettings,
     params = as_dict(part)
     if not settings.mesh_fingertip:
         params = {k: v for k, v in params.items() if k not in LOAD_ONLY_PARAMS}
-    sett = {k: v for k, v in as_dict(settings).items()
-            if k not in ("rotations_deg", "mesh_convergence", "coarse_factor")}
+    skip = {"rotations_deg", "mesh_convergence", "coarse_factor", *CONTACT_ONLY_SETTINGS}
+    if not settings.contact:
+        skip.add("structure_moduli")
+    sett = {k: v for k, v in as_dict(settings).items() if k not in skip}
     t, _, _ = protocol.time_history()
     lib = materials if materials is not None else MATERIALS
     return key("fingertip-unit-wrench", params=params, settings=sett,
@@ -234,7 +325,19 @@ def solve_fem(part, protocol: HangingWeightTest, settings: FingertipModelSetting
     t0 = time.perf_counter()
     taus = [tau for m in model.region_materials.values() if m.prony is not None
             for tau in (*m.prony.tau, *m.prony.k_tau)]
-    if taus:
+    extra: dict[str, Any] = {}
+    if settings.contact:
+        # the contact model's structure: condensed at the ball and the wells (one factorisation
+        # at the structure's moduli); the linear readings and fields come from the same solve
+        from designlab.sensors.fingertip_contact import condense_fingertip
+
+        say("condensing the structure at the ball and the sensor wells")
+        cf, H6, U_unit = condense_fingertip(part, mesh, settings, settings.structure_moduli,
+                                            materials, with_fields=True)
+        H = H6[None]
+        extra = cf.to_arrays()
+        taus = []          # one static solve at the chosen moduli (no step responses)
+    elif taus:
         say("viscoelastic step responses")
         H, U_unit = step_responses(model, names["sensors"], max(taus), protocol.dt_s, t[-1],
                                    settings.solver)
@@ -252,7 +355,8 @@ def solve_fem(part, protocol: HangingWeightTest, settings: FingertipModelSetting
             "dofs": np.array(model.n_dofs), "viscoelastic": np.array(bool(taus)),
             "material_relaxation": np.array(json.dumps(
                 {m.name: m.source for m in model.region_materials.values()})),
-            "timings": np.array([timings["mesh"], timings["assemble"], timings["solve"]])}
+            "timings": np.array([timings["mesh"], timings["assemble"], timings["solve"]]),
+            **extra}
 
 
 def run(part, protocol: HangingWeightTest | None = None,
@@ -288,11 +392,26 @@ def run(part, protocol: HangingWeightTest | None = None,
     else:
         unit = np.broadcast_to(fem["H"][0], (len(t), 6, 3)).copy()
     t0 = time.perf_counter()
-    report = evaluate(part, protocol, settings, t, load, step, unit)
+    condensed = None
+    if settings.contact:
+        from designlab.sensors.fingertip_contact import CondensedFingertip, run_contact_test
+
+        say("contact model: tightening and the load history")
+        condensed = CondensedFingertip.from_arrays(fem)
+        report = run_contact_test(part, protocol, contact_settings(settings), condensed,
+                                  rotations_deg=settings.rotations_deg)
+        contact_timings = report.pop("timings_s")
+    else:
+        report = evaluate(part, protocol, settings, t, load, step, unit)
+        report["hysteresis_percent"]["overall_noise_free"] = report["hysteresis_percent"][
+            "overall"]                                  # the linear model has no readout noise
+        report["model"] = "linear (bilateral sensor springs, ABS relaxation)"
     mesh_t, assemble_t, solve_t = (float(x) for x in fem["timings"])
     report["timings_s"] = ({"mesh": 0.0, "assemble": 0.0, "solve": 0.0, "fem_cache": wall}
                            if reused else {"mesh": mesh_t, "assemble": assemble_t,
                                            "solve": solve_t})
+    if settings.contact:
+        report["timings_s"].update({f"contact_{k}": v for k, v in contact_timings.items()})
     report["timings_s"]["metrics"] = time.perf_counter() - t0
     names = [str(n) for n in fem["region_names"]]
     mesh = TetMesh(fem["points"], fem["cells"], fem["region"], dict(enumerate(names)),
@@ -310,7 +429,13 @@ def run(part, protocol: HangingWeightTest | None = None,
         w = wrench_at_ball(*pts[first]) * float(load.max())
         u = np.einsum("c,cpk->pk", w, fem["U_unit"])
         report["vtu_load"] = {"location": first, "load_N": float(load.max())}
-    return FingertipPrediction(t, load, unit, report, mesh, u)
+    return FingertipPrediction(t, load, unit, report, mesh, u, condensed, settings)
+
+
+def contact_settings(settings: FingertipModelSettings) -> ContactSettings:
+    """The :class:`ContactSettings` part of the fingertip's settings."""
+    return ContactSettings(**{f.name: getattr(settings, f.name)
+                              for f in dataclasses.fields(ContactSettings)})
 
 
 def check_locations(part, protocol: HangingWeightTest) -> None:

@@ -198,7 +198,8 @@ def mesh_strap(part, settings: StrapModelSettings):
         if settings.refinement_edge > 0 else []
     res = mesh_bodies_detailed(bodies, part.facet_sets(), edge_length=settings.edge_length,
                                refinement=ref, epsilon=settings.epsilon,
-                               quality=settings.mesh_quality, order=settings.order)
+                               quality=settings.mesh_quality, order=settings.order,
+                               mesher=settings.mesher)
     return res.mesh
 
 

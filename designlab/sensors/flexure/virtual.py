@@ -140,7 +140,8 @@ def run(part=None, protocol: FlexureWrenchTest | None = None,
 
             say("meshing")
             mesh = mesh_part(part, order=settings.order, edge_length=settings.edge_length,
-                             quality=settings.mesh_quality, epsilon=settings.epsilon)
+                             quality=settings.mesh_quality, epsilon=settings.epsilon,
+                             mesher=settings.mesher)
         timings["mesh"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         say("assembling")
