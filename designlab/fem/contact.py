@@ -442,7 +442,7 @@ def _master_map(model: Model, master) -> np.ndarray:
 
 
 def condense(model: Model, masters: list, solver: str = "direct", check: bool = True,
-             keep_cases: tuple[str, ...] = ()):
+             keep_cases: tuple[str, ...] = (), return_result: bool = False):
     """Flexibility of a linear FEM model at its master points by unit loads (exact static
     condensation; one factorisation, one back-substitution per master dof).
 
@@ -451,7 +451,9 @@ def condense(model: Model, masters: list, solver: str = "direct", check: bool = 
     reference point as force + moment, and its displacement). Returns ``(C, R)``: C (n, n)
     N -> mm flexibility (symmetric), R {case: (n,)} the master motions under the model's own
     load cases named in ``keep_cases`` (their equivalent master loads are ``inv(C) @ R``).
-    The model gets the load cases ``_condense_i``; its other cases are solved alongside."""
+    The model gets the load cases ``_condense_i``; its other cases are solved alongside.
+    ``return_result``: also return the static result (``(C, R, result)``), whose other cases
+    (spring forces, displacement fields) then cost no second factorisation."""
     from designlab.fem.static import solve_static
 
     maps = [_master_map(model, m) for m in masters]
@@ -476,4 +478,4 @@ def condense(model: Model, masters: list, solver: str = "direct", check: bool = 
                          "loads and motions are not conjugate")
     C = 0.5 * (C + C.T)
     R = {c: Lm @ res.U[:, res.system.case_index(c)] for c in keep_cases}
-    return C, R
+    return (C, R, res) if return_result else (C, R)

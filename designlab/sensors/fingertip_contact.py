@@ -51,83 +51,21 @@ from designlab.calibration.calibration_matrix import (condition_number, cross_ta
                                                       fit_calibration_matrix, geometric_matrix)
 from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
 from designlab.errors import ParameterError
-from designlab.fem.contact import MU_MAX, ContactLaw, ContactProblem, ContactState, HertzContact
-from designlab.params import rng, validate
-from designlab.sensors.fingertip import (FSS015_STIFFNESS_N_PER_MM, FSS015_V_PER_N, WRENCH,
-                                         FingertipModelSettings, build_model, check_locations,
-                                         wrench_at_ball)
-from designlab.sensors.protocols import FSS015_OVERFORCE_N, FSS015_RANGE_N, HangingWeightTest
+from designlab.fem.contact import ContactLaw, ContactProblem, ContactState, HertzContact
+# the settings and their sourced defaults live with the fingertip's model settings (which derive
+# from ContactSettings, so that ``--setting friction_coefficient=...`` reaches this model)
+from designlab.sensors.fingertip import (  # noqa: F401  (re-exported)
+    BALL_E_MPA, BALL_NU, BOLT_TIGHTENING_TORQUE_NM, BUTTON_E_MPA, BUTTON_NU, DAQ_BITS,
+    DAQ_RANGE_V, DEFAULT_BOLT_PRELOAD_N, FRICTION_CHROMIUM_ON_STEEL, FSS015_STIFFNESS_N_PER_MM,
+    FSS015_V_PER_N, NUT_FACTOR, WRENCH, ContactSettings, FingertipModelSettings, build_model,
+    check_locations, wrench_at_ball)
+from designlab.sensors.protocols import FSS015_RANGE_N, HangingWeightTest
 
-#: Friction of plated steel on steel: chromium on steel, static 0.25 (kinetic 0.21), Wypych,
-#: Handbook of Surface Improvement and Modification (ChemTec, 2018), Table 11.1. The paper
-#: says only "plated"; chromium is the usual plating of steel balls. One coefficient is used for
-#: stick and slip (the micro-slip of the test is slow, the static value applies).
-FRICTION_CHROMIUM_ON_STEEL = 0.25
-#: Bolt tension after tightening: torque-tension T = K F d (Shigley's Mechanical Engineering
-#: Design, 10th ed., eq. 8-27), nut factor K = 0.2 (Shigley Table 8-15, as received steel),
-#: d = 2.5 mm (M2.5), finger-tight T = 0.01 N m (about 2 N at the 5 mm radius of a precision
-#: screwdriver handle: the screw pulls a ball onto three 15 N sensors, a standard M2.5 torque of
-#: ~0.5 N m would give ~1 kN and crush them): F = 0.01 / (0.2 x 0.0025) = 20 N, i.e.
-#: 20 / (3 sin 45 deg) = 9.4 N on each sensor, 63 % of its 15 N range.
-BOLT_TIGHTENING_TORQUE_NM = 0.01
-NUT_FACTOR = 0.2
-DEFAULT_BOLT_PRELOAD_N = BOLT_TIGHTENING_TORQUE_NM / (NUT_FACTOR * 2.5e-3)
-#: FSS015 sensing ball: the FSS series plunger is a stainless-steel ball; its radius is the
-#: part's ``button_radius`` (0.8 mm, approximate outline). Stainless 302/304: E 193 GPa,
-#: nu 0.29 (ASM handbook typical); the central ball: steel E 210 GPa, nu 0.30 (materials.py).
-BUTTON_E_MPA, BUTTON_NU = 193000.0, 0.29
-BALL_E_MPA, BALL_NU = 210000.0, 0.30
-#: NI PCI-6229 (the paper's DAQ): 16-bit ADC, widest input range +-10 V (NI datasheet).
-DAQ_BITS = 16
-DAQ_RANGE_V = 10.0
-#: paper numbers (../shared/data/papers/fingertip_xu2014.json)
+#: seed 001 numbers the contact model is compared with (../shared/data/papers/fingertip_xu2014.json)
 PAPER = {"lowest_mean_G1_pct": 0.98, "lowest_mean_G2_pct": 2.19,
          "compressed_change_h9_to_h1_pct": 33.9, "compressed_change_r1_to_r5_pct": 9.6,
          "trend_G1": "decreases exponentially as the load moves toward the base (h1 -> h9)",
          "fig9": "radial P_x, P_y estimated well, axial P_z poorly", "condition_number": 34.92}
-
-
-@dataclass(frozen=True)
-class ContactSettings:
-    """Contact, preload, readout and solver settings of the contact model (defaults sourced in
-    the module constants)."""
-
-    friction_coefficient: float = field(default=FRICTION_CHROMIUM_ON_STEEL, metadata=rng(
-        0, MU_MAX, doc="Coulomb coefficient ball/sensor ball (chromium on steel, Wypych 2018)"))
-    bolt_preload_N: float = field(default=DEFAULT_BOLT_PRELOAD_N, metadata=rng(
-        0, None, unit="N", doc="bolt tension after tightening (T = K F d at 0.01 N m)"))
-    hertz: bool = field(default=True, metadata=rng(
-        choices=(True, False), doc="Hertz compliance in series with the sensor (False: the "
-        "sensor spring alone, the linear model's normal law)"))
-    sensor_lateral_stiffness: float = field(default=0.0, metadata=rng(
-        0, None, unit="N/mm", doc="tangential stiffness of the sensor in its well in series "
-        "with Mindlin's; 0 = rigid"))
-    structure_moduli: str = field(default="long_time", metadata=rng(
-        choices=("long_time", "instantaneous"), doc="ABS moduli of the condensed structure"))
-    increments_per_step: int = field(default=4, metadata=rng(1, 10000))
-    preconditioning_cycles: int = field(default=1, metadata=rng(
-        0, 100, doc="loops run at each location before the measured one: the first loop after "
-        "tightening ratchets (the ball settles down the buttons); the paper's sensor had been "
-        "through many loops (over 2000 tests)"))
-    preload_increments: int = field(default=8, metadata=rng(1, 10000))
-    repeatability_percent_fs: float = field(default=0.2, metadata=rng(
-        0, 10, unit="% FS", doc="FSS015 repeatability +-0.2 % span (Table I), read as a 2-sigma "
-        "band on each 3-s reading"))
-    zero_drift_percent_fs: float = field(default=0.0, metadata=rng(
-        0, 10, unit="% FS", doc="zero drift over one loop (linear ramp, random sign). The "
-        "datasheet's null shift (+-0.5 mV at 5 V, ~0.3 % FS) is over 25 K; a loop lasts "
-        "~150 s at room temperature, hence 0"))
-    daq_bits: int = field(default=DAQ_BITS, metadata=rng(1, 32))
-    daq_range_V: float = field(default=DAQ_RANGE_V, metadata=rng(0, None, lo_open=True,
-                                                                unit="V"))
-    seed: int = field(default=0, metadata=rng(0, 2 ** 32 - 1))
-
-    def __post_init__(self):
-        validate(self)
-
-    @property
-    def daq_lsb_V(self) -> float:
-        return 2.0 * self.daq_range_V / 2 ** self.daq_bits
 
 
 # ------------------------------------------------------------------------------ condensation
@@ -154,6 +92,24 @@ class CondensedFingertip:
     structure_moduli: str
     n_dofs_fem: int
     timings_s: dict = field(default_factory=dict)
+
+    _ARRAYS = ("C", "f_wrench", "f_bolt", "L", "L_spring", "axes", "contacts", "linear_unit")
+
+    def to_arrays(self, prefix: str = "cf_") -> dict[str, np.ndarray]:
+        """Plain arrays (the FEM cache stores no objects)."""
+        out = {prefix + k: np.asarray(getattr(self, k)) for k in self._ARRAYS}
+        out[prefix + "k_sensor"] = np.array(self.k_sensor)
+        out[prefix + "structure_moduli"] = np.array(self.structure_moduli)
+        out[prefix + "n_dofs_fem"] = np.array(self.n_dofs_fem)
+        return out
+
+    @classmethod
+    def from_arrays(cls, data, prefix: str = "cf_") -> "CondensedFingertip":
+        """Inverse of :meth:`to_arrays`."""
+        kw = {k: np.asarray(data[prefix + k], float) for k in cls._ARRAYS}
+        return cls(k_sensor=float(data[prefix + "k_sensor"]),
+                   structure_moduli=str(data[prefix + "structure_moduli"]),
+                   n_dofs_fem=int(data[prefix + "n_dofs_fem"]), **kw)
 
 
 def relaxed_materials(model_or_mesh) -> dict:
@@ -204,10 +160,16 @@ def contact_maps(part, ball_x, well_x) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 def condense_fingertip(part, mesh, fem_settings: FingertipModelSettings | None = None,
-                       structure_moduli: str = "long_time", materials=None) -> CondensedFingertip:
+                       structure_moduli: str = "long_time", materials=None,
+                       with_fields: bool = False):
     """Build the linear test's FEM (:func:`designlab.sensors.fingertip.build_model`) on
     ``mesh``, condense it at the ball and the three wells, remove the sensor springs. The
-    expensive step (one factorisation, 31 back-substitutions); cache the result per mesh."""
+    expensive step (one factorisation, 31 back-substitutions); cache the result per mesh
+    (:func:`designlab.sensors.fingertip.solve_fem` does, under its ``fem_key``).
+
+    ``with_fields``: return ``(condensed, spring_forces (6, 3) N per unit wrench, U_unit (6,
+    n_points, 3) mm per unit wrench)`` of the same solve: the linear readings and displacement
+    fields at the structure's moduli, for the loop's gains and the VTU."""
     from designlab.fem.contact import condense
 
     fem_settings = fem_settings or FingertipModelSettings()
@@ -228,8 +190,8 @@ def condense_fingertip(part, mesh, fem_settings: FingertipModelSettings | None =
     model.force(head, force=ez, case="_bolt_pair")
     t_build = time.perf_counter() - t0
     t0 = time.perf_counter()
-    C_w, R = condense(model, [ball, *wells], solver=fem_settings.solver, check=False,
-                      keep_cases=("_bolt_pair", *WRENCH))
+    C_w, R, res = condense(model, [ball, *wells], solver=fem_settings.solver, check=False,
+                           keep_cases=("_bolt_pair", *WRENCH), return_result=True)
     t_solve = time.perf_counter() - t0
     K_w = np.linalg.inv(C_w)
     L, Ls, axes, contacts = contact_maps(part, ball.x, [w.x for w in wells])
@@ -240,9 +202,15 @@ def condense_fingertip(part, mesh, fem_settings: FingertipModelSettings | None =
     C = 0.5 * (C + C.T)
     f_wrench = np.array([K_w @ R[c] for c in WRENCH])
     linear_unit = np.array([k_s * Ls @ R[c] for c in WRENCH])       # (6, 3)
-    return CondensedFingertip(C, f_wrench, K_w @ R["_bolt_pair"], L, Ls, k_s, axes, contacts,
-                              linear_unit, structure_moduli, int(model.n_dofs),
-                              {"build": t_build, "condense_solve": t_solve})
+    cf = CondensedFingertip(C, f_wrench, K_w @ R["_bolt_pair"], L, Ls, k_s, axes, contacts,
+                            linear_unit, structure_moduli, int(model.n_dofs),
+                            {"build": t_build, "condense_solve": t_solve})
+    if not with_fields:
+        return cf
+    springs = names["sensors"]
+    H = np.array([[res.spring_force(sp, c) for sp in springs] for c in WRENCH])
+    U = np.stack([res.displacement(c) for c in WRENCH])
+    return cf, H, U
 
 
 def lumped_condensed(part, bolt_axial: float = 2.0e4, bolt_lateral: float = 2.0e3,
@@ -335,6 +303,16 @@ def readings_noise(S_true: np.ndarray, settings: ContactSettings, rng_: np.rando
     return np.round(S / lsb) * lsb
 
 
+def run_rng(seed: int, location: str, rotation_deg: float) -> np.random.Generator:
+    """The readout noise generator of one (location, rotation) run: seeded by ``seed``, the
+    location's name (CRC-32) and the rotation in millidegrees, so the same input gives the same
+    numbers in any process and whatever else the protocol contains."""
+    import zlib
+
+    return np.random.default_rng([int(seed), zlib.crc32(location.encode()),
+                                  int(round(rotation_deg * 1000)) % 2 ** 32])
+
+
 def _eq1(seq, S):
     """(paper, robust) eq. 1 of one loop: mean over all three sensors / over the sensors whose
     span is >= 10 % of the largest."""
@@ -351,12 +329,15 @@ def _eq1(seq, S):
 def run_contact_test(part, protocol: HangingWeightTest | None = None,
                      settings: ContactSettings | None = None,
                      condensed: CondensedFingertip | None = None, *, mesh=None,
-                     fem_settings: FingertipModelSettings | None = None) -> dict[str, Any]:
+                     fem_settings: FingertipModelSettings | None = None,
+                     rotations_deg: tuple[float, ...] | None = None) -> dict[str, Any]:
     """The hanging-weight test with contact mechanics: tighten, then every location and
     rotation of the protocol through its loading/unloading sequence. Returns the report dict
     (keys of :func:`designlab.sensors.fingertip.evaluate` where they apply, plus
     ``hysteresis_definitions``, ``preload``, ``lift_off_warnings``, ``paper_comparison``...).
-    ``condensed`` from :func:`condense_fingertip` (built from ``mesh`` when not given)."""
+    ``condensed`` from :func:`condense_fingertip` (built from ``mesh`` when not given).
+    ``rotations_deg``: the fingertip's rotations (default: ``protocol.rotations`` equally
+    spaced; the virtual test passes its ``rotations_deg`` setting)."""
     protocol = protocol or HangingWeightTest()
     settings = settings or ContactSettings()
     fem_settings = fem_settings or FingertipModelSettings()
@@ -382,7 +363,8 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
 
     # every (location, rotation): wrench per N of hanging load
     t0 = time.perf_counter()
-    rots = [360.0 * i / protocol.rotations for i in range(protocol.rotations)]
+    rots = (list(rotations_deg) if rotations_deg is not None
+            else [360.0 * i / protocol.rotations for i in range(protocol.rotations)])
     runs = []                                   # (group, name, rot, point dir)
     for group, names in (("G1", protocol.g1_locations), ("G2", protocol.g2_locations)):
         for name in names:
@@ -419,13 +401,25 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
                    f"{seq[j % n_steps]:g} g")
             if msg not in warn_list:
                 warn_list.append(msg)
-    for msg in warn_list[:20]:
-        warnings.warn(msg, stacklevel=2)
+    # one warning per location and sensor (the full list is in the report)
+    summary: dict[tuple[str, int], list] = {}
+    for b, j, k in [*res.lift_off, *zip(*np.nonzero(N_all == 0))]:
+        name, rot = runs[b][1], runs[b][2]
+        e = summary.setdefault((name, int(k)), [set(), set()])
+        e[0].add(float(rot))
+        e[1].add(float(seq[j % n_steps]))
+    for (name, k), (rs, ws) in summary.items():
+        warnings.warn(f"sensor_{k + 1} lifts off the ball at {name} (rotations "
+                      f"{', '.join(f'{r:g}' for r in sorted(rs))} deg), weight "
+                      f"{min(ws):g} g and above", stacklevel=2)
 
     force = N - N_pre[None, None]                                    # tared, N
     S_true = FSS015_V_PER_N * force                                  # V
-    rng_ = np.random.default_rng(settings.seed)
-    S_read = readings_noise(S_true, settings, rng_)
+    # seeded per (seed, location, rotation): a run's noise does not depend on which other
+    # locations the protocol has (designs of a sweep with different load points stay comparable)
+    S_read = np.concatenate([readings_noise(S_true[b:b + 1], settings, run_rng(settings.seed,
+                                                                                r[1], r[2]))
+                             for b, r in enumerate(runs)]) if runs else S_true.copy()
     peak = float(N_all.max())
     if peak > protocol.sensor_overforce_N:
         raise ParameterError("bolt_preload_N", settings.bolt_preload_N,
@@ -460,6 +454,11 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
 
     by_loc = hyst["robust_eq1_span10"]
     overall = float(np.mean(list(by_loc.values())))
+
+    def mean_of(v):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return float(np.nanmean(list(hyst[v].values())))
 
     # calibration: applied force vs reading change at the heaviest weight (as evaluate), and
     # over every weight (Fig. 9 plots every load set)
@@ -498,8 +497,15 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
 
     report: dict[str, Any] = {
         "model": "contact (Hertz + Mindlin + Coulomb at the ball, bolt preload, condensed FEM)",
-        "hysteresis_percent": {"overall": overall, "by_group": {
-            g: s["mean"] for g, s in group_stats(by_loc).items()}, "by_location": by_loc},
+        "hysteresis_percent": {
+            "definition": "robust_eq1_span10 with the FSS015/DAQ readout errors (mean over "
+                          "the sensors whose span is >= 10 % of the largest, then rotations)",
+            "overall": overall,
+            "overall_noise_free": mean_of("robust_eq1_span10_noise_free"),
+            "overall_paper_definition": mean_of("paper_eq1_all_sensors"),
+            "by_group": {g: s["mean"] for g, s in group_stats(by_loc).items()},
+            "by_location": by_loc,
+            "by_location_noise_free": hyst["robust_eq1_span10_noise_free"]},
         "hysteresis_definitions": {
             v: {"by_location": h, "by_group": group_stats(h)} for v, h in hyst.items()},
         "calibration_matrix": A.tolist(),
@@ -514,6 +520,7 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
                                     for i, ax in enumerate("xyz")},
                         "matrix_V_per_N": sens.tolist()},
         "cross_talk_percent": cross_talk_percent(P_max, P_est).tolist() if calibrated else None,
+        "linearity_percent_span": _linearity(seq, S_true, runs, rots[0]),
         "loops": loops,
         "response_at_max_V": response,
         "peak_sensor_force_N": peak,
@@ -532,6 +539,24 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
     timings["metrics"] = time.perf_counter() - t0
     report["timings_s"] = timings
     return report
+
+
+def _linearity(seq, S_true, runs, rot0) -> float:
+    """Largest linearity error (% of span) of a sensor's noise-free loading branch over the
+    first rotation's runs (as :func:`designlab.sensors.fingertip.evaluate`)."""
+    from designlab.calibration.calibration_matrix import linearity_percent
+
+    kmax = int(np.argmax(seq))
+    lin = []
+    for b, r in enumerate(runs):
+        if r[2] != rot0:
+            continue
+        S = S_true[b, : kmax + 1]
+        span = np.abs(S[-1] - S[0])
+        for ch in range(3):
+            if span[ch] > 1e-3 * span.max():
+                lin.append(linearity_percent(seq[: kmax + 1], S[:, ch]))
+    return float(max(lin)) if lin else float("nan")
 
 
 def _compressed_change(runs, S, kmax, group, first, last) -> float | None:
@@ -584,4 +609,172 @@ def compare_with_paper(report, runs, seq, S_true, protocol) -> dict[str, Any]:
     e = out["relative_error_per_axis"]
     out["Pz_error_over_xy"] = e["z"] / max(e["x"], e["y"])
     out["condition_number_predicted"] = report["condition_number"]
+    return out
+
+
+# ------------------------------------------------------------------ the paper's two designs
+
+#: the issue 12 goals (seed 001 numbers: ../shared/data/papers/fingertip_xu2014.json)
+GOAL_G1_RATIO = 2.0            # G1 hysteresis h1 >= 2 x h9
+GOAL_LOWEST_FACTOR = 2.0       # lowest mean G1/G2 within a factor 2 of 0.98 % / 2.19 %
+GOAL_CHANGE_POINTS = 15.0      # h9 -> h1 compressed-sensor change within 15 points of 33.9 %
+GOAL_PZ_OVER_XY = 3.0          # Fig. 9: P_z relative error >= 3 x the x/y errors
+
+
+def paper_design(part, which: str):
+    """The paper's tested (``"II"``: h 28.5, r 9, Table II points) or optimised (``"III"``:
+    h 0, r 9, Table III points) fingertip on this design's base, cap, ball, sensors and bolt:
+    the fingertip's height, radius and load table only move the load points
+    (:data:`designlab.sensors.fingertip.LOAD_ONLY_PARAMS`), so both run on this design's
+    condensed FEM."""
+    from designlab.geometry.fingertip import CantileverFingertip
+    from designlab.params import as_dict
+    from designlab.sensors.fingertip import LOAD_ONLY_PARAMS
+
+    ref = CantileverFingertip.tested() if which == "II" else CantileverFingertip()
+    keep = {k: v for k, v in as_dict(part).items() if k not in LOAD_ONLY_PARAMS}
+    return dataclasses.replace(ref, **keep)
+
+
+def _rounded(x, n=4):
+    if x is None or not np.isfinite(x):
+        return x
+    return float(f"{x:.{n}g}")
+
+
+def paper_comparison(part, protocol: HangingWeightTest, settings: ContactSettings,
+                     cf: CondensedFingertip, report: dict[str, Any],
+                     rotations_deg: tuple[float, ...] | None = None,
+                     meshed_fingertip: bool = False) -> dict[str, Any]:
+    """The contact model beside seed 001, on the paper's two designs built on this design's
+    structure: Table II (tested sensor: Fig. 6 G1/G2 hysteresis by location and its lowest
+    means, the compressed-sensor changes h9 -> h1 and r1 -> r5 of Sec. III) and Table III
+    (optimised sensor: cond(A) vs 34.92 and Fig. 9's applied-vs-estimated errors per axis).
+    Each goal of issue 12 with its value, target and whether it is met; ``matches`` and
+    ``does_not_match`` in words. A design that is one of the two (with the paper's protocol)
+    reuses its own report."""
+    from designlab.geometry.fingertip import CantileverFingertip  # noqa: F401
+
+    out: dict[str, Any] = {"paper": PAPER}
+    runs, designs = {}, {}
+    if meshed_fingertip:
+        out["note"] = ("the fingertip is meshed (mesh_fingertip): its height and radius change "
+                       "the FEM, so the paper's designs are not run on this one")
+        return out
+    for which, proto in (("II", HangingWeightTest()),
+                         ("III", HangingWeightTest.preset("optimized"))):
+        try:
+            design = designs[which] = paper_design(part, which)
+        except ParameterError as exc:
+            out[f"table_{which}_design"] = {"error": str(exc)}
+            continue
+        if design == part and proto == protocol:
+            runs[which] = report
+            continue
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            runs[which] = run_contact_test(design, proto, settings, cf,
+                                           rotations_deg=rotations_deg)
+        runs[which]["_companion_warnings"] = len(caught)
+    goals: dict[str, Any] = {}
+    matches, mismatches = [], []
+    if "II" in runs:
+        r = runs["II"]
+        pc = r["paper_comparison"]
+        hd = r["hysteresis_definitions"]
+        g1 = list(HangingWeightTest().g1_locations)
+        g2 = list(HangingWeightTest().g2_locations)
+        defs = {}
+        for key, h in hd.items():
+            defs[key] = {"G1_by_location": {n: h["by_location"][n] for n in g1},
+                         "G2_by_location": {n: h["by_location"][n] for n in g2},
+                         "lowest": {g: {"value": s["lowest"], "at": s["lowest_at"]}
+                                    for g, s in h["by_group"].items()}}
+        rob, nf = pc["robust"], pc["robust_noise_free"]
+        v = np.array(rob["G1_by_location"])
+        vn = np.array(nf["G1_by_location"])
+        goals["G1_falls_monotonically_h1_to_h9"] = {
+            "value_with_readout": bool(np.all(np.diff(v) < 0)),
+            "value_noise_free": bool(np.all(np.diff(vn) < 0)),
+            "h1_over_h9_with_readout": _rounded(v[0] / v[-1]) if v[-1] > 0 else None,
+            "h1_over_h9_noise_free": _rounded(vn[0] / vn[-1]) if vn[-1] > 0 else None,
+            "target": f"monotonic fall, h1 >= {GOAL_G1_RATIO:g} x h9",
+            "met": bool(np.all(np.diff(v) < 0) and v[0] >= GOAL_G1_RATIO * v[-1])}
+        for grp, paper_v in (("G1", PAPER["lowest_mean_G1_pct"]),
+                             ("G2", PAPER["lowest_mean_G2_pct"])):
+            lo = rob[f"{grp}_lowest"]
+            lo_nf = nf[f"{grp}_lowest"]
+            goals[f"lowest_mean_{grp}"] = {
+                "value_with_readout_pct": lo, "value_noise_free_pct": lo_nf,
+                "value_paper_definition_pct": pc["paper_def"][f"{grp}_lowest"],
+                "paper_pct": paper_v, "over_paper": _rounded(lo / paper_v),
+                "friction_coefficient": settings.friction_coefficient,
+                "target": f"within a factor {GOAL_LOWEST_FACTOR:g} of {paper_v} %",
+                "met": bool(paper_v / GOAL_LOWEST_FACTOR <= lo <= paper_v * GOAL_LOWEST_FACTOR)}
+        ch1, ch2 = pc.get("compressed_change_G1_pct"), pc.get("compressed_change_G2_pct")
+        goals["compressed_change_h9_to_h1"] = {
+            "value_pct": ch1, "paper_pct": PAPER["compressed_change_h9_to_h1_pct"],
+            "target": f"within {GOAL_CHANGE_POINTS:g} points of 33.9 %",
+            "met": bool(ch1 is not None and abs(ch1 - PAPER["compressed_change_h9_to_h1_pct"])
+                        <= GOAL_CHANGE_POINTS)}
+        out["compressed_change_r1_to_r5"] = {"value_pct": ch2,
+                                             "paper_pct": PAPER["compressed_change_r1_to_r5_pct"]}
+        out["table_II_design"] = {
+            "design": {"h": designs["II"].h, "r": designs["II"].r, "load_table": "II"},
+            "fig6_trend_paper": PAPER["trend_G1"],
+            "heights_mm": list(CantileverFingertip.tested().load_table_values()[0]),
+            "radii_mm": list(CantileverFingertip.tested().load_table_values()[1]),
+            "hysteresis_percent": defs,
+            "preload": r["preload"], "lift_off_warnings": len(r["lift_off_warnings"])}
+        (matches if goals["G1_falls_monotonically_h1_to_h9"]["value_noise_free"]
+         else mismatches).append(
+            "G1 hysteresis (friction, noise free) falls monotonically from h1 to h9 "
+            f"({vn[0]:.3g} % -> {vn[-1]:.3g} %), the paper's trend (Fig. 6)" if
+            goals["G1_falls_monotonically_h1_to_h9"]["value_noise_free"] else
+            "G1 hysteresis (noise free) does not fall monotonically from h1 to h9")
+        nf_fall = vn[:-1] > 0
+        knee = next((g1[i + 1] for i in range(len(vn) - 1)
+                     if vn[i + 1] < 0.05 * vn[i] and nf_fall[i]), None)
+        if knee is not None:
+            mismatches.append(
+                f"the fall is a threshold, not exponential: from {knee} down the contacts "
+                f"stick and the friction hysteresis is {vn[g1.index(knee)]:.3g} % or less; the "
+                "readout noise then sets the measured value")
+        for grp in ("G1", "G2"):
+            gk = goals[f"lowest_mean_{grp}"]
+            (matches if gk["met"] else mismatches).append(
+                f"lowest mean {grp} {gk['value_with_readout_pct']:.3g} % with readout "
+                f"({gk['value_noise_free_pct']:.3g} % from friction alone) vs the paper's "
+                f"{gk['paper_pct']} % ({'within' if gk['met'] else 'outside'} a factor 2)")
+        gk = goals["compressed_change_h9_to_h1"]
+        (matches if gk["met"] else mismatches).append(
+            f"compressed-sensor change h9 -> h1 {ch1:.3g} % vs 33.9 %")
+        mismatches.append(f"compressed-sensor change r1 -> r5 {ch2:.3g} % vs 9.6 %") if (
+            ch2 is None or abs(ch2 - 9.6) > 15) else matches.append(
+            f"compressed-sensor change r1 -> r5 {ch2:.3g} % vs 9.6 %")
+    if "III" in runs:
+        r = runs["III"]
+        e = r["relative_error_per_axis_all_weights"]
+        ratio = e["z"] / max(e["x"], e["y"]) if max(e["x"], e["y"]) > 0 else float("nan")
+        goals["Pz_error_over_xy"] = {
+            "value": _rounded(ratio), "relative_error_per_axis": e,
+            "target": f">= {GOAL_PZ_OVER_XY:g} (Fig. 9: P_z sensed worst)",
+            "met": bool(ratio >= GOAL_PZ_OVER_XY)}
+        out["table_III_design"] = {
+            "design": {"h": designs["III"].h, "r": designs["III"].r, "load_table": "III"},
+            "condition_number": r["condition_number"],
+            "condition_number_paper": PAPER["condition_number"],
+            "relative_error_per_axis_all_weights": e,
+            "calibration_matrix": r["calibration_matrix"],
+            "lift_off_warnings": len(r["lift_off_warnings"])}
+        c = r["condition_number"]
+        (matches if abs(c / PAPER["condition_number"] - 1) < 0.5 else mismatches).append(
+            f"cond(A) of the Table III design {c:.3g} vs 34.92")
+        (matches if ratio > 1 else mismatches).append(
+            f"P_z estimated {'worst' if ratio > 1 else 'not worst'} (relative error "
+            f"{e['z']:.3g} vs x {e['x']:.3g}, y {e['y']:.3g}: {ratio:.2g}x; the goal asks "
+            f">= {GOAL_PZ_OVER_XY:g}x)")
+    out["goals"] = goals
+    out["matches"] = matches
+    out["does_not_match"] = mismatches
     return out
