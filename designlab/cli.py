@@ -158,7 +158,7 @@ def sweep(config: Path = typer.Argument(..., help="Sweep config (TOML): part, pa
         err_console.print("interrupted: finished designs are stored; run the same command to resume")
         raise typer.Exit(130)
     write_report(out, res.rows, cfg, res.pareto_keys, res.best_key,
-                 title=f"designlab sweep: {config.name}", tie_keys=res.tie_keys)
+                 title=f"designlab sweep: {config.name}", tie_keys=res.tie_keys, kind="sweep")
     _summary_table(res.rows, cfg, res.pareto_keys, res.best_key, tie_keys=res.tie_keys)
     if res.tie_keys:
         console.print(f"{len(res.tie_keys) + 1} designs are not distinguishable by "
@@ -168,6 +168,9 @@ def sweep(config: Path = typer.Argument(..., help="Sweep config (TOML): part, pa
         err_console.print(_plain(("warning:", "yellow"), " ", w), highlight=False)
     console.print(f"{res.new} evaluated, {res.reused} from the store, {res.failed} failed -> "
                   f"{res.table_path}, {out / 'report.html'}", markup=False, highlight=False)
+    console.print(f"open next: {out / 'report.html'} (the report), then designlab optimize "
+                  f"{config} --out {out} to export the best design", markup=False,
+                  highlight=False)
 
 
 @app.command()
@@ -217,23 +220,27 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
                   f"{next(iter(cfg.objectives))} (differences within the mesh error bars): none "
                   "is chosen on it; exported the one with the least printed volume "
                   f"({chosen.get('printed_volume_mm3', float('nan')):.4g} mm^3)")
-    write_report(out, res.sweep.rows, cfg, res.sweep.pareto_keys, chosen["key"],
-                 title=f"designlab optimize: {config.name}", tie_keys=ties)
     _summary_table(res.sweep.rows, cfg, res.sweep.pareto_keys, chosen["key"], tie_keys=ties)
     design_dir = out / "chosen"
     from designlab.optimize.evaluate import export_design
 
-    files = export_design(cfg.part, {**cfg.fixed, **chosen_params}, design_dir,
-                          formats=formats, settings=cfg.settings, protocol=cfg.protocol,
-                          fem_cache=out / "fem")
+    with progress_bar(f"exporting the chosen design to {design_dir}"):
+        files = export_design(cfg.part, {**cfg.fixed, **chosen_params}, design_dir,
+                              formats=formats, settings=cfg.settings, protocol=cfg.protocol,
+                              fem_cache=out / "fem")
     summary = {"method": res.method, "chosen_params": chosen_params, "chosen": chosen,
                "choice": choice, "not_distinguishable": ties,
                "surrogate": res.surrogate, "files": [str(f) for f in files]}
     atomic_write_json(out / "optimize.json", summary)
+    write_report(out, res.sweep.rows, cfg, res.sweep.pareto_keys, chosen["key"],
+                 title=f"designlab optimize: {config.name}", tie_keys=ties, choice=choice,
+                 chosen_dir=design_dir, kind="optimize")
     console.print(choice, highlight=False, markup=False)
     console.print("exported: " + ", ".join(f"{k}={v:.4g}" for k, v in chosen_params.items()),
                   highlight=False, markup=False)
     console.print(f"exported {len(files)} files to {design_dir}", markup=False, highlight=False)
+    console.print(f"open next: {out / 'report.html'} (the report), {design_dir} (files to "
+                  "print)", markup=False, highlight=False)
 
 
 @app.command()
@@ -682,6 +689,9 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
     for w in prediction.warnings:
         err_console.print(_plain(("warning:", "yellow"), " ", w), highlight=False)
     console.print(f"wrote {len(files)} files to {out}", markup=False, highlight=False)
+    console.print(f"open next: {out / 'report.html'} (the report), {out / 'deformed.vtu'} "
+                  "(stress and displacement per load case, e.g. in ParaView)", markup=False,
+                  highlight=False)
 
 
 @app.command("fit-strap")

@@ -88,6 +88,10 @@ class FEMCache:
             fcntl.flock(fd, fcntl.LOCK_UN)
             os.close(fd)
 
+    def get(self, key: str) -> dict[str, np.ndarray] | None:
+        """The arrays stored under ``key`` (memory, then the folder), or None: never computes."""
+        return self._load(key)
+
     def get_or_compute(self, key: str, compute: Callable[[], dict[str, np.ndarray]]
                        ) -> dict[str, np.ndarray]:
         """The arrays stored under ``key``, computing and storing them once if absent.

@@ -40,6 +40,13 @@ class Material:
     stand_ins: tuple[str, ...] = field(default=(), compare=False)
     #: elongation at break (strain, 1 = 100 %) or None
     max_elongation: float | None = None
+    #: the stress (MPa) a safety factor is taken against (von Mises): tensile yield strength
+    #: where the source gives one, else tensile strength; None: no documented value
+    strength: float | None = field(default=None, compare=False, repr=False)
+    #: which strength ``strength`` is (yield, break, derived...)
+    strength_basis: str = field(default="", compare=False, repr=False)
+    #: where ``strength`` comes from
+    strength_source: str = field(default="", compare=False, repr=False)
 
     def __post_init__(self):
         if not (self.E > 0):
@@ -83,7 +90,10 @@ MATERIALS: dict[str, Material] = {m.name: m for m in [
     Material("NinjaFlex", E=12.0, nu=0.45, density=1.19e-9, prony=ELASTOMER_PRONY,
              source="E: seed 000 Table I; nu assumed 0.45; density NinjaTek datasheet; "
                     "Prony: stretch-rig elastomer stand-in",
-             stand_ins=("prony",), max_elongation=6.6),
+             stand_ins=("prony",), max_elongation=6.6,
+             strength=4.0, strength_basis="tensile strength at yield (ASTM D638)",
+             strength_source="NinjaTek NinjaFlex 85A technical data sheet: tensile strength "
+                             "at yield 4 MPa (at 65 % elongation), at break 26 MPa"),
     # Seed 000 Table I: PI-ETPU 95-250 carbon black, E = 12 MPa, Shore 95A, resistivity
     # <= 800 ohm*cm = 8000 ohm*mm; TCR 0.002 /K (seed 000 discussion, ref [32]). The paper
     # gives no gauge factor: GF = 3.8 is the carbon-black elastomer value measured from the
@@ -93,23 +103,46 @@ MATERIALS: dict[str, Material] = {m.name: m for m in [
              resistivity=8000.0, prony=ELASTOMER_PRONY,
              source="E, resistivity: seed 000 Table I; TCR: seed 000 [32]; nu assumed; "
                     "GF and Prony: stand-ins (carbon-black elastomer), calibrate",
-             stand_ins=("gauge_factor", "prony"), max_elongation=2.2),   # 220 %: Table I
+             stand_ins=("gauge_factor", "prony"), max_elongation=2.2,   # 220 %: Table I
+             # no strength: seed 000 Table I gives none, and we have no datasheet value for the
+             # carbon-black grade; predictions say its safety factor is not computed
+             strength=None, strength_basis="not documented",
+             strength_source="seed 000 Table I lists no strength for PI-ETPU 95-250"),
     # Stratasys ABSplus-P430 datasheet (seed 001 printer Dimension BST 768): tensile modulus
     # 2200 MPa (XZ); nu 0.35 typical for ABS; density 1.04 g/cm^3.
     Material("ABS", E=2200.0, nu=0.35, density=1.04e-9, prony=PRINTED_PRONY,
              source="ABSplus-P430 datasheet (E); nu, density: typical ABS; Prony: printed-part "
-                    "stand-in (seed 002 relaxation)"),
+                    "stand-in (seed 002 relaxation)",
+             strength=26.0, strength_basis="tensile yield strength across the layers (ZX)",
+             strength_source="Stratasys ABSplus-P430 data sheet: tensile strength, yield "
+                             "31 MPa (XZ), 26 MPa (ZX, across layers; the weaker is used)"),
     # Printed PLA: E ~ 3500 MPa (NatureWorks 4043D datasheet, bulk); nu 0.36; 1.24 g/cm^3.
     Material("PLA", E=3500.0, nu=0.36, density=1.24e-9, prony=PRINTED_PRONY,
              source="NatureWorks Ingeo 4043D datasheet; nu typical; Prony: printed-part "
-                    "stand-in (seed 002 relaxation)"),
+                    "stand-in (seed 002 relaxation)",
+             strength=60.0, strength_basis="tensile yield strength (bulk, not printed)",
+             strength_source="NatureWorks Ingeo 4043D technical data sheet: tensile yield "
+                             "strength 60 MPa (ASTM D882); printed parts are weaker across "
+                             "layers"),
     # Seed 002 spring: stainless 302, ASTM A313 spring wire. Handbook design values
     # E = 193 GPa, G = 69 GPa (SMI/Associated Spring tables); nu = E/(2G) - 1 = 0.399 keeps
     # the shear modulus that governs a coil spring exact. Density 7.92 g/cm^3.
     Material("SS302", E=193000.0, nu=193000.0 / (2.0 * 69000.0) - 1.0, density=7.92e-9,
-             source="ASTM A313 302 spring wire: E 193 GPa, G 69 GPa (spring handbooks)"),
+             source="ASTM A313 302 spring wire: E 193 GPa, G 69 GPa (spring handbooks)",
+             # Shigley's Mechanical Engineering Design (10th ed.) Table 10-4: A302 stainless
+             # wire 0.3-2.5 mm, S_ut = A / d^m with A = 1867 MPa mm^m, m = 0.146 -> 1683 MPa at
+             # the seed 002 wire d = 2.03 mm; Table 10-6: torsional yield S_sy = 0.35 S_ut
+             # (austenitic stainless, set not removed); as a von Mises stress (pure torsion:
+             # sigma_vM = sqrt(3) tau) the yield is sqrt(3) x 0.35 x 1683 = 1020 MPa
+             strength=1020.0, strength_basis="torsional yield of the 2.03 mm wire as a von "
+                                             "Mises stress (sqrt(3) S_sy)",
+             strength_source="Shigley 10th ed. Tables 10-4 (S_ut = 1867/d^0.146 MPa, 1683 MPa "
+                             "at d = 2.03 mm) and 10-6 (S_sy = 0.35 S_ut)"),
     # Generic structural / bearing steel (seed 001 ball and M2.5 bolt): E 210 GPa, nu 0.30.
-    Material("steel", E=210000.0, nu=0.30, density=7.85e-9, source="EN 10025 typical values"),
+    Material("steel", E=210000.0, nu=0.30, density=7.85e-9, source="EN 10025 typical values",
+             strength=235.0, strength_basis="minimum yield strength of S235 (t <= 16 mm)",
+             strength_source="EN 10025-2 S235: R_eH >= 235 MPa (the least structural steel "
+                             "grade; bearing balls and 8.8 bolts are stronger)"),
     # Dragon Skin silicone filled with 7.5 wt% carbon black: the stretch-rig specimen
     # (../shared/data/README.md: 40 x 10 x 4 mm). Straight-line fits of force and 4-wire
     # resistance against elongation over the lower half of the range of three runs
@@ -120,7 +153,10 @@ MATERIALS: dict[str, Material] = {m.name: m for m in [
     Material("silicone", E=0.298, nu=0.49, density=1.08e-9, gauge_factor=3.8,
              prony=ELASTOMER_PRONY,
              source="E0 and Prony: fit to the stepped-strain test, GF: line fits, all "
-                    "../shared/data/stretch; nu assumed; Dragon Skin datasheet"),
+                    "../shared/data/stretch; nu assumed; Dragon Skin datasheet",
+             strength=3.8, strength_basis="tensile strength of the unfilled silicone",
+             strength_source="Smooth-On Dragon Skin 20 technical bulletin: tensile strength "
+                             "550 psi (3.8 MPa, ASTM D412); carbon-black filler not included"),
 ]}
 
 

@@ -18,12 +18,13 @@ from designlab.mesh.tetmesh import TetMesh
 
 
 def write_vtu(path, mesh: TetMesh, point_data: dict | None = None,
-              cell_data: dict | None = None) -> Path:
-    """Write ``mesh`` with point/cell arrays ((n, ...) / (m, ...)) to a .vtu file atomically
-    (:func:`designlab.mesh.io.write_vtu`: regions, facet sets and names included)."""
+              cell_data: dict | None = None, field_data: dict | None = None) -> Path:
+    """Write ``mesh`` with point/cell arrays ((n, ...) / (m, ...)) and field data to a .vtu
+    file atomically (:func:`designlab.mesh.io.write_vtu`: regions, facet sets and names
+    included)."""
     from designlab.mesh.io import write_vtu as write_mesh_vtu
 
-    return write_mesh_vtu(mesh, path, point_data, cell_data)
+    return write_mesh_vtu(mesh, path, point_data, cell_data, field_data)
 
 
 def result_fields(result, which=None) -> tuple[dict, dict]:

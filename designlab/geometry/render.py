@@ -87,6 +87,28 @@ def _opacity(body: Body, items) -> float:
     return HOST_OPACITY if inner and body.extruder == 1 else 1.0
 
 
+def _swatch(pl, x: int, y: int, side: int, color) -> None:
+    """A filled square of ``color`` at pixel (x, y) (lower left) over the scene."""
+    import vtk
+
+    pts = vtk.vtkPoints()
+    for a, b in ((x, y), (x + side, y), (x + side, y + side), (x, y + side)):
+        pts.InsertNextPoint(a, b, 0.0)
+    poly = vtk.vtkCellArray()
+    poly.InsertNextCell(4)
+    for i in range(4):
+        poly.InsertCellPoint(i)
+    data = vtk.vtkPolyData()
+    data.SetPoints(pts)
+    data.SetPolys(poly)
+    mapper = vtk.vtkPolyDataMapper2D()
+    mapper.SetInputData(data)
+    actor = vtk.vtkActor2D()
+    actor.SetMapper(mapper)
+    actor.GetProperty().SetColor(*[float(c) for c in color[:3]])
+    pl.renderer.AddActor2D(actor)
+
+
 def _render_pyvista(items, path: Path, size: tuple[int, int], title: str) -> None:
     import pyvista as pv
 
@@ -95,10 +117,15 @@ def _render_pyvista(items, path: Path, size: tuple[int, int], title: str) -> Non
     for body, m in items:
         faces = np.hstack([np.full((len(m.faces), 1), 3), m.faces]).ravel()
         pl.add_mesh(pv.PolyData(np.asarray(m.vertices), faces), color=body.color,
-                    opacity=_opacity(body, items), smooth_shading=False, specular=0.2,
-                    label=f"{body.name} ({body.material})")
-    pl.add_legend(bcolor=None, face="rectangle", loc="upper left", border=False,
-                  size=(0.22, min(0.36, 0.032 * len(items))))
+                    opacity=_opacity(body, items), smooth_shading=False, specular=0.2)
+    # legend: a swatch in the body's colour, the text in black (a pale body stays readable)
+    line = max(16, size[1] // 36)
+    for i, (body, _) in enumerate(items):
+        y = size[1] - int(2.6 * line) - i * int(1.25 * line)
+        _swatch(pl, 12, y, int(0.8 * line), (0.3, 0.3, 0.3))
+        _swatch(pl, 13, y + 1, int(0.8 * line) - 2, body.color)
+        pl.add_text(f"{body.name} ({body.material}{'' if body.printed else ', bought'})",
+                    position=(12 + line + 4, y - 2), font_size=max(7, line // 2), color="black")
     if title:
         pl.add_text(title, position="upper_edge", font_size=12, color="black")
     pl.view_isometric()
@@ -130,9 +157,14 @@ def _render_matplotlib(items, path: Path, size: tuple[int, int], title: str) -> 
     ax.set(xlim=(c[0] - r, c[0] + r), ylim=(c[1] - r, c[1] + r), zlim=(c[2] - r, c[2] + r),
            xlabel="x (mm)", ylabel="y (mm)", zlabel="z (mm)")
     ax.set_box_aspect((1, 1, 1))
+    from matplotlib.patches import Patch
+
+    ax.legend(handles=[Patch(facecolor=b.color, edgecolor="0.3", label=f"{b.name} ({b.material})")
+                       for b, _ in items], loc="upper left", bbox_to_anchor=(1.02, 1.0),
+              labelcolor="black", frameon=False)
     if title:
         ax.set_title(title)
-    fig.savefig(path)
+    fig.savefig(path, bbox_inches="tight")
     plt.close(fig)
 
 

@@ -54,10 +54,11 @@ def to_pyvista(mesh: TetMesh, facets: bool = True):
 
 
 def write_vtu(mesh: TetMesh, path: str | os.PathLike, point_data: dict | None = None,
-              cell_data: dict | None = None) -> Path:
+              cell_data: dict | None = None, field_data: dict | None = None) -> Path:
     """Write ``mesh`` (with optional point arrays (n_points, ...) and cell arrays
-    (n_cells, ...), e.g. FEM fields) to a binary ``.vtu`` file atomically; returns the path.
-    Facet-set triangles carry NaN in the extra cell arrays."""
+    (n_cells, ...), e.g. FEM fields, and field data: lists of text or numbers) to a binary
+    ``.vtu`` file atomically; returns the path. Facet-set triangles carry NaN in the extra
+    cell arrays."""
     path = Path(path)
     if path.suffix != ".vtu":
         raise DataError(f"mesh file {path} must end in .vtu")
@@ -68,6 +69,8 @@ def write_vtu(mesh: TetMesh, path: str | os.PathLike, point_data: dict | None = 
     for k, v in (cell_data or {}).items():
         v = np.asarray(v, float)
         grid.cell_data[k] = np.concatenate([v, np.full((n_extra,) + v.shape[1:], np.nan)])
+    for k, v in (field_data or {}).items():
+        grid.field_data[k] = list(v) if isinstance(v, (list, tuple)) else v
     with atomic_path(path) as tmp:
         grid.save(tmp, binary=True)
     return path

@@ -76,9 +76,13 @@ class DaskExecutor:
         self.address = address
 
     def run(self, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Iterator[Result]:
-        from distributed import Client, as_completed
-
         from designlab.errors import ParameterError
+
+        try:
+            from distributed import Client, as_completed
+        except ImportError:
+            raise ParameterError("--scheduler", self.address,
+                                 "Dask installed: pip install 'designlab[cluster]'") from None
 
         try:
             client = Client(self.address, timeout="10s")

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import base64
-import html
 import io
 from pathlib import Path
 from typing import Any
@@ -104,52 +102,124 @@ def sensitivity_plot(rows: list[dict], config: SweepConfig) -> bytes | None:
 
 def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: list[str],
                  best_key: str | None, title: str = "designlab sweep",
-                 tie_keys: list[str] = ()) -> dict[str, Path]:
-    """Write ``pareto.png``, ``sensitivity.png`` and ``report.html`` (images embedded)."""
+                 tie_keys: list[str] = (), *, choice: str | None = None,
+                 chosen_dir: Path | None = None, kind: str = "sweep") -> dict[str, Path]:
+    """Write ``pareto.png``, ``sensitivity.png`` and ``report.html`` (the shared template of
+    :mod:`designlab.sensors.report_html`, images embedded). ``choice``: why the design was
+    chosen (optimize); ``chosen_dir``: the exported chosen design with its ``prediction/``
+    (renders, plots, stress, paper comparison, files)."""
+    from designlab.sensors.labels import fmt_value, metric_label, metric_name_unit, param_label
+    from designlab.sensors.registry import SENSORS
+    from designlab.sensors.report_html import (file_links, png_uri, prediction_sections,
+                                               render_report)
+
     out = Path(out)
     written: dict[str, Path] = {}
-    images = {}
+    images = []
+    captions = {"pareto": "the first two objectives of every design with their mesh error bars; "
+                          "Pareto set joined, chosen design ringed in black, designs not "
+                          "distinguishable from it ringed in blue",
+                "sensitivity": "each objective against each swept parameter (r: correlation)"}
     for name, data in (("pareto", pareto_plot(rows, config, pareto_keys, best_key, tie_keys)),
                        ("sensitivity", sensitivity_plot(rows, config))):
         if data is not None:
             atomic_write_bytes(out / f"{name}.png", data)
             written[name] = out / f"{name}.png"
-            images[name] = base64.b64encode(data).decode()
-    dims = [f"param.{d.name}" for d in config.dimensions]
+            images.append({"src": png_uri(data), "caption": captions[name]})
+    sensor = SENSORS.get(config.part)
+    part_cls = sensor.part if sensor is not None else None
     objs = list(config.objectives)
-    rows = [{**r, **{f"+-{n}": error_bar(r, n) for n in objs}} for r in rows]
-    cols = (["key"] + dims + [c for n in objs for c in (n, f"+-{n}")]
-            + ["feasible", "status", "elapsed_s"])
-    esc = html.escape
-
-    def cell(v: Any) -> str:
-        if isinstance(v, float):
-            return f"{v:.4g}"
-        return esc(str(v)) if v is not None else ""
-
-    body_rows = []
+    dims = [d.name for d in config.dimensions]
+    best = next((r for r in rows if r["key"] == best_key), None)
+    ctx: dict[str, Any] = {"title": title, "choice": choice, "plots": images, "tables": [],
+                           "warnings": []}
+    n_ok = sum(r.get("status") == "ok" for r in rows)
+    ctx["subtitle"] = (f"{kind} of the {config.part} ({sensor.paper if sensor else ''}): "
+                       f"{len(rows)} designs ({n_ok} evaluated without error), method "
+                       f"{config.method}")
+    # objectives of the chosen design, with their error bars
+    if best is not None:
+        res = []
+        for n in objs:
+            spec = config.objectives[n]
+            name, unit = metric_name_unit(n)
+            v, e = best.get(n), error_bar(best, n)
+            res.append({"name": name, "value": fmt_value(v) if not isinstance(v, float)
+                        else f"{v:.4g}", "bar": "" if not np.isfinite(e) else f"{e:.2g}",
+                        "unit": unit, "note": f"objective: {spec}"})
+        for d in dims:
+            v = best.get(f"param.{d}")
+            res.append({"name": param_label(part_cls, d), "value": fmt_value(v), "bar": "",
+                        "unit": "", "note": "swept parameter"})
+        ctx["results"], ctx["results_title"] = res, "Chosen design: objectives"
+    if tie_keys:
+        ctx["ties"] = [k[:8] for k in tie_keys]
+    # designs table
+    cols = (["design"] + [param_label(part_cls, d).split(":")[0] for d in dims]
+            + [c for n in objs for c in (metric_label(n), "±")]
+            + ["feasible", "status", "time (s)", "error"])
+    trows = []
     for r in rows:
         cls = ("best" if r["key"] == best_key else "tie" if r["key"] in tie_keys
                else "pareto" if r["key"] in pareto_keys else "")
-        tds = "".join(f"<td>{cell(r.get(c))}</td>" for c in cols)
-        err = f"<td>{esc(r['error'])}</td>" if r.get("error") else "<td></td>"
-        body_rows.append(f"<tr class='{cls}'>{tds}{err}</tr>")
-    imgs = "".join(f"<h2>{k}</h2><img src='data:image/png;base64,{v}'/>" for k, v in images.items())
-    objectives = ", ".join(f"{k}: {esc(str(v))}" for k, v in config.objectives.items())
-    tie_text = (f"; in blue the {len(tie_keys)} design(s) whose {esc(objs[0])} differs from the "
-                "chosen one's by less than the error bar of the difference: the prediction cannot "
-                "tell them apart" if tie_keys else "")
-    page = f"""<!doctype html><html><head><meta charset="utf-8"><title>{esc(title)}</title>
-<style>body{{font-family:sans-serif;margin:2em}}table{{border-collapse:collapse;font-size:12px}}
-td,th{{border:1px solid #ccc;padding:2px 6px}}tr.pareto{{background:#fde}}tr.best{{background:#fc9}}
-tr.tie{{background:#cdf}}
-</style></head><body><h1>{esc(title)}</h1>
-<p>part: <b>{esc(config.part)}</b>; method: {esc(config.method)}; designs: {len(rows)};
-objectives: {objectives}; Pareto designs highlighted, chosen design in orange{tie_text}.
-+- columns: each design's discretisation error bar (its metric on the chosen mesh minus the
-same on one coarser mesh).</p>{imgs}
-<h2>designs</h2><table><tr>{''.join(f'<th>{esc(c)}</th>' for c in cols)}<th>error</th></tr>
-{''.join(body_rows)}</table></body></html>"""
-    atomic_write_bytes(out / "report.html", page.encode())
+        cells = [r["key"][:8]] + [fmt_value(r.get(f"param.{d}")) for d in dims]
+        for n in objs:
+            v, e = r.get(n), error_bar(r, n)
+            cells += [f"{v:.4g}" if isinstance(v, float) else fmt_value(v),
+                      f"{e:.2g}" if np.isfinite(e) else ""]
+        cells += ["yes" if r.get("feasible") else "no", r.get("status", ""),
+                  f"{r.get('elapsed_s', float('nan')):.1f}", r.get("error") or ""]
+        trows.append({"cls": cls, "cells": cells})
+    ctx["designs"] = {"columns": cols, "rows": trows,
+                      "legend": "orange: chosen; blue: not distinguishable from the chosen "
+                                "design (difference within the error bar of the difference); "
+                                "pink: Pareto set. ±: each design's discretisation error bar "
+                                "(metric on the chosen mesh minus the same on one coarser "
+                                "mesh). Design: the first 8 characters of its key in "
+                                "results.parquet."}
+    sweep_rows = [[d.name, f"{d.lo:g} .. {d.hi:g}" if not d.values else fmt_value(d.values),
+                   str(d.levels) if config.method == "grid" and not d.values else "",
+                   (param_label(part_cls, d.name).split(": ", 1) + [""])[1]]
+                  for d in config.dimensions]
+    ctx["tables"].append({"title": "Swept parameters", "columns": ["name", "range / values",
+                                                                  "levels", "meaning"],
+                          "rows": sweep_rows})
+    setting_rows = ([["method", config.method]]
+                    + [[f"objective {k}", str(v)] for k, v in config.objectives.items()]
+                    + [[f"constraint {k}", str(v)] for k, v in config.constraints.items()]
+                    + [[f"fixed {k}", fmt_value(v)] for k, v in config.fixed.items()]
+                    + [[f"settings {k}", fmt_value(v) if not isinstance(v, dict) else
+                        ", ".join(f"{a} = {fmt_value(b)}" for a, b in v.items())]
+                       for k, v in config.settings.items()]
+                    + [[f"protocol {k}", fmt_value(v)] for k, v in config.protocol.items()])
+    ctx["tables"].append({"title": "Sweep settings", "columns": ["setting", "value"],
+                          "rows": setting_rows})
+    files = [out / "results.parquet", out / "optimize.json", *written.values()]
+    if chosen_dir is not None and (Path(chosen_dir) / "prediction" / "prediction.json").is_file():
+        import json
+
+        chosen_dir = Path(chosen_dir)
+        pdir = chosen_dir / "prediction"
+        pred = json.loads((pdir / "prediction.json").read_text())
+        renders = [(p, f"chosen design: {p.name}") for p in sorted(chosen_dir.glob("*.png"))]
+        if (pdir / "deformed.png").is_file():
+            renders.append((pdir / "deformed.png", "chosen design deformed under its first "
+                            "load case"))
+        sec = prediction_sections(pred, pdir, part_cls=part_cls,
+                                  settings_cls=sensor.settings if sensor else None,
+                                  protocol_cls=sensor.protocol if sensor else None,
+                                  render_pngs=renders)
+        ctx["renders"] = sec["renders"]
+        ctx["stress"], ctx["paper"] = sec["stress"], sec["paper"]
+        ctx["plots"] = images + [f for f in sec["plots"]
+                                 if not f["caption"].startswith(("design", "deformed"))]
+        ctx["results"] = ctx.get("results", []) + [
+            {**r, "note": (r["note"] + " (chosen design's prediction)").strip()}
+            for r in sec["results"] if r["name"] not in {x["name"] for x in ctx.get("results", [])}]
+        ctx["tables"] = sec["tables"] + ctx["tables"]
+        ctx["warnings"] = [f"chosen design: {w}" for w in sec["warnings"]]
+        files += [p for p in chosen_dir.rglob("*") if p.is_file()]
+    ctx["files"] = file_links(out, [f for f in files if Path(f).exists()])
+    render_report(out / "report.html", ctx)
     written["html"] = out / "report.html"
     return written

@@ -48,7 +48,9 @@ class Prediction:
     metrics:  hysteresis %, calibration matrix, condition number, sensitivity, K_f, timings (s),
               paper comparison... (the keys of ``prediction.json``)
     result:   the sensor's raw virtual-test result: time series, FEM mesh and displacement
-    warnings: what the run warned about (range checks, rendering)
+    warnings: what the run warned about (range checks, rendering, safety factors below 2)
+    load_cases, stresses: the load cases of the stress check and their von Mises fields
+              (:mod:`designlab.fem.stress`; ``metrics["stress"]`` has the maxima)
     """
 
     sensor: str
@@ -58,6 +60,8 @@ class Prediction:
     metrics: dict[str, Any]
     result: Any = None
     warnings: list[str] = field(default_factory=list)
+    load_cases: list[Any] = field(default_factory=list, repr=False)
+    stresses: list[Any] = field(default_factory=list, repr=False)
 
     @property
     def design(self) -> dict[str, Any]:
@@ -180,11 +184,45 @@ def predict(name: str, overrides: dict[str, Any] | None = None, *,
                                                         "calibration_matrix") if k in report}
         report.update(sensor.apply_model(report, result, model_path, proto, sett))
     report.setdefault("geometric_condition_number", None)
-    report["timings_s"] = {"cad": t_cad, **report.get("timings_s", {})}
+    t0 = time.perf_counter()
+    if progress:
+        progress("stress")
+    cases, stresses, stress_warn = _stress(sensor, part, proto, sett, result, cache, report)
+    report["timings_s"] = {"cad": t_cad, **report.get("timings_s", {}),
+                           "stress": time.perf_counter() - t0}
     report["timings_s"]["total"] = float(sum(v for v in report["timings_s"].values()
                                              if isinstance(v, (int, float))))
     return Prediction(name, as_dict(part), proto, sett, report, result,
-                      [str(w.message) for w in caught])
+                      [str(w.message) for w in caught] + stress_warn, cases, stresses)
+
+
+def _stress(sensor, part, protocol, settings, result, cache, report):
+    """The load cases of the virtual test (``Sensor.load_cases``, else the result's one
+    displacement), their von Mises stress and the ``stress`` section of the report (None when
+    the prediction has no mesh)."""
+    from designlab.fem.stress import case_stresses, stress_report, stress_warnings
+    from designlab.sensors.sensor import LoadCase
+
+    mesh = getattr(result, "mesh", None)
+    if mesh is None:
+        report["stress"] = None
+        return [], [], []
+    if sensor.load_cases is not None:
+        cases = sensor.load_cases(part, protocol, settings, result, cache)
+    elif getattr(result, "displacement", None) is not None:
+        info = report.get("vtu_load") or {}
+        text = ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
+                         for k, v in info.items())
+        cases = [LoadCase("design load", "the largest load of the virtual test"
+                          + (f" ({text})" if text else ""), result.displacement)]
+    else:
+        cases = []
+    if not cases:
+        report["stress"] = None
+        return [], [], []
+    stresses = case_stresses(mesh, {c.name: (c.description, c.displacement) for c in cases})
+    report["stress"] = stress_report(mesh, stresses)
+    return cases, stresses, stress_warnings(report["stress"])
 
 
 def _dig(report: dict[str, Any], path: str) -> float:
@@ -266,7 +304,20 @@ def write_prediction(prediction: Prediction, out: str | Path) -> list[Path]:
         if mesh is not None and u is not None:
             from designlab.fem.output import write_png, write_vtu
 
-            write_vtu(stage / "deformed.vtu", mesh, point_data={"displacement": u})
+            pdata, cdata = {"displacement": u}, {}
+            for c, st in zip(prediction.load_cases, prediction.stresses):
+                if c.vtu:
+                    pdata[f"displacement {c.name} (mm)"] = np.asarray(c.displacement)
+                    pdata[f"von Mises {c.name} (MPa)"] = st.node
+                    cdata[f"von Mises {c.name} (MPa)"] = st.cell
+            regions = sorted(mesh.region_names)
+            write_vtu(stage / "deformed.vtu", mesh, point_data=pdata, cell_data=cdata,
+                      field_data={"region_ids": [int(r) for r in regions],
+                                  "region_names": [mesh.region_names[r] for r in regions],
+                                  "region_materials": [mesh.materials.get(
+                                      mesh.region_names[r], "") for r in regions],
+                                  "load_cases": [f"{c.name}: {c.description}"
+                                                 for c in prediction.load_cases if c.vtu]})
             names.append("deformed.vtu")
             try:
                 write_png(stage / "deformed.png", mesh, np.asarray(u))
@@ -275,7 +326,16 @@ def write_prediction(prediction: Prediction, out: str | Path) -> list[Path]:
                 prediction.warnings.append(f"deformed.png not rendered: {exc}")
         prediction.sensor_model().save(stage / "model.json")
         names.append("model.json")
-        atomic_write_json(stage / "prediction.json", prediction.to_json())
+        names += _design_render(prediction, stage)
+        doc = prediction.to_json()
+        atomic_write_json(stage / "run.json", run_manifest(f"predict {prediction.sensor}",
+                                                           {"settings": doc["settings"],
+                                                            "protocol": doc["protocol"],
+                                                            "design": doc["design"]}))
+        names.append("run.json")
+        write_prediction_report(doc, stage, final, [stage / n for n in names])
+        names.append("report.html")
+        atomic_write_json(stage / "prediction.json", doc)
         names.append("prediction.json")
         os.chmod(stage, 0o777 & ~_umask())
         if not final.exists() or not any(final.iterdir()):
@@ -298,6 +358,58 @@ def write_prediction(prediction: Prediction, out: str | Path) -> list[Path]:
         shutil.rmtree(stage, ignore_errors=True)
         raise
     return [out / n for n in names]
+
+
+def run_manifest(what: str, settings: dict[str, Any]) -> dict[str, Any]:
+    """``run.json``: what wrote a folder (the command as typed, designlab version, date,
+    settings); ``--out`` checks it before reusing a folder."""
+    from designlab.sensors.report_html import command_line, now
+
+    return {"format": "designlab-run", "version": 1, "what": what, "command": command_line(),
+            "designlab": __version__, "date": now(), "settings": settings}
+
+
+def _design_render(prediction: Prediction, stage: Path) -> list[str]:
+    """``design.png``: the part as built (bodies coloured, legend of body and material)."""
+    from designlab.geometry.parts import make_part
+    from designlab.geometry.render import render_bodies
+
+    try:
+        part = make_part(prediction.sensor, {k: (tuple(v) if isinstance(v, list) else v)
+                                             for k, v in prediction.params.items()})
+        render_bodies(part.build(), stage / "design.png", size=(1000, 750),
+                      title=f"{prediction.sensor}: the design")
+        return ["design.png"]
+    except Exception as exc:  # a render is a convenience; the prediction is the result
+        prediction.warnings.append(f"design.png not rendered: {type(exc).__name__}: {exc}")
+        return []
+
+
+def write_prediction_report(doc: dict[str, Any], folder: Path, final: Path,
+                            files: list[Path], title: str | None = None) -> Path:
+    """``report.html`` of one prediction (the shared template, :mod:`report_html`): links are
+    relative to ``folder``, which becomes ``final``."""
+    from designlab.sensors.report_html import prediction_sections, render_report
+
+    name = doc["design"]["part"]
+    sensor = get_sensor(name)
+    renders = [(folder / "design.png", "the design (printed bodies opaque, bought parts "
+                "see-through)")] if (folder / "design.png").is_file() else []
+    if (folder / "deformed.png").is_file():
+        renders.append((folder / "deformed.png", "deformed under the first load case (warped, "
+                        "coloured by displacement)"))
+    ctx = prediction_sections(doc, folder, part_cls=sensor.part, settings_cls=sensor.settings,
+                              protocol_cls=sensor.protocol, render_pngs=renders)
+    ctx["plots"] = [f for f in ctx["plots"] if not f["caption"].startswith(("design", "deformed"))]
+    from designlab.sensors.report_html import file_links
+
+    links = file_links(folder, [*files, folder / "prediction.json"])
+    if not (folder / "prediction.json").exists():
+        links.append({"href": "prediction.json", "name": "prediction.json", "what": "JSON"})
+    ctx.update(title=title or f"designlab predict {name}",
+               subtitle=f"virtual test of a {name} design as {sensor.paper} ran it",
+               files=links)
+    return render_report(folder / "report.html", ctx)
 
 
 def _umask() -> int:

@@ -37,6 +37,9 @@ class Sensor:
     meshed:    ``meshed(settings) -> bool``: the prediction rests on a mesh (then it carries a
                discretisation estimate, ``mesh_convergence``); None: always
     convergence: the metrics (dotted paths into the report) whose mesh convergence is reported
+    load_cases: ``load_cases(part, protocol, settings, result, cache) -> [LoadCase]``: the
+               virtual test's load cases as displacements of ``result.mesh`` (stress and
+               safety factor of each); None: the one case of ``result.displacement``
     """
 
     name: str
@@ -52,6 +55,7 @@ class Sensor:
     cached: bool = False
     meshed: Callable[[Any], bool] | None = None
     convergence: tuple[str, ...] = ("condition_number", "hysteresis_percent.overall")
+    load_cases: Callable[..., list["LoadCase"]] | None = None
 
     @property
     def part(self) -> type:
@@ -59,6 +63,26 @@ class Sensor:
         from designlab.geometry.parts import PARTS
 
         return PARTS[self.name]
+
+
+@dataclass
+class LoadCase:
+    """One load case of a virtual test on its FEM mesh.
+
+    name:         short name (a VTU field suffix), e.g. ``"h1 @ 0 deg"``
+    description:  what is applied where, in words, with the force in N
+    displacement: (n_points, 3) mm, long-time
+    point, direction, force_N: where the load acts (mm), its unit direction and size (arrows)
+    vtu:          written as a point field of ``deformed.vtu`` (all cases are in the JSON)
+    """
+
+    name: str
+    description: str
+    displacement: Any
+    point: Any = None
+    direction: Any = None
+    force_N: float | None = None
+    vtu: bool = True
 
 
 def linear_sensor_model(gains: dict[str, dict[str, float]], units: dict[str, str],
