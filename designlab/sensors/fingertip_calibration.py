@@ -224,9 +224,25 @@ def unit_responses(part, fem: dict[str, np.ndarray], settings, build: FingertipB
 
 # ------------------------------------------------------------------------- the virtual test
 
+_SETS: dict = {}
+
+
 def load_sets(part, protocol: HangingWeightTest, rotations_deg) -> tuple[np.ndarray, np.ndarray]:
     """(wrench per N of hanging load (B, 6), unit direction (B, 3)) at every protocol location
-    and rotation."""
+    and rotation (geometry only: kept per part, protocol and rotations, a Monte Carlo reuses
+    them)."""
+    from designlab.params import as_dict
+
+    key = (repr(sorted(as_dict(part).items())), repr(protocol), tuple(rotations_deg))
+    if key not in _SETS:
+        if len(_SETS) > 16:
+            _SETS.clear()
+        _SETS[key] = _load_sets(part, protocol, rotations_deg)
+    W, D = _SETS[key]
+    return W.copy(), D.copy()
+
+
+def _load_sets(part, protocol, rotations_deg):
     from designlab.sensors.fingertip import check_locations, wrench_at_ball
 
     check_locations(part, protocol)
