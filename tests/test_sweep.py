@@ -146,3 +146,53 @@ def test_report_writes_plots_and_html(tmp_path):
     assert files["pareto"].stat().st_size > 1000 and files["sensitivity"].stat().st_size > 1000
     page = files["html"].read_text()
     assert "data:image/png;base64" in page and "deliberately failing" in page
+
+
+def test_error_bars_and_indistinguishable_designs():
+    """Bars: |value - coarse|; a shared FEM compares the difference at both mesh levels, two
+    FEMs add their bars; designs within the bar of their difference are ties."""
+    from designlab.optimize.sweep import difference_error, error_bar, indistinguishable
+
+    cfg = sweep_config(CFG)
+
+    def row(key, v, c, fem):
+        return {"key": key, "status": "ok", "feasible": True, "condition_number": v,
+                "mesh_convergence.condition_number.coarse": c, "fem_key": fem}
+
+    best = row("a", 10.0, 10.5, "F")
+    same_fem_close = row("b", 10.1, 10.7, "F")     # d = 0.1, d_coarse = 0.2 -> bar 0.1: tie
+    same_fem_far = row("c", 10.3, 10.8, "F")       # d = 0.3, d_coarse = 0.3 -> bar 0: distinct
+    other_fem = row("d", 10.8, 10.0, "G")           # d = 0.8, bars 0.5 + 0.8: tie
+    exact = {"key": "e", "status": "ok", "feasible": True, "condition_number": 12.0,
+             "mesh_convergence": None}
+    assert error_bar(best, "condition_number") == pytest.approx(0.5)
+    assert error_bar(exact, "condition_number") == 0.0
+    assert error_bar({"condition_number": 1.0}, "condition_number") != error_bar(
+        {"condition_number": 1.0}, "condition_number")     # unknown -> NaN
+    assert difference_error(same_fem_close, best, "condition_number") == pytest.approx(0.1)
+    assert difference_error(same_fem_far, best, "condition_number") == pytest.approx(0.0)
+    assert difference_error(other_fem, best, "condition_number") == pytest.approx(1.3)
+    rows = [best, same_fem_close, same_fem_far, other_fem, exact]
+    assert indistinguishable(rows, cfg, "a") == ["b", "d"]
+
+
+@pytest.mark.slow
+def test_optimize_exports_the_row_it_reports(tmp_path):
+    """The chosen design's re-prediction (with the sweep's FEM cache) equals its table row."""
+    import json
+
+    from designlab.cli import main
+
+    cfg = tmp_path / "s.toml"
+    cfg.write_text('part = "fingertip"\nmethod = "grid"\n[parameters]\n'
+                   'h = { range = [0.0, 4.0], levels = 2 }\n[fixed]\nr = 9.0\n'
+                   '[settings]\nmodel = { edge_length = 4.0, order = 1 }\n'
+                   '[objectives]\ncondition_number = "min"\n')
+    main(["optimize", str(cfg), "--out", str(tmp_path / "o"), "--workers", "1",
+          "--format", "stl", "--method", "pareto"])
+    summary = json.loads((tmp_path / "o" / "optimize.json").read_text())
+    pred = json.loads((tmp_path / "o" / "chosen" / "prediction" / "prediction.json").read_text())
+    assert pred["condition_number"] == summary["chosen"]["condition_number"]
+    assert pred["hysteresis_percent"]["overall"] == summary["chosen"]["hysteresis_percent.overall"]
+    assert "choice" in summary and isinstance(summary["not_distinguishable"], list)
+    assert len(list((tmp_path / "o" / "fem").glob("*.npz"))) == 2     # fine + coarse, once
