@@ -248,3 +248,64 @@ def test_meshed_table_ii_protocol_under_2_s_and_fine_step_check(meshed):
     F_ref = np.array(ref["loops"]["h1"]["sensor_force_N"])
     F = np.array(got["loops"]["h1"]["sensor_force_N"])
     assert np.abs(F - F_ref).max() < 5e-3 * np.abs(F_ref).max()
+
+
+# ------------------------------------------------------------------------------ wiring
+
+def test_readout_noise_is_seeded_per_location_and_rotation():
+    """Same input, same numbers; a run's noise is its own (seed, location, rotation): it does
+    not change when the protocol has other locations; another seed gives other noise."""
+    cf = lumped_condensed(PART)
+    a = run_contact_test(PART, SHORT, ContactSettings(), cf)
+    b = run_contact_test(PART, SHORT, ContactSettings(), cf)
+    assert a["hysteresis_percent"] == b["hysteresis_percent"]
+    one = HangingWeightTest(g1_locations=("h5",), g2_locations=(), rotations=2)
+    c = run_contact_test(PART, one, ContactSettings(), cf)
+    assert c["loops"]["h5"]["readings_V"] == a["loops"]["h5"]["readings_V"]
+    assert c["hysteresis_percent"]["by_location"]["h5"] == \
+        a["hysteresis_percent"]["by_location"]["h5"]
+    d = run_contact_test(PART, one, ContactSettings(seed=1), cf)
+    assert d["loops"]["h5"]["readings_V"] != c["loops"]["h5"]["readings_V"]
+    assert d["loops"]["h5"]["readings_noise_free_V"] == c["loops"]["h5"]["readings_noise_free_V"]
+
+
+def test_condensed_structure_survives_the_cache_arrays():
+    """The FEM cache stores plain arrays: the condensed structure read back runs the same."""
+    from designlab.sensors.fingertip_contact import CondensedFingertip
+
+    cf = lumped_condensed(PART)
+    data = cf.to_arrays()
+    assert all(isinstance(v, np.ndarray) and v.dtype != object for v in data.values())
+    back = CondensedFingertip.from_arrays(data)
+    s = ContactSettings()
+    assert run_contact_test(PART, SHORT, s, back)["hysteresis_percent"] == \
+        run_contact_test(PART, SHORT, s, cf)["hysteresis_percent"]
+
+
+def test_paper_designs_share_this_designs_fem_and_report_the_goals():
+    """The paper's Table II / III fingertips are built on this design's structure (same FEM
+    key); the comparison names every goal with its value and target, and a goal's verdict
+    follows its value."""
+    from designlab.sensors.fingertip import FingertipModelSettings, fem_key
+    from designlab.sensors.fingertip_contact import paper_comparison, paper_design
+
+    part = CantileverFingertip(base_radius=10.0, h=5.0, r=7.0)
+    fs = FingertipModelSettings()
+    for which, (h, table) in (("II", (28.5, "II")), ("III", (0.0, "III"))):
+        d = paper_design(part, which)
+        assert (d.h, d.r, d.load_table, d.base_radius) == (h, 9.0, table, 10.0)
+        assert fem_key(d, HangingWeightTest(), fs) == fem_key(part, HangingWeightTest(), fs)
+    cf = lumped_condensed(PART)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rep = run_contact_test(PART, SHORT, ContactSettings(), cf)
+        pc = paper_comparison(PART, SHORT, ContactSettings(), cf, rep)
+    g = pc["goals"]
+    ch = g["compressed_change_h9_to_h1"]
+    assert ch["met"] == (abs(ch["value_pct"] - 33.9) <= 15)
+    lo = g["lowest_mean_G1"]
+    assert lo["met"] == (0.49 <= lo["value_with_readout_pct"] <= 1.96)
+    t2 = pc["table_II_design"]["hysteresis_percent"]["robust_eq1_span10_noise_free"]
+    assert list(t2["G1_by_location"]) == [f"h{i}" for i in range(1, 10)]
+    assert pc["table_III_design"]["condition_number"] > 1.4
+    assert g["Pz_error_over_xy"]["met"] == (g["Pz_error_over_xy"]["value"] >= 3)

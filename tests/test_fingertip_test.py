@@ -130,8 +130,22 @@ def test_predict_fingertip_end_to_end(tmp_path):
     assert share["z"] < 0.5 * min(share["x"], share["y"])
     assert 1.5 < pred["condition_number"] < 200
     assert abs(pred["geometric_condition_number"] - 1.41421) < 1e-4
-    for f in ("hysteresis_loops.png", "applied_vs_estimated.png", "deformed.vtu"):
+    for f in ("hysteresis_loops.png", "applied_vs_estimated.png", "deformed.vtu",
+              "paper_comparison.png"):
         assert (tmp_path / f).stat().st_size > 1000
+    # the contact model (default): both eq. 1 definitions, preload, the paper's two designs
+    hp = pred["hysteresis_percent"]
+    assert hp["overall"] > hp["overall_noise_free"] > 0         # readout errors add to friction
+    assert {"paper_eq1_all_sensors", "robust_eq1_span10", "robust_eq1_span10_noise_free"} <= \
+        set(pred["hysteresis_definitions"])
+    assert abs(pred["preload"]["bolt_tension_N"] - 20.0) < 1e-6
+    pc = pred["paper_comparison"]["contact"]
+    assert set(pc["goals"]) == {"G1_falls_monotonically_h1_to_h9", "lowest_mean_G1",
+                                "lowest_mean_G2", "compressed_change_h9_to_h1",
+                                "Pz_error_over_xy"}
+    assert pc["table_III_design"]["condition_number_paper"] == 34.92
+    assert pc["matches"] or pc["does_not_match"]
+    assert "hysteresis_percent.overall_noise_free" in pred["mesh_convergence"]
     from designlab.loop.loop import load_model
 
     model = load_model(tmp_path / "model.json")        # the loop's starting point
@@ -170,14 +184,17 @@ def test_load_only_parameters_leave_the_meshed_bodies_unchanged(tmp_path):
         assert pa.read_bytes() == pb.read_bytes(), name
 
 
-def test_designs_that_share_the_fem_solve_it_once(tmp_path):
+@pytest.mark.parametrize("contact", [True, False])
+def test_designs_that_share_the_fem_solve_it_once(tmp_path, contact):
     """Two (h, r) designs: the second reuses the first one's FEM from the cache folder and its
-    numbers equal an uncached run's exactly; a base parameter changes the key."""
+    numbers equal an uncached run's exactly; a base parameter changes the key. Both models:
+    the contact model (its condensed structure is part of the cached FEM stage) and the
+    linear one (contact=False)."""
     from designlab.fem.cache import FEMCache, clear_memory
     from designlab.sensors.fingertip import fem_key, run
     from designlab.sensors.protocols import HangingWeightTest
 
-    settings = FingertipModelSettings(edge_length=4.0, order=1)
+    settings = FingertipModelSettings(edge_length=4.0, order=1, contact=contact)
     prot = HangingWeightTest(g1_locations=("h4", "h5"), g2_locations=("r1", "r4"))
     a, b = CantileverFingertip(h=0.0, r=9.0), CantileverFingertip(h=6.0, r=8.0)
     assert fem_key(a, prot, settings) == fem_key(b, prot, settings)
@@ -195,6 +212,53 @@ def test_designs_that_share_the_fem_solve_it_once(tmp_path):
     fresh = run(b, prot, settings)                     # no cache: solved again
     assert fresh.report["condition_number"] == rb.report["condition_number"]
     assert fresh.report["hysteresis_percent"] == rb.report["hysteresis_percent"]
+    if contact:
+        # the cached condensed structure is the one condense_fingertip builds on the mesh
+        from designlab.sensors.fingertip import contact_settings, mesh_fingertip
+        from designlab.sensors.fingertip_contact import condense_fingertip, run_contact_test
+
+        cf = condense_fingertip(b, mesh_fingertip(b, settings), settings)
+        direct = run_contact_test(b, prot, contact_settings(settings), cf,
+                                  rotations_deg=settings.rotations_deg)
+        assert direct["hysteresis_percent"] == rb.report["hysteresis_percent"]
+        assert rb.report["model"].startswith("contact")
+        assert rb.report["hysteresis_percent"]["by_location"]["h4"] > 0
+    else:
+        assert rb.report["viscoelastic"] and rb.report["model"].startswith("linear")
+        assert "hysteresis_definitions" not in rb.report
+
+
+def test_contact_settings_are_model_settings_and_leave_the_fem_key():
+    """Every ContactSettings field is a --setting of the fingertip (type-checked, one-line
+    error naming it); the settings that act after the condensation do not change the FEM key,
+    ``contact`` and (with contact) ``structure_moduli`` do."""
+    from designlab.errors import ParameterError
+    from designlab.sensors.fingertip import CONTACT_ONLY_SETTINGS, fem_key
+    from designlab.sensors.predict import model_settings
+
+    s = model_settings("fingertip", {"friction_coefficient": "0.1", "bolt_preload_N": 12,
+                                     "seed": "7"})
+    assert (s.friction_coefficient, s.bolt_preload_N, s.seed, s.contact) == (0.1, 12.0, 7, True)
+    assert model_settings("fingertip", {"contact": "false"}).contact is False
+    with pytest.raises(ParameterError, match="settings.friction_coefficient") as e:
+        model_settings("fingertip", {"friction_coefficient": "3"})
+    assert "\n" not in str(e.value)
+    part, prot = CantileverFingertip(), HangingWeightTest()
+    base = FingertipModelSettings()
+    key = fem_key(part, prot, base)
+    import dataclasses
+    changed = {"friction_coefficient": 0.5, "bolt_preload_N": 10.0, "hertz": False,
+               "sensor_lateral_stiffness": 100.0, "seed": 3, "repeatability_percent_fs": 0.0,
+               "increments_per_step": 8, "daq_bits": 12}
+    assert set(changed) <= set(CONTACT_ONLY_SETTINGS)
+    for k, v in changed.items():
+        assert fem_key(part, prot, dataclasses.replace(base, **{k: v})) == key, k
+    assert fem_key(part, prot, dataclasses.replace(base, contact=False)) != key
+    inst = dataclasses.replace(base, structure_moduli="instantaneous")
+    assert fem_key(part, prot, inst) != key
+    lin = dataclasses.replace(base, contact=False)
+    assert fem_key(part, prot, dataclasses.replace(lin, structure_moduli="instantaneous")) == \
+        fem_key(part, prot, lin)
 
 
 @pytest.mark.slow
