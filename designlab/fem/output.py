@@ -66,23 +66,51 @@ def auto_scale(mesh: TetMesh, u: np.ndarray, fraction: float = 0.1) -> float:
 
 
 def write_png(path, mesh: TetMesh, u: np.ndarray, scale: float | str = "auto",
-              title: str = "", size=(800, 600)) -> Path:
-    """PNG of the deformed mesh (warped by ``u`` x ``scale``) coloured by |u| (mm), atomic."""
+              title: str = "", size=(800, 600), loads=(), case: str = "") -> Path:
+    """PNG of the deformed mesh (warped by ``u`` x ``scale``) coloured by |u| (mm), atomic.
+    Every region is drawn with its outline and listed (name, material); ``loads``: arrows
+    ``(point, direction, force_N)`` pointing at where the load acts; ``case``: the load case
+    in words (printed under the title)."""
     from designlab.geometry.render import ensure_display
 
     path = Path(path)
     u = np.asarray(u, float).reshape(-1, 3)
     k = auto_scale(mesh, u) if scale == "auto" else float(scale)
     label = f"{title + '  ' if title else ''}displacement magnitude (mm), warp x{k:.3g}"
+    bodies = ", ".join(f"{mesh.region_names[r]} ({mesh.materials.get(mesh.region_names[r], '?')})"
+                       for r in sorted(mesh.region_names) if np.any(mesh.region == r))
+    lines = [label] + ([f"load case: {case}"] if case else []) + [f"bodies: {bodies}"]
     with atomic_path(path) as tmp:
         if ensure_display():
-            _png_pyvista(tmp, mesh, u, k, label, size)
+            _png_pyvista(tmp, mesh, u, k, "\n".join(_wrap(lines, size[0])), size, loads)
         else:
-            _png_matplotlib(tmp, mesh, u, k, label, size)
+            _png_matplotlib(tmp, mesh, u, k, "\n".join(_wrap(lines, size[0])), size, loads)
     return path
 
 
-def _png_pyvista(path, mesh, u, k, label, size):
+def _wrap(lines: list[str], width_px: int) -> list[str]:
+    import textwrap
+
+    n = max(40, width_px // 8)
+    return [w for line in lines for w in textwrap.wrap(line, n)]
+
+
+def _arrow_geometry(mesh: TetMesh, loads):
+    """(start, direction, length, text) of each load arrow: it ends at the load point."""
+    diag = float(np.linalg.norm(np.ptp(mesh.points, axis=0)))
+    out = []
+    for point, direction, force in loads:
+        if point is None or direction is None:
+            continue
+        d = np.asarray(direction, float)
+        d = d / (np.linalg.norm(d) or 1.0)
+        L = 0.3 * diag
+        out.append((np.asarray(point, float) - L * d, d, L,
+                    f"F = {force:.3g} N" if force is not None else "F"))
+    return out
+
+
+def _png_pyvista(path, mesh, u, k, label, size, loads=()):
     import pyvista as pv
 
     pv.OFF_SCREEN = True
@@ -92,20 +120,30 @@ def _png_pyvista(path, mesh, u, k, label, size):
                                np.asarray(mesh.points, float))
     grid.point_data["u"] = u
     grid.point_data["displacement (mm)"] = np.linalg.norm(u, axis=1)
-    warped = grid.warp_by_vector("u", factor=k)
     pl = pv.Plotter(off_screen=True, window_size=list(size))
     pl.set_background("white")
+    grid.cell_data["region"] = np.asarray(mesh.region)
+    warped = grid.warp_by_vector("u", factor=k)
     pl.add_mesh(grid.outline(), color="grey")
     pl.add_mesh(warped, scalars="displacement (mm)", cmap="viridis", show_edges=False,
                 scalar_bar_args={"title": "displacement (mm)", "color": "black"})
-    pl.add_text(label, position="upper_edge", font_size=10, color="black")
+    for r in np.unique(mesh.region):      # each body's outline, so that every body shows
+        body = warped.extract_cells(np.flatnonzero(mesh.region == r))
+        pl.add_mesh(body.extract_feature_edges(feature_angle=40), color="black",
+                    line_width=1)
+    for start, d, L, text in _arrow_geometry(mesh, loads):
+        pl.add_mesh(pv.Arrow(start=start, direction=d, scale=L, tip_length=0.25,
+                             tip_radius=0.08, shaft_radius=0.03), color="red")
+        pl.add_point_labels([start], [text], text_color="red", font_size=14,
+                            shape_opacity=0.0, show_points=False, always_visible=True)
+    pl.add_text(label, position="upper_edge", font_size=9, color="black")
     pl.view_isometric()
     pl.reset_camera()
     pl.screenshot(str(path))
     pl.close()
 
 
-def _png_matplotlib(path, mesh, u, k, label, size):
+def _png_matplotlib(path, mesh, u, k, label, size, loads=()):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -124,6 +162,9 @@ def _png_matplotlib(path, mesh, u, k, label, size):
     c, r = (lo + hi) / 2, (hi - lo).max() / 2
     ax.set(xlim=(c[0] - r, c[0] + r), ylim=(c[1] - r, c[1] + r), zlim=(c[2] - r, c[2] + r),
            xlabel="x (mm)", ylabel="y (mm)", zlabel="z (mm)")
+    for start, d, L, text in _arrow_geometry(mesh, loads):
+        ax.quiver(*start, *(L * d), color="red", arrow_length_ratio=0.25)
+        ax.text(*start, text, color="red")
     fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap="viridis"), ax=ax, label="|u| (mm)")
     ax.set_title(label, fontsize=9)
     fig.savefig(path, format="png")

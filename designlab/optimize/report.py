@@ -32,71 +32,70 @@ def pareto_plot(rows: list[dict], config: SweepConfig, pareto_keys: list[str],
                 best_key: str | None, tie_keys: list[str] = ()) -> bytes | None:
     """Scatter of the first two objectives with each design's discretisation error bars (value
     vs one coarser mesh), Pareto set highlighted, designs not distinguishable from the chosen
-    one ringed (None with < 2 objectives)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    one ringed (None with < 2 objectives). Axes: readable names with units."""
+    from designlab.sensors.labels import metric_label
+    from designlab.sensors.plotstyle import close, figure, legend_outside
 
     names = list(config.objectives)
     if len(names) < 2:
         return None
     x, y = _numeric(rows, names[0]), _numeric(rows, names[1])
     is_p = np.array([r["key"] in pareto_keys for r in rows])
-    fig, ax = plt.subplots(figsize=(5.5, 4.2))
+    fig, ax = figure(width=8.5, height=4.6)
     ex, ey = _bars(rows, names[0]), _bars(rows, names[1])
     ok = np.isfinite(x) & np.isfinite(y)
     ax.errorbar(x[ok], y[ok], xerr=np.nan_to_num(ex[ok]), yerr=np.nan_to_num(ey[ok]), fmt="none",
                 ecolor="0.5", elinewidth=0.8, capsize=2, label="mesh error bar", zorder=1)
-    ax.scatter(x[~is_p], y[~is_p], c="0.6", label="designs", zorder=2)
+    ax.scatter(x[~is_p], y[~is_p], c="0.6", marker="o", label="designs", zorder=2)
     order = np.argsort(x[is_p])
-    ax.plot(x[is_p][order], y[is_p][order], "o-", c="C3", label="Pareto set", zorder=3)
+    ax.plot(x[is_p][order], y[is_p][order], "s-", c="#d62728", label="Pareto set", zorder=3)
     tie = np.array([r["key"] in tie_keys for r in rows])
     if tie.any():
-        ax.scatter(x[tie], y[tie], s=160, facecolors="none", edgecolors="C0", zorder=4,
-                   label="not distinguishable from the chosen")
+        ax.scatter(x[tie], y[tie], s=160, facecolors="none", edgecolors="#1f77b4", lw=1.5,
+                   zorder=4, label="not distinguishable from the chosen")
     if best_key is not None:
         b = [i for i, r in enumerate(rows) if r["key"] == best_key][0]
-        ax.scatter([x[b]], [y[b]], s=160, facecolors="none", edgecolors="k", label="chosen",
-                   zorder=5)
-    ax.set_xlabel(f"{names[0]} ({config.objectives[names[0]]})")
-    ax.set_ylabel(f"{names[1]} ({config.objectives[names[1]]})")
-    ax.legend()
+        ax.scatter([x[b]], [y[b]], s=220, facecolors="none", edgecolors="k", lw=2,
+                   label="chosen", zorder=5)
+    ax.set_xlabel(metric_label(names[0], config.objectives[names[0]]))
+    ax.set_ylabel(metric_label(names[1], config.objectives[names[1]]))
+    legend_outside(ax)
     ax.grid(alpha=0.3)
     data = _fig_png(fig)
-    plt.close(fig)
+    close(fig)
     return data
 
 
 def sensitivity_plot(rows: list[dict], config: SweepConfig) -> bytes | None:
-    """Each objective against each swept parameter (one panel per pair)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    """Each objective against each swept parameter (one panel per pair), readable names with
+    units on every axis."""
+    from designlab.sensors.labels import metric_label, param_label
+    from designlab.sensors.plotstyle import close, figure, series_style
+    from designlab.sensors.registry import SENSORS
 
     names = list(config.objectives)
     dims = [d.name for d in config.dimensions]
     if not names:
         return None
-    fig, axes = plt.subplots(len(names), len(dims), figsize=(3.2 * len(dims), 2.6 * len(names)),
-                             squeeze=False)
+    cls = SENSORS[config.part].part if config.part in SENSORS else None
+    fig, axes = figure(len(names), len(dims), width=3.6 * len(dims) + 0.8,
+                       height=3.0 * len(names), squeeze=False)
     for i, n in enumerate(names):
         y = _numeric(rows, n)
         for j, d in enumerate(dims):
             x = _numeric([{**r, "status": "ok"} for r in rows], f"param.{d}")
             ax = axes[i, j]
-            ax.scatter(x, y, s=18)
+            st = series_style(i)
+            ax.scatter(x, y, s=20, c=st["color"], marker=st["marker"])
             ok = np.isfinite(x) & np.isfinite(y)
             if ok.sum() >= 3 and np.ptp(x[ok]) > 0:
                 rho = np.corrcoef(x[ok], y[ok])[0, 1]
                 ax.set_title(f"r = {rho:+.2f}", fontsize=9)
-            ax.set_xlabel(d)
-            ax.set_ylabel(n if j == 0 else "")
+            ax.set_xlabel(param_label(cls, d).split(":")[0])
+            ax.set_ylabel(metric_label(n), fontsize=8)
             ax.grid(alpha=0.3)
-    fig.tight_layout()
     data = _fig_png(fig)
-    plt.close(fig)
+    close(fig)
     return data
 
 

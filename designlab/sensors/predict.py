@@ -320,7 +320,14 @@ def write_prediction(prediction: Prediction, out: str | Path) -> list[Path]:
                                                  for c in prediction.load_cases if c.vtu]})
             names.append("deformed.vtu")
             try:
-                write_png(stage / "deformed.png", mesh, np.asarray(u))
+                first = prediction.load_cases[0] if prediction.load_cases else None
+                if first is not None:
+                    u = np.asarray(first.displacement)
+                write_png(stage / "deformed.png", mesh, np.asarray(u), size=(1000, 750),
+                          title=prediction.sensor,
+                          loads=[(first.point, first.direction, first.force_N)]
+                          if first is not None and first.point is not None else (),
+                          case=first.description if first is not None else "")
                 names.append("deformed.png")
             except Exception as exc:  # rendering is a convenience; the VTU is the result
                 prediction.warnings.append(f"deformed.png not rendered: {exc}")

@@ -519,66 +519,62 @@ def plots(prediction: StrapPrediction, report: dict[str, Any] | None, out_dir: s
           ) -> list[Path]:
     """PNGs: time series, sum/difference vs F_n/F_x, hysteresis loop of the staircase.
     ``report``: the prediction's metrics (default: the virtual test's own report)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from designlab.sensors.plotstyle import (close, figure, legend_outside, loading_style,
+                                             series_style, unloading_style)
 
     out = Path(out_dir)
     report = prediction.report if report is None else report
     s = report["series"]
     t = np.asarray(s["t_s"])
     paths = []
-    fig, ax = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
-    ax[0].plot(t, s["F_n_N"], label="F_n")
-    ax[0].plot(t, s["F_x_N"], label="F_x")
+    fig, ax = figure(3, 1, width=9, height=7.5, sharex=True)
+    for i, (y, lab) in enumerate(((s["F_n_N"], "normal force F_n"), (s["F_x_N"], "shear force F_x"))):
+        ax[0].plot(t, y, color=series_style(i)["color"], label=lab)
     ax[0].set_ylabel("force (N)")
-    ax[1].plot(t, 1e3 * np.asarray(s["dCh1_V"]), label="Ch1 (left)")
-    ax[1].plot(t, 1e3 * np.asarray(s["dCh2_V"]), label="Ch2 (right)")
+    for i, (k, lab) in enumerate((("dCh1_V", "Ch1 (left gauge)"), ("dCh2_V", "Ch2 (right gauge)"))):
+        ax[1].plot(t, 1e3 * np.asarray(s[k]), color=series_style(i + 2)["color"], label=lab)
     ax[1].set_ylabel("channel change (mV)")
-    ax[2].plot(t, 1e3 * np.asarray(s["sum_V"]), label="Ch1 + Ch2")
-    ax[2].plot(t, 1e3 * np.asarray(s["diff_V"]), label="Ch1 - Ch2")
-    ax[2].set_ylabel("mV")
+    for i, (k, lab) in enumerate((("sum_V", "Ch1 + Ch2"), ("diff_V", "Ch1 - Ch2"))):
+        ax[2].plot(t, 1e3 * np.asarray(s[k]), color=series_style(i + 4)["color"], label=lab)
+    ax[2].set_ylabel("sum / difference (mV)")
     ax[2].set_xlabel("time (s)")
     for a in ax:
-        a.legend(loc="upper right")
+        legend_outside(a)
         a.grid(alpha=0.3)
     fig.suptitle("strap virtual load test (seed 000)")
-    fig.tight_layout()
     paths.append(_save(fig, out / "strap_time_series.png"))
-    plt.close(fig)
+    close(fig)
 
-    fig, ax = plt.subplots(1, 2, figsize=(9, 4))
-    ax[0].plot(s["F_n_N"], 1e3 * np.asarray(s["sum_V"]), ".", ms=3)
-    ax[0].set_xlabel("F_n (N)")
+    fig, ax = figure(1, 2, width=10, height=4.2)
+    ax[0].plot(s["F_n_N"], 1e3 * np.asarray(s["sum_V"]), ls="", ms=3, **series_style(4))
+    ax[0].set_xlabel("normal force F_n (N)")
     ax[0].set_ylabel("Ch1 + Ch2 (mV)")
-    ax[1].plot(s["F_x_N"], 1e3 * np.asarray(s["diff_V"]), ".", ms=3, color="C1")
-    ax[1].set_xlabel("F_x (N)")
+    ax[1].plot(s["F_x_N"], 1e3 * np.asarray(s["diff_V"]), ls="", ms=3, **series_style(5))
+    ax[1].set_xlabel("shear force F_x (N)")
     ax[1].set_ylabel("Ch1 - Ch2 (mV)")
     for a in ax:
         a.grid(alpha=0.3)
     fig.suptitle("sum reads the normal force, difference the shear force")
-    fig.tight_layout()
     paths.append(_save(fig, out / "strap_sum_diff.png"))
-    plt.close(fig)
+    close(fig)
 
     loops = report.get("loops") or {}
     if loops:
-        fig, ax = plt.subplots(figsize=(5, 4))
+        fig, ax = figure(width=7, height=4.2)
         fnl = np.asarray(loops["F_n_N"])
         k = int(np.argmax(fnl))
-        for name, c in (("sum", "C0"), ("Ch1", "C1"), ("Ch2", "C2")):
+        for i, name in enumerate(("sum", "Ch1", "Ch2")):
             y = 1e3 * np.asarray(loops["readings_V"][name])
-            ax.plot(fnl[:k + 1], y[:k + 1], "o-", color=c, label=f"{name} up")
-            ax.plot(fnl[k:], y[k:], "s--", color=c, mfc="none", label=f"{name} down")
+            ax.plot(fnl[:k + 1], y[:k + 1], label=f"{name}, loading", **loading_style(i))
+            ax.plot(fnl[k:], y[k:], label=f"{name}, unloading", **unloading_style(i))
         h = report["hysteresis_percent"]["by_location"]
         ax.set_title(f"staircase loop: hysteresis sum {h['sum']:.2g} %")
-        ax.set_xlabel("F_n (N)")
+        ax.set_xlabel("normal force F_n (N)")
         ax.set_ylabel("reading (mV)")
-        ax.legend(fontsize=7)
+        legend_outside(ax)
         ax.grid(alpha=0.3)
-        fig.tight_layout()
         paths.append(_save(fig, out / "strap_hysteresis.png"))
-        plt.close(fig)
+        close(fig)
     return paths
 
 

@@ -312,29 +312,28 @@ def _save(fig, path: Path) -> Path:
 def plots(prediction: FlexurePrediction, report: dict[str, Any] | None, out_dir: str | Path
           ) -> list[Path]:
     """PNG: applied vs estimated wrench per axis (the loads along that axis)."""
-    report = prediction.report if report is None else report
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from designlab.sensors.plotstyle import close, figure, legend_outside, series_style
 
+    report = prediction.report if report is None else report
     W, E = prediction.wrenches, prediction.estimated
-    fig, axes = plt.subplots(2, 3, figsize=(11, 6.5))
+    fig, axes = figure(2, 3, width=12.5, height=7)
+    names = {"m_x": "moment m_x", "m_y": "moment m_y", "m_z": "moment m_z",
+             "f_x": "force f_x", "f_y": "force f_y", "f_z": "force f_z"}
     for i, (name, ax) in enumerate(zip(WRENCH, axes.ravel())):
         on = np.abs(W[:, i]) > 0
-        ax.plot(W[on, i], E[on, i], "o", ms=4, label="estimated")
+        ax.plot(W[on, i], E[on, i], ls="", ms=4, label="estimated from the pose",
+                **series_style(i))
         lim = np.abs(np.r_[W[on, i], E[on, i]]).max() if on.any() else 1.0
-        ax.plot([-lim, lim], [-lim, lim], "k--", lw=0.8, label="1:1")
+        ax.plot([-lim, lim], [-lim, lim], "k--", lw=0.8, label="estimated = applied")
         unit = "N mm" if i < 3 else "N"
-        ax.set_xlabel(f"applied {name} ({unit})")
-        ax.set_ylabel(f"estimated {name} ({unit})")
+        ax.set_xlabel(f"applied {names.get(name, name)} ({unit})")
+        ax.set_ylabel(f"estimated {names.get(name, name)} ({unit})")
         ax.grid(alpha=0.3)
-        if i == 0:
-            ax.legend(fontsize=8)
+    legend_outside(fig, handles=[axes.ravel()[0].lines[1]], where="below")
     fig.suptitle(f"flexure: wrench from pose with the closed-form K_f "
                  f"(truth: {report.get('K_f_source')})")
-    fig.tight_layout()
     path = _save(fig, Path(out_dir) / "flexure_wrench.png")
-    plt.close(fig)
+    close(fig)
     return [path]
 
 
