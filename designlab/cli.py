@@ -244,9 +244,10 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
 
 
 @app.command()
-def flexure(preset: str = typer.Option("visiflex", "--preset",
-                                       help="Spring preset: visiflex (seed 002 as printed) or "
-                                            "visiflex-catalog (wire diameter 2.03 mm, 1.75 active turns)."),
+def flexure(preset: str = typer.Option("visiflex-catalog", "--preset",
+                                       help="Spring preset: visiflex-catalog (default: wire diameter 2.03 mm, "
+                                            "1.75 active turns, the spring `predict flexure` builds) or "
+                                            "visiflex (seed 002 as printed)."),
             set_: Optional[List[str]] = typer.Option(None, "--set", metavar="NAME=VALUE",
                                                      help="Override a spring parameter (mm, rad, MPa)."),
             frame: str = typer.Option("camera", "--frame", help="spring (centre of the spring) or camera."),
@@ -645,7 +646,11 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
             protocol: Optional[Path] = typer.Option(None, "--protocol", help="Protocol TOML (defaults: the papers')."),
             setting: Optional[List[str]] = typer.Option(None, "--setting", help="Model setting NAME=VALUE, e.g. edge_length=2.5."),
             model: Optional[Path] = typer.Option(None, "--model", help="A loop's model.json: add its learned effects (strap)."),
-            out: Path = typer.Option(..., "--out", help="Output directory.")):
+            out: Path = typer.Option(..., "--out", help="Output directory."),
+            samples: Optional[int] = typer.Option(None, "--samples", help="Monte Carlo: N virtual builds with scattered inputs and readout noise (resumable in --out)."),
+            uncertainty: Optional[Path] = typer.Option(None, "--uncertainty", help="TOML with an [uncertainty] table (default: the documented distributions)."),
+            scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Monte Carlo on a Dask scheduler tcp://HOST:PORT."),
+            workers: Optional[int] = typer.Option(None, "--workers", help="Monte Carlo: local worker processes (default: all cores).")):
     """Virtual test of a design before printing: hysteresis, calibration matrix, condition number, K_f."""
     from rich.table import Table
 
@@ -659,9 +664,36 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
     overrides = {}
     if config is not None:
         data = _part_config(part, load_toml(config))
+        data = {k: v for k, v in data.items() if k != "uncertainty"}
         overrides.update(data.get(part, data))
     overrides.update(parse_sets(set_))
     settings = parse_sets(setting)
+    if samples is not None or uncertainty is not None:
+        from designlab.errors import ParameterError
+        from designlab.optimize.montecarlo import monte_carlo
+        from designlab.sensors.uncertainty import load_uncertainty, summary_rows
+
+        _check_options(("--workers", workers, 1, 512))
+        if model is not None or protocol is not None:
+            raise ParameterError("--model/--protocol", str(model or protocol),
+                                 "none with --samples (the Monte Carlo runs the paper's calibration)")
+        spec = load_uncertainty(part, uncertainty if uncertainty is not None else config,
+                                samples=samples)
+        executor = _executor(scheduler, workers)
+        with progress_bar(f"{part}: virtual builds", spec.samples, transient=False) as bar:
+            summary = monte_carlo(part, spec, out, params=overrides, settings=settings or None,
+                                  executor=executor, progress=lambda d, n: bar(completed=d, total=n))
+        t = Table(title=f"{part}: {summary['ok']} builds ({summary['failed']} failed), "
+                        f"FEM solves {summary['fem']['solves_this_run']}")
+        for col in ("metric", "mean", "5 %", "95 %", "driven by"):
+            t.add_column(col, justify="left" if col in ("metric", "driven by") else "right")
+        for r in summary_rows(summary):
+            t.add_row(*r)
+        console.print(t)
+        for err, n in summary["failed_errors"].items():
+            err_console.print(_plain(("failed:", "yellow"), " ", f"{n} builds: {err}"), highlight=False)
+        console.print(f"wrote {out / 'uncertainty.json'}", markup=False, highlight=False)
+        return
     with progress_bar(f"predict {part}: building") as bar:
         prediction = run_predict(part, overrides, protocol_path=protocol, settings=settings,
                                  model_path=model, progress=lambda s: bar(f"predict {part}: {s}"))
@@ -681,6 +713,11 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
         import numpy as np
 
         t.add_row("K_f diagonal (SI)", ", ".join(f"{v:.4g}" for v in np.diag(prediction.K_f)))
+    crit = (pred.get("stress") or {}).get("critical")
+    if crit:
+        t.add_row("smallest safety factor", f"{crit['safety_factor']:.3g} ({crit['body']}, "
+                  f"{crit['material']}, {crit['max_von_mises_MPa']:.3g} MPa von Mises, "
+                  f"load case {crit['load_case']})")
     for k, v in prediction.timings_s.items():
         t.add_row(f"time: {k}", f"{v:.2f} s")
     console.print(t)
