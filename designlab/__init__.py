@@ -2,6 +2,54 @@
 
 Units everywhere inside the package: mm, N, MPa, s (consistent set; stress in MPa = N/mm^2,
 mass density in t/mm^3). Stiffness is reported in SI where a paper does, and says so.
+
+The Python API (names load on first use)::
+
+    import designlab as dl
+    part = dl.Fingertip(h=3, r=9)      # a part: part.params(), part.show(), shown in Jupyter
+    pred = dl.predict(part)            # a Prediction: pred.summary(), pred.plot(), pred.save(DIR)
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
 __version__ = "0.1.0"
+
+__all__ = ["__version__", "Fingertip", "Strap", "Flexure", "PARTS", "SENSORS", "Prediction",
+           "predict", "write_prediction", "get_material", "MATERIALS"]
+
+if TYPE_CHECKING:
+    from designlab.fem.materials import MATERIALS, get_material
+    from designlab.geometry.fingertip import CantileverFingertip as Fingertip
+    from designlab.geometry.flexure import SpringFlexure as Flexure
+    from designlab.geometry.parts import PARTS
+    from designlab.geometry.strap import ArchStrap as Strap
+    from designlab.sensors.predict import Prediction, predict, write_prediction
+    from designlab.sensors.registry import SENSORS
+
+
+def __getattr__(name: str) -> Any:
+    """The API names, imported when first used (``import designlab`` stays light)."""
+    if name in ("Fingertip", "Strap", "Flexure", "PARTS"):
+        from designlab.geometry.parts import PARTS
+
+        return {"Fingertip": PARTS["fingertip"], "Strap": PARTS["strap"],
+                "Flexure": PARTS["flexure"], "PARTS": PARTS}[name]
+    if name in ("Prediction", "predict", "write_prediction"):
+        from designlab.sensors import predict as _p
+
+        return getattr(_p, name)
+    if name == "SENSORS":
+        from designlab.sensors.registry import SENSORS
+
+        return SENSORS
+    if name in ("get_material", "MATERIALS"):
+        from designlab.fem import materials as _m
+
+        return getattr(_m, name)
+    raise AttributeError(f"module 'designlab' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

@@ -42,3 +42,17 @@ def part_name(part) -> str:
         if isinstance(part, cls):
             return k
     raise ParameterError("part", type(part).__name__, "one of " + ", ".join(PARTS))
+
+
+def _add_part_api() -> None:
+    """Every part class gets :class:`~designlab.geometry.api.PartAPI`'s methods (``params()``,
+    ``show()``, ``render()``, ``_repr_png_``) without a change of its dataclass."""
+    from designlab.geometry.api import PartAPI
+
+    for cls in PARTS.values():
+        for name in ("params", "render", "show", "_repr_png_"):
+            if name not in cls.__dict__:
+                setattr(cls, name, getattr(PartAPI, name))
+
+
+_add_part_api()

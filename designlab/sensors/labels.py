@@ -12,7 +12,8 @@ import dataclasses
 import re
 from typing import Any
 
-from designlab.params import allowed_text, fmt_bound
+from designlab.geometry.api import field_rows  # noqa: F401 (re-exported)
+from designlab.params import fmt_bound
 
 #: metric key -> (readable name, unit); "" unit: dimensionless
 METRICS: dict[str, tuple[str, str]] = {
@@ -71,29 +72,6 @@ def metric_label(key: str, direction: str | None = None) -> str:
     if direction in ("min", "max"):
         text += f", {'lower' if direction == 'min' else 'higher'} is better"
     return text
-
-
-def field_rows(obj_or_cls: Any) -> list[dict[str, Any]]:
-    """One row per field of a parameter dataclass: name, value (default for a class), default,
-    unit, allowed range, meaning (the metadata's ``doc``)."""
-    cls = obj_or_cls if isinstance(obj_or_cls, type) else type(obj_or_cls)
-    rows = []
-    for f in dataclasses.fields(cls):
-        if f.name.startswith("_"):
-            continue
-        meta = dict(f.metadata or {})
-        default = f.default if f.default is not dataclasses.MISSING else (
-            f.default_factory() if f.default_factory is not dataclasses.MISSING else None)
-        value = default if isinstance(obj_or_cls, type) else getattr(obj_or_cls, f.name)
-        if meta.get("lo") is None and meta.get("hi") is None and not meta.get("choices"):
-            allowed = {bool: "true or false", int: "an integer", float: "a number",
-                       str: "text", tuple: "a list"}.get(type(default), "")
-        else:
-            allowed = allowed_text(meta)
-        rows.append({"name": f.name, "value": value, "default": default,
-                     "unit": meta.get("unit", ""), "allowed": allowed,
-                     "meaning": meta.get("doc", "")})
-    return rows
 
 
 def param_label(cls: type | None, name: str) -> str:

@@ -98,6 +98,67 @@ class Prediction:
         """The virtual test as a measured-data model (:func:`sensor_model`)."""
         return sensor_model(self.sensor, self.design, self.metrics, self.result)
 
+    # ----- what a notebook or a script shows -----
+    def summary_rows(self) -> list[tuple[str, str, str]]:
+        """(quantity, value, unit) of the key results, error bars and the safety factor."""
+        from designlab.sensors.report_html import result_rows
+
+        rows = [(r["name"], r["value"] + (f" ± {r['bar']}" if r["bar"] not in ("", "0") else ""),
+                 r["unit"]) for r in result_rows(self.metrics)]
+        crit = (self.metrics.get("stress") or {}).get("critical")
+        if crit:
+            rows.append(("critical body", f"{crit['body']} ({crit['material']}) under "
+                         f"{crit['load_case']}", ""))
+        tot = self.timings_s.get("total")
+        if tot is not None:
+            rows.append(("time", f"{tot:.1f}", "s"))
+        return rows
+
+    def summary(self) -> str:
+        """The key results as text (also what ``print(pred)`` is not: that is the dataclass)."""
+        rows = [("quantity", "value", "unit"), *self.summary_rows()]
+        w = [max(len(r[i]) for r in rows) for i in range(3)]
+        lines = [f"{self.sensor} virtual test ({get_sensor(self.sensor).paper})"]
+        lines += ["  ".join(c.ljust(w[i]) for i, c in enumerate(r)).rstrip() for r in rows]
+        lines += [f"warning: {x}" for x in self.warnings]
+        return "\n".join(lines)
+
+    def _repr_html_(self) -> str:
+        import html
+
+        body = "".join(f"<tr><td>{html.escape(a)}</td><td style='text-align:right'>"
+                       f"{html.escape(b)}</td><td>{html.escape(c)}</td></tr>"
+                       for a, b, c in self.summary_rows())
+        warn = "".join(f"<li>{html.escape(x)}</li>" for x in self.warnings)
+        return (f"<b>{html.escape(self.sensor)}</b> virtual test "
+                f"({html.escape(get_sensor(self.sensor).paper)})<table><tr><th>quantity</th>"
+                f"<th>value</th><th>unit</th></tr>{body}</table>"
+                + (f"<p>warnings:</p><ul>{warn}</ul>" if warn else ""))
+
+    def plot(self, out: str | Path | None = None) -> list[Path]:
+        """The sensor's plots as PNG files in ``out`` (default: a new temporary folder); in a
+        notebook they are also displayed."""
+        import tempfile
+
+        folder = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix="designlab-"))
+        folder.mkdir(parents=True, exist_ok=True)
+        files = [Path(f) for f in get_sensor(self.sensor).plots(self.result, self.metrics,
+                                                                   folder)]
+        try:
+            from IPython import get_ipython
+            from IPython.display import Image, display
+
+            if get_ipython() is not None:
+                for f in files:
+                    display(Image(filename=str(f)))
+        except ImportError:
+            pass
+        return files
+
+    def save(self, out: str | Path) -> list[Path]:
+        """Everything ``designlab predict`` writes (:func:`write_prediction`)."""
+        return write_prediction(self, out)
+
 
 def model_settings(name: str, values: dict[str, Any] | None):
     """The sensor's model settings from defaults and ``values`` (``--setting NAME=VALUE``)."""
@@ -144,13 +205,15 @@ def _check_model_path(name: str, model_path: str | Path) -> None:
     load_model(model_path)
 
 
-def predict(name: str, overrides: dict[str, Any] | None = None, *,
+def predict(name: Any, overrides: dict[str, Any] | None = None, *,
             protocol_path: str | Path | None = None, protocol: dict[str, Any] | None = None,
             settings: dict[str, Any] | None = None, model_path: str | Path | None = None,
             progress: Callable[[str], None] | None = None,
             fem_cache: str | Path | None = None) -> Prediction:
-    """Run the virtual test of one design of sensor ``name`` with parameter ``overrides``.
-    ``protocol_path``/``protocol``: a protocol TOML / overrides; ``settings``: model settings;
+    """Run the virtual test of one design: ``name`` is a sensor name (then ``overrides`` are
+    its parameters) or a part object (``designlab.Fingertip(h=3, r=9)``; ``overrides`` change
+    it further). ``protocol_path``/``protocol``: a protocol TOML / overrides; ``settings``:
+    model settings;
     ``model_path``: a loop's model.json whose learned effects correct the virtual test;
     ``fem_cache``: a folder where FEM stages are kept and reused (sweeps)."""
     from designlab.fem.cache import FEMCache
@@ -158,6 +221,13 @@ def predict(name: str, overrides: dict[str, Any] | None = None, *,
     from designlab.geometry.parts import make_part
     from designlab.params import as_dict
 
+    if not isinstance(name, str):
+        from designlab.geometry.parts import part_name
+
+        obj = name
+        name = part_name(obj)
+        overrides = {**as_dict(obj), **(overrides or {})}
+        overrides = {k: (tuple(v) if isinstance(v, list) else v) for k, v in overrides.items()}
     sensor = get_sensor(name)
     t0 = time.perf_counter()
     part = make_part(name, overrides or {})
