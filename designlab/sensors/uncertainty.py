@@ -486,3 +486,16 @@ def summarize(spec: UncertaintySpec, cols: list[str], V: np.ndarray, rows: list[
                                    if spec.sensitivity == "sobol"
                                    else "Spearman rank correlation"),
             "spec": spec.to_json(), "inputs_sampled": cols, "metrics": metrics}
+
+
+def summary_rows(summary: dict[str, Any], drivers: int = 2) -> list[tuple[str, str, str, str, str]]:
+    """(metric, mean, p5, p95, strongest drivers) as text, for the CLI's table."""
+    out = []
+    for m, e in summary["metrics"].items():
+        d = e.get("drivers") or {}
+        if d and isinstance(next(iter(d.values())), dict):
+            txt = ", ".join(f"{k} (ST {v['ST']:.2f})" for k, v in list(d.items())[:drivers])
+        else:
+            txt = ", ".join(f"{k} ({v:+.2f})" for k, v in list(d.items())[:drivers])
+        out.append((m, f"{e['mean']:.4g}", f"{e['p5']:.4g}", f"{e['p95']:.4g}", txt))
+    return out

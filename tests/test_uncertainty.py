@@ -1,0 +1,269 @@
+"""Issue 17: noise budgets, the Monte Carlo of a design, bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from designlab.errors import ParameterError
+from designlab.sensors.noise import FLEXURE_TABLE_I, POSE_NOISE_SIGMA_MM, sigma_from_mean_abs
+from designlab.sensors.uncertainty import (Distribution, draw, parse_uncertainty, run_batch,
+                                           summarize)
+
+
+# ----------------------------------------------------------------------------- distributions
+
+@pytest.mark.parametrize("table, name, text", [
+    ({"bolt_preload_N": {"dist": "normal", "mean": 20.0, "std": -1.0}}, "std", ">= 0"),
+    ({"bolt_preload_N": {"dist": "normal", "mean": 20.0, "std": 2.0, "lo": 21.0}}, "mean",
+     "inside the bounds"),
+    ({"bolt_preload_N": {"dist": "lognormal", "mean": 20.0, "std": 2.0, "hi": 10.0}}, "mean",
+     "inside the bounds"),
+    ({"bolt_preload": {"dist": "uniform", "lo": 1.0, "hi": 2.0}}, "uncertainty.bolt_preload",
+     "bolt_preload_N"),
+    ({"printed_modulus_scale": {"dist": "gauss", "mean": 1.0, "std": 0.1}}, "dist", "normal"),
+    ({"printed_modulus_scale": {"dist": "uniform", "lo": 1.0, "hi": 0.5}}, "hi", "> lo"),
+    ({"printed_modulus_scale": {"dist": "normal", "mean": 1.0, "sd": 0.1}}, "sd", "std"),
+])
+def test_bad_spec_is_one_line_naming_it(table, name, text):
+    with pytest.raises(ParameterError) as e:
+        parse_uncertainty("fingertip", table)
+    msg = str(e.value)
+    assert "\n" not in msg and name in msg and text in msg
+
+
+def test_unknown_name_lists_the_allowed_names():
+    with pytest.raises(ParameterError) as e:
+        parse_uncertainty("flexure", {"pulp_stiffness": {"dist": "fixed", "value": 1.0}})
+    assert "hysteresis_percent" in str(e.value) and "pose_noise_mm" in str(e.value)
+
+
+def test_draws_are_seeded_and_inside_their_bounds():
+    t = {"samples": 500, "bolt_preload_N": {"dist": "normal", "mean": 20.0, "std": 10.0,
+                                            "lo": 15.0, "hi": 22.0}}
+    c1, v1 = draw(parse_uncertainty("fingertip", t))
+    c2, v2 = draw(parse_uncertainty("fingertip", t))
+    _, v3 = draw(parse_uncertainty("fingertip", {**t, "seed": 1}))
+    assert c1 == c2 and np.array_equal(v1, v2) and not np.array_equal(v1, v3)
+    j = c1.index("bolt_preload_N")
+    assert v1[:, j].min() >= 15.0 and v1[:, j].max() <= 22.0
+    # three independent FSS015 units
+    k = [c1.index(f"fss015_sensitivity.{i}") for i in (1, 2, 3)]
+    assert abs(np.corrcoef(v1[:, k].T)[0, 1]) < 0.15
+    assert 2.2 <= v1[:, k].min() and v1[:, k].max() <= 2.6
+
+
+def test_lognormal_has_the_asked_mean_and_std():
+    d = Distribution("lognormal", mean=0.23, std=0.02).check("x")
+    x = d.ppf((np.arange(20000) + 0.5) / 20000)
+    assert x.mean() == pytest.approx(0.23, rel=2e-3) and x.std() == pytest.approx(0.02, rel=2e-2)
+
+
+def test_pose_noise_sigma_from_the_papers_mean_abs():
+    rs = np.random.default_rng(0).normal(0.0, POSE_NOISE_SIGMA_MM, 200000)
+    assert np.abs(rs).mean() == pytest.approx(0.020, rel=1e-2)
+    assert sigma_from_mean_abs(0.020) == pytest.approx(0.02507, rel=1e-3)
+
+
+# ------------------------------------------------------------------------------ flexure
+
+def _flexure():
+    from designlab.geometry.parts import make_part
+    from designlab.sensors.flexure.virtual import run
+
+    p = run(make_part("flexure", {}))
+    return p.K_true, p.K_design
+
+
+def test_flexure_force_error_within_1_5x_of_table_I_with_the_split():
+    from designlab.sensors.flexure.force_test import run_force_test
+
+    K, Kd = _flexure()
+    r = run_force_test(K, Kd)
+    for a in "xyz":
+        ratio = r["per_axis"][a]["std"] / FLEXURE_TABLE_I[a]["std"]
+        assert 1 / 1.5 <= ratio <= 1.5, (a, ratio)
+        split = r["split_std"][a]
+        assert split["hysteresis"] > 0 and split["pose_noise"] > 0
+    assert r["within_1_5x_of_paper"]
+
+
+def test_flexure_mechanisms_alone():
+    from designlab.sensors.flexure.force_test import FlexureForceTest, run_force_test
+
+    K, Kd = _flexure()
+    clean = run_force_test(K, Kd, FlexureForceTest(pose_noise_mm=0.0, hysteresis_percent=0.0))
+    assert max(clean["per_axis"][a]["max_abs"] for a in "xyz") < 1e-9
+    noise = run_force_test(K, Kd, FlexureForceTest(hysteresis_percent=0.0))
+    for i, a in enumerate("xyz"):       # std of K n: the stiffness times the pose noise
+        assert noise["per_axis"][a]["std"] == pytest.approx(K[3 + i, 3 + i] * POSE_NOISE_SIGMA_MM,
+                                                            rel=0.1)
+        assert noise["split_std"][a]["hysteresis"] < 1e-9
+    hyst = run_force_test(K, Kd, FlexureForceTest(pose_noise_mm=0.0))
+    assert all(hyst["split_std"][a]["pose_noise"] == 0 for a in "xyz")
+    more = run_force_test(K, Kd, FlexureForceTest(pose_noise_mm=0.0, hysteresis_percent=5.0))
+    assert all(more["per_axis"][a]["std"] > hyst["per_axis"][a]["std"] for a in "xyz")
+
+
+def test_iwan_loop_deviates_by_the_asked_amplitude():
+    from designlab.sensors.noise import IwanHysteresis
+
+    h = IwanHysteresis(2.0, 0.7, 40)
+    h.move(2.0)
+    xs = np.linspace(2.0, -2.0, 201)
+    down = np.array([h.move(x) for x in xs])
+    up = np.array([h.move(x) for x in xs[::-1]])[::-1]
+    assert np.max(np.abs(down - up)) / 2 == pytest.approx(0.7, rel=1e-6)
+
+
+# ----------------------------------------------------------------------------- Monte Carlo
+
+def _flexure_task(values, indices):
+    from designlab.geometry.parts import make_part
+    from designlab.params import as_dict
+
+    return {"sensor": "flexure", "params": as_dict(make_part("flexure", {})), "settings": None,
+            "protocol": None, "fem_cache": None, "seed": 3, "indices": indices,
+            "values": values}
+
+
+def test_failed_build_is_recorded_and_counted():
+    spec = parse_uncertainty("flexure", {"samples": 3})
+    good = {"hysteresis_percent": 3.0, "pose_noise_mm": 0.025}
+    bad = {"hysteresis_percent": -1.0, "pose_noise_mm": 0.025}
+    res = run_batch(_flexure_task([good, bad, good], [0, 1, 2]))
+    status = [r["status"] for r in res["rows"]]
+    assert status == ["ok", "failed", "ok"]
+    assert "hysteresis_percent" in res["rows"][1]["error"]
+    cols = spec.columns()
+    s = summarize(spec, cols, np.array([[3.0, 0.025], [-1.0, 0.025], [3.0, 0.025]]), res["rows"])
+    assert s["ok"] == 2 and s["failed"] == 1 and s["failed_indices"] == [1]
+    assert sum(s["failed_errors"].values()) == 1
+
+
+def test_build_noise_depends_on_its_index_not_its_batch():
+    v = {"hysteresis_percent": 3.0, "pose_noise_mm": 0.025}
+    a = run_batch(_flexure_task([v, v], [4, 5]))["rows"]
+    b = run_batch(_flexure_task([v], [5]))["rows"]
+    assert a[1]["metrics"] == b[0]["metrics"] and a[0]["metrics"] != a[1]["metrics"]
+
+
+def test_monte_carlo_resumes_and_summarises(tmp_path):
+    from designlab.optimize.executors import LocalExecutor
+    from designlab.optimize.montecarlo import monte_carlo
+
+    spec = parse_uncertainty("flexure", {"samples": 12, "batch": 4})
+    s1 = monte_carlo("flexure", spec, tmp_path, executor=LocalExecutor(1))
+    assert s1["ok"] == 12 and s1["failed"] == 0 and s1["reused_builds"] == 0
+    m = s1["metrics"]["force_error_std.x"]
+    assert m["p5"] <= m["p50"] <= m["p95"] and m["std"] > 0
+    # the hysteresis drives its own share of the error, not the pose noise
+    d = s1["metrics"]["split_std.hysteresis.x"]["drivers"]
+    assert next(iter(d)) == "hysteresis_percent" and d["hysteresis_percent"] > 0.8
+    s2 = monte_carlo("flexure", spec, tmp_path, executor=LocalExecutor(1))
+    assert s2["reused_builds"] == 12 and s2["metrics"] == s1["metrics"]
+    assert json.loads((tmp_path / "uncertainty.json").read_text())["ok"] == 12
+
+
+def test_sobol_indices_with_salib():
+    spec = parse_uncertainty("flexure", {"samples": 8, "sensitivity": "sobol"})
+    cols, V = draw(spec)
+    assert len(V) == 8 * (2 * len(cols) + 2)
+    rows = [{"index": i, "status": "ok", "metrics": {"y": float(3 * v[0] + 0.01 * v[1])}}
+            for i, v in enumerate(V)]
+    s = summarize(spec, cols, V, rows)
+    d = s["metrics"]["y"]["drivers"]
+    assert next(iter(d)) == "hysteresis_percent" and d["hysteresis_percent"]["ST"] > 0.9
+
+
+# ---------------------------------------------------------------------------- fingertip (FEM)
+
+@pytest.fixture(scope="module")
+def fingertip_fem():
+    from designlab.geometry.parts import make_part
+    from designlab.sensors.fingertip import FingertipModelSettings
+    from designlab.sensors.fingertip_calibration import structure
+    from designlab.sensors.protocols import HangingWeightTest
+
+    part = make_part("fingertip", {})
+    sett = FingertipModelSettings()
+    proto = HangingWeightTest.preset("optimized")
+    return part, structure(part, sett, proto), sett, proto
+
+
+@pytest.mark.slow
+def test_condensed_structure_equals_the_linear_fem(fingertip_fem):
+    from designlab.sensors.fingertip import run
+    from designlab.sensors.fingertip_calibration import FingertipBuild, unit_responses
+
+    part, fem, sett, proto = fingertip_fem
+    H = run(part, proto, sett).unit_readings[-1]
+    G = unit_responses(part, fem, sett, FingertipBuild(contact=False))["normal"]
+    assert np.abs(G - H).max() < 1e-3 * np.abs(H).max()
+
+
+@pytest.mark.slow
+def test_printed_modulus_scale_is_exact_without_resolving(fingertip_fem):
+    from designlab.fem.materials import MATERIALS, Material
+    from designlab.sensors.fingertip_calibration import (FingertipBuild, condense_structure,
+                                                         unit_responses)
+
+    part, fem, sett, proto = fingertip_fem
+    m = MATERIALS["ABS"]
+    soft = dict(MATERIALS)
+    soft["ABS"] = Material("ABS", E=0.8 * m.E, nu=m.nu, density=m.density, prony=m.prony,
+                           source="test")
+    import designlab.fem.materials as mats
+    old = dict(mats.MATERIALS)
+    mats.MATERIALS.clear()
+    mats.MATERIALS.update(soft)
+    try:
+        fem_soft = condense_structure(part, sett)
+    finally:
+        mats.MATERIALS.clear()
+        mats.MATERIALS.update(old)
+    b = FingertipBuild(contact=False)
+    scaled = unit_responses(part, fem, sett, FingertipBuild(contact=False,
+                                                            printed_modulus_scale=0.8))
+    direct = unit_responses(part, fem_soft, sett, b)
+    assert np.abs(scaled["normal"] - direct["normal"]).max() < 1e-8
+
+
+@pytest.mark.slow
+def test_fingertip_Pz_worst_as_fig9(fingertip_fem):
+    from designlab.sensors.fingertip_calibration import (fingertip_calibration_budget,
+                                                         nominal_build)
+
+    part, fem, sett, proto = fingertip_fem
+    r = fingertip_calibration_budget(part, sett, proto)
+    assert r["worst_axis"] == "z" and r["Pz_error_over_xy"] > 1.2
+    assert r["split_std"]["z"]["readout_noise"] > r["split_std"]["z"]["model_error"]
+    # no readout noise: the remaining error is the 3-sensor model's alone
+    import dataclasses
+    clean = fingertip_calibration_budget(part, sett, proto, dataclasses.replace(
+        nominal_build(), repeatability_percent_fs=0.0, daq_bits=32))
+    assert clean["split_std"]["z"]["readout_noise"] < 1e-3
+
+
+# ------------------------------------------------------------------------------------ CLI
+
+@pytest.mark.parametrize("toml, text", [
+    ("[uncertainty]\nbolt_preload_N = { dist = 'normal', mean = 20.0, std = -2.0 }\n", ">= 0"),
+    ("[uncertainty]\nwire_modulus = { dist = 'fixed', value = 1.0 }\n", "hysteresis_percent"),
+])
+def test_cli_bad_uncertainty_exit_2_one_line(tmp_path, toml, text):
+    import subprocess
+    import sys
+
+    f = tmp_path / "u.toml"
+    f.write_text(toml)
+    part = "fingertip" if "bolt" in toml else "flexure"
+    r = subprocess.run([sys.executable, "-c", "from designlab.cli import main; main()", "predict",
+                        part, "--uncertainty", str(f), "--samples", "4", "--out",
+                        str(tmp_path / "o")], capture_output=True, text=True)
+    assert r.returncode == 2
+    lines = [x for x in r.stderr.splitlines() if x.strip()]
+    assert len(lines) == 1 and text in lines[0]
+    assert not (tmp_path / "o" / "uncertainty.json").exists()
