@@ -778,6 +778,26 @@ def fit_strap(finger: Optional[str] = typer.Option(None, "--finger", metavar="WI
         console.print(f"wrote {f}", highlight=False)
 
 
+@app.command("params")
+def params_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure",
+                                          autocompletion=_sensor_names)):
+    """A part's parameters: name, default, allowed range, unit, meaning (from the code)."""
+    from rich.table import Table
+
+    from designlab.geometry.api import field_rows
+    from designlab.sensors.registry import get_sensor
+
+    cls = get_sensor(part).part
+    t = Table(title=f"{part} parameters ({cls.__name__}; set with --set NAME=VALUE)")
+    for col in ("name", "default", "allowed", "unit", "meaning"):
+        t.add_column(col, justify="right" if col == "default" else "left")
+    for r in field_rows(cls):
+        t.add_row(r["name"], _short(r["default"]), r["allowed"], r["unit"], r["meaning"])
+    console.print(t)
+    console.print(f"next: designlab show {part} --out {part}.png, or designlab predict {part} "
+                  f"--set NAME=VALUE --out OUT", markup=False, highlight=False)
+
+
 # --- commands (each helper inserts its command above this line) ---
 
 

@@ -57,3 +57,21 @@ def test_getting_started_notebook_runs():
     assert not [o for o in outputs if o.get("output_type") == "error"]
     kinds = {k for o in outputs for k in o.get("data", {})}
     assert {"image/png", "text/html"} <= kinds        # the part's picture, the tables
+
+
+def test_cli_params_lists_every_field(capsys):
+    from designlab.cli import main
+    from designlab.geometry.api import field_rows
+    from designlab.geometry.parts import PARTS
+
+    with pytest.raises(SystemExit) as exc:
+        main(["params", "nope"])
+    assert exc.value.code == 2
+    import os
+
+    os.environ["COLUMNS"] = "250"
+    main(["params", "strap"])
+    out = capsys.readouterr().out
+    for r in field_rows(PARTS["strap"]):
+        assert r["name"] in out
+    assert "trace_thickness" in out and "mm" in out
