@@ -29,6 +29,58 @@ def test_part_gives_the_catalogue_spring():
     assert s.active_length == pytest.approx(VISIFLEX_CATALOG.active_length)
 
 
+def test_default_truth_is_the_chain_of_the_spring_as_built():
+    """`predict flexure` (SpringFlexure defaults) and `designlab flexure` (catalogue preset)
+    use the same spring as built: the chain's 6x6 at the 10 N working load, at the spring
+    centre; the chain's seat-to-seat length is the part's (an independent number: the CAD)."""
+    import time
+
+    from designlab.sensors.flexure.beam_chain import ChainSettings, chain_stiffness
+
+    assert ft.FlexureModelSettings().truth == "chain"
+    s = ft.spring_as_built(PART)
+    assert (s.wire_radius, s.coils, s.inactive_coils) == (VISIFLEX_CATALOG.wire_radius,
+                                                           VISIFLEX_CATALOG.coils,
+                                                           VISIFLEX_CATALOG.inactive_coils)
+    t0 = time.perf_counter()
+    p = ft.run(PART)
+    assert time.perf_counter() - t0 < 3.0              # ~0.5 s on an idle core; CI slack
+    ref = chain_stiffness(VISIFLEX_CATALOG, ChainSettings(working_load_N=10.0))
+    assert np.array(p.report["K_f"]) == pytest.approx(ref.K_loaded_centre_si, rel=1e-9)
+    assert np.array(p.report["K_f_chain"]) == pytest.approx(ref.K_centre_si, rel=1e-9)
+    assert p.report["chain"]["length_mm"] == pytest.approx(PART.length, abs=1e-3)
+    assert p.report["K_f_source"] == "chain" and p.report["mesh"] is None
+    # the chain is not the Timoshenko column: the ground ends and contact move the lateral term
+    Kt = to_si(stiffness_timoshenko(ft.helical_spring(PART)))
+    assert abs(p.report["K_f"][3][3] / Kt[3, 3] - 1) > 0.2
+    # unloaded: the chain's first state
+    p0 = ft.run(PART, None, ft.FlexureModelSettings(working_load_N=0.0))
+    assert np.array(p0.report["K_f"]) == pytest.approx(ref.K_centre_si, rel=1e-9)
+    assert p0.report["K_f_chain_loaded"] is None
+    # seated (not bonded) ground faces press on the discs at 10 N: ABS (2.2 GPa) seats are
+    # softer than PLA (3.5 GPa) ones; bonded faces leave no seat contact to soften
+    seated = ft.FlexureModelSettings(seat="contact")
+    k_pla = ft.run(PART, None, seated).report["K_f"][5][5]
+    k_abs = ft.run(dataclasses.replace(PART, disc_material="ABS"), None, seated).report["K_f"][5][5]
+    assert k_abs < k_pla < p.report["K_f"][5][5]
+
+
+def test_chain_truth_of_plain_ends_and_bad_designs():
+    """Plain ends: no dead turn, no contact; a pitch whose coils touch at the working load is a
+    one-line error naming pitch_angle."""
+    from designlab.errors import ParameterError
+
+    plain = SpringFlexure(ends="plain", active_coils=3.0)
+    s = ft.spring_as_built(plain)
+    assert s.inactive_coils == 0 and s.coils == 3.0
+    p = ft.run(plain)
+    assert p.report["chain"]["contacts"] == 0 and p.report["K_f_chain_loaded"] is None
+    tight = SpringFlexure(pitch_angle=0.035)    # pitch 3.05 mm: 1.02 mm gaps, 1.46 mm per turn at 10 N
+    with pytest.raises(ParameterError, match="pitch_angle") as exc:
+        ft.run(tight)
+    assert "\n" not in str(exc.value)
+
+
 def test_closed_form_truth_error_statistics():
     """Timoshenko truth, zero-pitch design: the force estimate along x is scaled by
     k_x(design) / k_x(Timoshenko), so the error on +-f levels has zero mean and a known std."""

@@ -145,6 +145,16 @@ def test_cli_flexure_no_fem(tmp_path, shared):
     main(["flexure", "--no-fem", "--json", str(out), "--frame", "spring"])
     data = json.loads(out.read_text())
     assert data["frame"] == "spring" and data["common_factor"]["is_common"]
+    # the default is the catalogue reading, the spring `predict flexure` builds: its chain at
+    # the working load is the virtual test's default truth
+    from designlab.geometry.flexure import SpringFlexure
+    from designlab.sensors.flexure import virtual
+
+    assert data["spring"]["wire_radius"] == 1.015 and data["explanation"] is None
+    truth = virtual.run(SpringFlexure()).report["K_f"]
+    assert np.array(data["chain_loaded"]) == pytest.approx(np.array(truth), rel=1e-9)
+    main(["flexure", "--no-fem", "--preset", "visiflex", "--json", str(out)])
+    assert json.loads(out.read_text())["common_factor"]["factor"] == pytest.approx(7.47, rel=0.01)
     with pytest.raises(SystemExit) as exc:
         main(["flexure", "--no-fem", "--paper-json", str(tmp_path / "missing.json")])
     assert exc.value.code == 2

@@ -64,9 +64,9 @@ RAMP = 0.25
 #: grinding plane above the wire end's centreline, in wire diameters (the solid part's
 #: DEAD_GAP-sized grind, designlab.geometry.flexure._cut_planes)
 GRIND = 0.1
-#: printed seat discs (seed 002: PLA housings); E from designlab.fem.materials "PLA"
-SEAT_E_MPA = 3500.0
-SEAT_NU = 0.36
+#: printed seat discs (seed 002: PLA housings): the default ``ChainSettings.seat_material``,
+#: E and nu from designlab.fem.materials
+SEAT_MATERIAL = "PLA"
 #: master order (u_x, u_y, u_z, th_x, th_y, th_z) -> twist/wrench order (w, v) / (m, f)
 _PERM = np.array([3, 4, 5, 0, 1, 2])
 
@@ -82,7 +82,10 @@ class ChainSettings:
                       doc="ground faces bonded (epoxy), only seated, or the whole dead turn "
                           "set in epoxy"))
     working_load_N: float = field(default=10.0, metadata=rng(0, 1000, unit="N", doc=(
-        "axial compression of the second reference state (seed 002: ~10 N per fingertip)")))
+        "axial compression of the second reference state (seed 002: maximum fingertip force "
+        "10 N)")))
+    seat_material: str = field(default=SEAT_MATERIAL, metadata=rng(
+        choices=("PLA", "ABS"), doc="material of the printed discs (contact modulus of the seats)"))
     perturbation_rad: float = field(default=2e-3, metadata=rng(0, 0.1, lo_open=True, unit="rad"))
     perturbation_mm: float = field(default=0.02, metadata=rng(0, 1, lo_open=True, unit="mm"))
     max_iterations: int = field(default=60, metadata=rng(2, 1000))
@@ -251,7 +254,10 @@ class Chain:
         # ---- contacts
         nu = coil.E / (2 * coil.G) - 1
         E_ss = coil.E / (2 * (1 - nu ** 2))                   # E* of two identical bodies
-        E_seat = 1.0 / ((1 - nu ** 2) / coil.E + (1 - SEAT_NU ** 2) / SEAT_E_MPA)
+        from designlab.fem.materials import get_material
+
+        seat = get_material(settings.seat_material)
+        E_seat = 1.0 / ((1 - nu ** 2) / coil.E + (1 - seat.nu ** 2) / seat.E)
         self.contacts: list[_Contact] = []
         if settings.contact and coil.ends == "closed_ground":
             self._coil_contacts(E_ss * self.h)

@@ -1,8 +1,18 @@
 """Virtual wrench test of the seed 002 spring flexure: wrench -> pose -> estimated wrench.
 
-The built flexure answers a wrench ``W`` at the fingertip with the pose ``X = K_true^-1 W`` (the
-"truth" stiffness: the FEM of the meshed helix with its real pitch and flat ground ends, base
-clamped, tip rigid to a 6-dof master, or the Timoshenko column when ``truth="timoshenko"``). The
+The built flexure answers a wrench ``W`` at the fingertip with the pose ``X = K_true^-1 W``. The
+"truth" stiffness ``K_true`` is, by ``FlexureModelSettings.truth``:
+
+* ``"chain"`` (default, ~0.5 s): the spring as built (:func:`spring_as_built`: closed-and-ground
+  ends, one dead turn per end whose gap to the first active turn closes to zero, seated in the
+  discs, unilateral coil and seat contact) by the beam chain
+  (:func:`designlab.sensors.flexure.beam_chain.chain_stiffness`), linearised at the axial working
+  load ``working_load_N`` (0: the unloaded spring);
+* ``"fem"``: the solid FEM of the meshed helix (real pitch, flat ground ends clamped, tip rigid
+  to a 6-dof master; dead turns meshed 0.1 d clear of their neighbours, no contact);
+* ``"timoshenko"``: the equivalent Timoshenko column (closed form with the active length).
+
+The
 sensor turns the measured pose back into a wrench with the stiffness its designer computed, the
 paper's zero-pitch closed form ``K_design`` (:func:`designlab.sensors.flexure.spring.stiffness_zero_pitch`):
 ``W_est = K_design X``. The error ``W - W_est`` over the protocol's wrenches is reported like
@@ -48,13 +58,21 @@ K_F_UNITS = ("SI: N*m/rad (rotational), N/m (translational), N (couplings); rows
 class FlexureModelSettings(FEMSettings):
     """Settings of the flexure test (mm, s).
 
-    ``truth="timoshenko"`` (default) needs no mesh. ``"fem"`` meshes the helix: with the
+    ``truth="chain"`` (default) is the beam chain of the spring as built (~0.5 s per design, no
+    mesh); ``"timoshenko"`` the column closed form. ``"fem"`` meshes the helix: with the
     defaults (2 mm edges, 0.06 mm envelope, TET10, ~16k cells) fTetWild takes ~110 s and the
     solve ~5 s; its diagonal is within 2 % of a 1 mm mesh (24k cells, ~700 s to mesh). A 0.15 mm
     envelope meshes in ~40 s but thins the wire (-4 % volume, -13 % stiffness)."""
 
-    truth: str = field(default="timoshenko", metadata=rng(choices=("fem", "timoshenko"),
+    truth: str = field(default="chain", metadata=rng(choices=("chain", "fem", "timoshenko"),
                        doc="stiffness of the built flexure"))
+    seat: str = field(default="bonded", metadata=rng(
+        choices=("bonded", "contact", "potted"),
+        doc="chain truth: ground faces bonded to the discs (seed 002: epoxy), only seated "
+            "(wire end bonded), or the whole dead turn potted"))
+    working_load_N: float = field(default=10.0, metadata=rng(0, 1000, unit="N", doc=(
+        "chain truth: axial compression at which the stiffness is linearised (seed 002: "
+        "maximum fingertip force 10 N; 0: the unloaded spring)")))
     edge_length: float = field(default=2.0, metadata=rng(0.1, 10, unit="mm"))
     epsilon: float = field(default=0.06, metadata=rng(0.001, 1, unit="mm",
                            doc="fTetWild envelope of the FEM mesh"))
@@ -82,6 +100,34 @@ def helical_spring(part):
     return HelicalSpring(wire_radius=part.wire_radius, mean_diameter=part.mean_diameter,
                          coils=part.active_coils, inactive_coils=0.0,
                          pitch_angle=part.pitch_angle, E=m.E, G=m.G)
+
+
+def spring_as_built(part):
+    """The :class:`~designlab.sensors.flexure.spring.HelicalSpring` of a ``SpringFlexure`` as
+    built, for the beam chain: ``closed_ground`` -> ``active_coils + 2`` turns of which 2 are
+    dead (one per end), ``plain`` -> ``active_coils`` turns, no dead turn; wire, diameter, pitch
+    angle and the moduli of its wire material. The chain's seat-to-seat length is then the
+    handbook ``n_a p + 2 d``, which is the part's ``length`` for ground ends (plain ends: the
+    chain is clamped at the wire ends, ``n_a p``, the part embeds them ``r / 2`` into each
+    disc)."""
+    from designlab.fem.materials import get_material
+    from designlab.sensors.flexure.spring import GROUND_DEAD_COILS, HelicalSpring
+
+    m = get_material(part.material)
+    dead = GROUND_DEAD_COILS if part.ends == "closed_ground" else 0.0
+    return HelicalSpring(wire_radius=part.wire_radius, mean_diameter=part.mean_diameter,
+                         coils=part.active_coils + dead, inactive_coils=dead,
+                         pitch_angle=part.pitch_angle, E=m.E, G=m.G)
+
+
+def chain_truth(part, settings: "FlexureModelSettings"):
+    """The beam chain of ``part`` as built (:func:`spring_as_built`), seats of the part's disc
+    material: a :class:`~designlab.sensors.flexure.beam_chain.ChainResult`."""
+    from designlab.sensors.flexure.beam_chain import ChainSettings, chain_stiffness
+
+    cs = ChainSettings(seat=settings.seat, working_load_N=settings.working_load_N,
+                       seat_material=getattr(part, "disc_material", "PLA"))
+    return chain_stiffness(spring_as_built(part), cs)
 
 
 def _fem_model(mesh, settings: FlexureModelSettings, centre, materials=None):
@@ -171,10 +217,28 @@ def run(part=None, protocol: FlexureWrenchTest | None = None,
         notes.append("FEM helix: the closed end coils are modelled 0.1 d apart without coil "
                      "contact, so they deform like active coils and the FEM is softer than "
                      "the closed form's active turns (ratios in K_f_fem_over_closed_form)")
+    chain = chain_info = K_chain = K_chain_loaded = None
+    if settings.truth == "chain":
+        t0 = time.perf_counter()
+        say("beam chain of the spring as built")
+        chain = chain_truth(part, settings)
+        K_chain = chain.K_centre
+        K_chain_loaded = chain.at(chain.centre, loaded=True) if chain.K_loaded is not None \
+            else None
+        timings["solve"] += time.perf_counter() - t0
+        chain_info = dict(chain.info, seat=settings.seat,
+                          working_load_N=settings.working_load_N)
     if settings.truth == "fem":
         K_true = K_fem
         notes.append("truth: FEM of the meshed helix (real pitch, ground ends, base clamped, "
                      "tip rigid)")
+    elif settings.truth == "chain":
+        loaded = K_chain_loaded is not None
+        K_true = K_chain_loaded if loaded else K_chain
+        notes.append(f"truth: beam chain of the spring as built ({chain.coil.label}; seat "
+                     f"{settings.seat}; "
+                     + (f"linearised at the {settings.working_load_N:g} N axial working load)"
+                        if loaded else "unloaded)"))
     else:
         K_true = K_tim
         notes.append("truth: Timoshenko column (closed form with the spring's active length); "
@@ -209,6 +273,10 @@ def run(part=None, protocol: FlexureWrenchTest | None = None,
     report["K_f_closed_form"] = to_si(K_design).tolist()
     report["K_f_timoshenko"] = to_si(K_tim).tolist()
     report["K_f_fem"] = to_si(K_fem).tolist() if K_fem is not None else None
+    report["K_f_chain"] = to_si(K_chain).tolist() if K_chain is not None else None
+    report["K_f_chain_loaded"] = to_si(K_chain_loaded).tolist() \
+        if K_chain_loaded is not None else None
+    report["chain"] = chain_info
     report["K_f_fem_over_closed_form"] = (np.diag(K_fem) / np.diag(K_design)).tolist() \
         if K_fem is not None else None
     report["condition_number"] = float(np.linalg.cond(to_si(K_true)))
@@ -348,4 +416,6 @@ def gains(report: dict[str, Any], prediction: FlexurePrediction) -> tuple[dict, 
 SENSOR = Sensor(
     name="flexure", paper="seed 002 (fingertip on a helical spring flexure, Visiflex)",
     protocol=FlexureWrenchTest, settings=FlexureModelSettings, run=run, plots=plots,
-    gains=gains, meshed=lambda settings: settings.truth == "fem")
+    gains=gains, meshed=lambda settings: settings.truth == "fem",
+    apply_model=lambda *a, **k: __import__("designlab.sensors.flexure.loop",
+                                           fromlist=["apply_model"]).apply_model(*a, **k))
