@@ -765,6 +765,8 @@ SENSOR = Sensor(
     name="fingertip", paper="seed 001 (cantilever fingertip on a ball and three FSS015 sensors)",
     protocol=HangingWeightTest, settings=FingertipModelSettings, run=run, plots=plots,
     gains=gains, finish=finish, design_protocol=design_protocol, cached=True,
+    apply_model=lambda *a, **k: __import__("designlab.sensors.fingertip_loop",
+                                           fromlist=["apply_model"]).apply_model(*a, **k),
     convergence=("condition_number", "hysteresis_percent.overall",
                  "hysteresis_percent.overall_noise_free",
                  "hysteresis_percent.by_group_noise_free.G1"))

@@ -504,6 +504,8 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
             "overall_noise_free": mean_of("robust_eq1_span10_noise_free"),
             "overall_paper_definition": mean_of("paper_eq1_all_sensors"),
             "by_group": {g: s["mean"] for g, s in group_stats(by_loc).items()},
+            "by_group_noise_free": {g: s["mean"] for g, s in group_stats(
+                hyst["robust_eq1_span10_noise_free"]).items()},
             "by_location": by_loc,
             "by_location_noise_free": hyst["robust_eq1_span10_noise_free"]},
         "hysteresis_definitions": {
