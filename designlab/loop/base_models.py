@@ -8,6 +8,14 @@
   solution of the box (designlab.fem; linear in E, so solved once at E = 1 MPa) and E fitted on
   the training data; resistance ``R = R0 (1 + GF d / L)`` with R0 and GF fitted.
   ``stretch-closed`` uses the closed form ``k = E A / L`` instead of the FEM.
+- ``load-arm`` (``load-arm:LOAD,ARM[,ANGLE]``): a load ``w`` (a drive input: a hanging weight or
+  a force) acting at a moment arm ``a`` (the input of kind location) in a direction turned by
+  an angle ``phi`` (an input of quantity angle, e.g. the fingertip's rotation; optional). Every
+  component of the wrench it makes about a fixed point is ``w`` times a combination of
+  ``[1, cos phi, sin phi]`` and ``a [1, cos phi, sin phi]``, so a linear sensor reads
+  ``y = y0 + w (g1 + g2 cos phi + g3 sin phi) + w a (g4 + g5 cos phi + g6 sin phi)``; the seven
+  coefficients are fitted (least squares). Exact for loads of one kind (seed 001's lateral loads
+  at heights, or its axial loads at radii), not for a mix of both in one card.
 
 A base is a :class:`Base`: ``kind``, the ``inputs`` it uses per output and fitted
 ``parameters`` per output; :func:`predict` evaluates it. Units: mm, N, MPa, ohm, s.
@@ -25,7 +33,7 @@ from designlab.measured.dataset import Dataset
 from designlab.errors import DataError, ModelError, ParameterError
 
 SPECIMEN = {"length": 40.0, "width": 10.0, "thickness": 4.0, "nu": 0.49}
-BASE_KINDS = ("linear", "stretch-fem", "specimen", "stretch-closed")
+BASE_KINDS = ("linear", "stretch-fem", "specimen", "stretch-closed", "load-arm")
 
 
 @dataclass(frozen=True)
@@ -82,7 +90,10 @@ def fit_base(kind: str, train: Dataset, outputs: list[str]) -> Base:
     name, _, arg = kind.partition(":")
     if name not in BASE_KINDS:
         raise ParameterError("--base", kind, "linear, linear:INPUT[,INPUT..], stretch-fem, "
-                             "specimen, stretch-closed or a model .json file")
+                             "specimen, stretch-closed, load-arm[:LOAD,ARM[,ANGLE]] or a model "
+                             ".json file")
+    if name == "load-arm":
+        return _fit_load_arm(kind, arg, train, outputs)
     if name == "linear":
         use = tuple(a.strip() for a in arg.split(",") if a.strip()) or tuple(train.inputs)
         for u in use:
@@ -137,6 +148,8 @@ def predict(base: Base, data: Dataset, output: str) -> np.ndarray:
         if n not in data.inputs:
             raise DataError(f"the model needs input '{n}', the data has "
                             f"{', '.join(data.inputs) or 'none'}")
+    if base.kind == "load-arm":
+        return _load_arm_columns(data, base.inputs[output]) @ np.asarray(p["coefficients"])
     if base.kind == "linear":
         y = np.full(len(data), p["intercept"])
         for n, g in p["gains"].items():
@@ -146,3 +159,52 @@ def predict(base: Base, data: Dataset, output: str) -> np.ndarray:
     if "E_MPa" in p:
         return p["F0_N"] + p["stiffness_factor"] * p["E_MPa"] * p["area_mm2"] / p["length_mm"] * d
     return p["R0_ohm"] * (1.0 + p["GF"] * d / p["length_mm"])
+
+
+LOAD_ARM_TERMS = ("1", "w", "w cos(phi)", "w sin(phi)", "w a", "w a cos(phi)", "w a sin(phi)")
+
+
+def _load_arm_inputs(kind: str, arg: str, data: Dataset) -> tuple[str, ...]:
+    """(load, arm[, angle]) input names: given after ``load-arm:`` or found by kind/quantity."""
+    if arg:
+        use = tuple(a.strip() for a in arg.split(",") if a.strip())
+        if len(use) not in (2, 3) or any(u not in data.inputs for u in use):
+            raise ParameterError("--base", kind, "load-arm:LOAD,ARM[,ANGLE] with inputs among "
+                                 + ", ".join(data.inputs))
+        return use
+    load = [n for n in data.inputs if data.kinds.get(n, "drive") == "drive"
+            and data.quantities.get(n) in ("mass", "force")]
+    arm = [n for n in data.inputs if data.kinds.get(n) == "location"]
+    angle = [n for n in data.inputs if data.quantities.get(n) == "angle"]
+    if not load or not arm:
+        raise DataError(f"base load-arm needs a load input (a weight or force) and a location "
+                        f"input (kind = \"location\"); the data has "
+                        f"{', '.join(data.inputs) or 'none'}")
+    return (load[0], arm[0], *angle[:1])
+
+
+def _load_arm_columns(data: Dataset, use: tuple[str, ...]) -> np.ndarray:
+    for n in use:
+        if n not in data.inputs:
+            raise DataError(f"the model needs input '{n}', the data has "
+                            f"{', '.join(data.inputs) or 'none'}")
+    w, a = data.inputs[use[0]], data.inputs[use[1]]
+    phi = np.radians(data.inputs[use[2]]) if len(use) > 2 else np.zeros(len(data))
+    c, s = np.cos(phi), np.sin(phi)
+    return np.column_stack([np.ones(len(data)), w, w * c, w * s, w * a, w * a * c, w * a * s])
+
+
+def _fit_load_arm(kind: str, arg: str, train: Dataset, outputs: list[str]) -> Base:
+    use = _load_arm_inputs(kind, arg, train)
+    X = _load_arm_columns(train, use)
+    if len(use) < 3:                     # no angle: the cos/sin columns repeat w and w a
+        X[:, [2, 3, 5, 6]] = 0.0
+    base = Base("load-arm", {o: use for o in outputs})
+    for o in outputs:
+        coef, *_ = np.linalg.lstsq(X, train.outputs[o], rcond=None)
+        base.parameters[o] = {
+            "law": "y = y0 + w (g1 + g2 cos phi + g3 sin phi) + w a (g4 + g5 cos phi + g6 sin phi)",
+            "load": use[0], "arm": use[1], "angle": use[2] if len(use) > 2 else None,
+            "coefficients": [float(v) for v in coef],
+            "terms": dict(zip(LOAD_ARM_TERMS, (float(v) for v in coef)))}
+    return base

@@ -269,6 +269,7 @@ def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[st
                              f"{', '.join(model.outputs)}")
         model.effects = {o: list(model.effects.get(o, [])) for o in model.outputs}
         base_name = f"model ({model.base.kind})"
+        _convert_units(model, data, outs)
     else:
         model = SensorModel(fit_base(base, train, outs), {o: [] for o in outs})
         base_name = base
@@ -294,7 +295,8 @@ def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[st
     cache_tr: dict = {}
     for o in outs:
         rep, ser = _loop_output(model, o, data, train, val, blocks, max_effects, n_se,
-                                min_relative, cache_tr, progress)
+                                min_relative, cache_tr, progress,
+                                fitted_base=not isinstance(base, SensorModel))
         if peer:
             if progress:
                 progress(o, 0, 1, "NARX peer")
@@ -309,16 +311,18 @@ def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[st
     report = {"output": outs[0], **{k: first[k] for k in (
         "effects", "error_before", "error_after", "validation", "unexplained_fraction", "peer",
         "explained_of_learnable", "verdict_kind")}, **report}
-    model.provenance = {"loop": {"base": base_name, "card": data.report.get("card"),
-                                 "errors": {o: {"before": r["error_before"],
-                                                "after": r["error_after"]}
-                                            for o, r in report["outputs"].items()}}}
+    conv = model.provenance.get("unit_conversions") if isinstance(base, SensorModel) else None
+    errors = {o: {"before": r["error_before"], "after": r["error_after"]}
+              for o, r in report["outputs"].items()}
+    model.provenance = {**({"unit_conversions": conv} if conv else {}),
+                        "loop": {"base": base_name, "card": data.report.get("card"),
+                                 "errors": errors}}
     return LoopResult(model, report, series)
 
 
 def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val: Dataset,
-                 blocks, max_effects, n_se, min_relative, cache_tr, progress
-                 ) -> tuple[dict, dict]:
+                 blocks, max_effects, n_se, min_relative, cache_tr, progress,
+                 fitted_base: bool = True) -> tuple[dict, dict]:
     """Greedy selection for one output. Validation predictions are made on the whole record
     (then masked), so filters and run offsets carry over from a run's training part."""
     y, yv, y_all = train.outputs[o], val.outputs[o], data.outputs[o]
@@ -330,6 +334,10 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
     y0_val = yhat_v.copy()
     start_tr = model.predict(train, o, y, upto=0)
     cands, skipped = fx.library(train, o, base_inputs)
+    if fitted_base:
+        for c in [c for c in cands if c.name == "gain_offset"]:
+            skipped[c.key] = "the base is fitted on this data (least-squares offset and gains)"
+        cands = [c for c in cands if c.name != "gain_offset"]
     have = {f.effect.key for f in model.effects[o]}
     cands = [c for c in cands if c.key not in have]
     err_before = rmse(yv, yhat_v)
@@ -352,6 +360,9 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
             break
         best = max(scored, key=lambda c: results[c.key]["relative"])
         chosen = max(passing, key=lambda c: results[c.key]["relative"]) if passing else None
+        # a loaded model's own zero and gain error go first: any other effect would absorb
+        # them in its refit of the base's affine part and be credited with them
+        chosen = next((c for c in passing if c.name == "gain_offset"), chosen)
         rounds.append({"candidates": results, "best": best.key,
                        "accepted": chosen.key if chosen else None})
         if chosen is None:
@@ -417,6 +428,31 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
            "top_var": corrs[0]["variable"] if corrs else None,
            "top_values": _variable(val, corrs[0]["variable"], yhat_v) if corrs else None}
     return rep, ser
+
+
+def _convert_units(model: SensorModel, data: Dataset, outs: list[str]) -> None:
+    """A loaded model whose output unit differs from the data's (a ``predict`` model gives a
+    flexure's rotations in rad, a card's angles are read in deg): a linear base without effects
+    is rescaled to the data's unit (recorded in the provenance); anything else is a one-line
+    ModelError naming the output and both units."""
+    from designlab.measured.dataset import UNITS
+
+    for o in outs:
+        mu, du = model.units.get(o, ""), data.units.get(o, "")
+        if not mu or not du or mu == du:
+            continue
+        table = next((t for t in UNITS.values() if mu in t and du in t), None)
+        factor = (table[mu] / table[du] if table is not None
+                  and not isinstance(table[mu], tuple) else None)
+        if factor is None or model.base.kind != "linear" or model.effects.get(o):
+            raise ModelError(f"the model predicts output '{o}' in {mu}, the data has it in {du}; "
+                             "a model with effects or a nonlinear base cannot be rescaled")
+        p = model.base.parameters[o]
+        p["intercept"] = float(p["intercept"]) * factor
+        p["gains"] = {k: float(v) * factor for k, v in p["gains"].items()}
+        model.provenance.setdefault("unit_conversions", {})[o] = {
+            "from": mu, "to": du, "factor": factor}
+        model.units[o] = du
 
 
 def _check_runs(data: Dataset, peer: bool) -> None:
