@@ -137,7 +137,7 @@ class PardisoSolver(LinearSolver):
         self.setup_seconds = time.perf_counter() - t
 
     def _solve(self, F):
-        _mkl_single_thread()
+        # the factorisation of self._K is reused (pypardiso compares the matrix it was given)
         return np.asarray(self._s.solve(self._K, np.ascontiguousarray(F)), float).reshape(F.shape)
 
 
@@ -147,8 +147,16 @@ def has_pardiso() -> bool:
     return importlib.util.find_spec("pypardiso") is not None
 
 
+_MKL_THREADS_SET = False
+
+
 def _mkl_single_thread() -> None:
-    """One MKL thread: reproducible results and no oversubscription of sweep workers."""
+    """One MKL thread: reproducible results and no oversubscription of sweep workers (set
+    once per process: looking the library up is slow)."""
+    global _MKL_THREADS_SET
+    if _MKL_THREADS_SET:
+        return
+    _MKL_THREADS_SET = True
     try:
         import mkl  # mkl-service, when present
 

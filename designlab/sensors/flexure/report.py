@@ -31,8 +31,11 @@ COMMON_FACTOR_SPREAD = 0.03
 
 
 def find_paper_json(start: str | Path | None = None) -> Path:
-    """Locate ``../shared/data/papers/visiflex_flexure.json`` from ``start`` (default cwd) or the
-    project root; DataError naming the paths tried when missing."""
+    """``../shared/data/papers/visiflex_flexure.json`` from ``start`` (default cwd) or the
+    project root when present, else the copy shipped in the package
+    (``designlab/data/papers``, the same file); DataError naming the paths tried when missing."""
+    from importlib import resources
+
     root = Path(__file__).resolve().parents[2]
     bases = [Path(start) if start is not None else Path.cwd(), root]
     tried = []
@@ -41,6 +44,10 @@ def find_paper_json(start: str | Path | None = None) -> Path:
             tried.append(str(cand))
             if cand.is_file():
                 return cand
+    shipped = Path(str(resources.files("designlab") / "data" / "papers" / PAPER_JSON.name))
+    tried.append(str(shipped))
+    if shipped.is_file():
+        return shipped
     raise DataError("seed 002 paper data not found; looked for " + ", ".join(dict.fromkeys(tried)))
 
 
