@@ -267,3 +267,34 @@ def test_cli_bad_uncertainty_exit_2_one_line(tmp_path, toml, text):
     lines = [x for x in r.stderr.splitlines() if x.strip()]
     assert len(lines) == 1 and text in lines[0]
     assert not (tmp_path / "o" / "uncertainty.json").exists()
+
+
+# ------------------------------------------------------------------------------ robust design
+
+@pytest.mark.slow
+def test_robust_sweep_minimises_a_quantile(tmp_path):
+    from designlab.optimize.executors import LocalExecutor
+    from designlab.optimize.robust import load_robust_config, robust_optimize
+
+    res, bands = robust_optimize("examples/uncertainty_sweep_flexure.toml", tmp_path,
+                                 method="pareto", executor=LocalExecutor(1))
+    name = "mc.force_error_std.z.p95"
+    ok = [r for r in res.sweep.rows if r["status"] == "ok"]
+    assert ok and all(r[name] is not None for r in ok)
+    assert all(r["error"] for r in res.sweep.rows if r["status"] != "ok")   # recorded
+    assert res.chosen[name] == min(r[name] for r in ok)
+    lo, mid, hi = bands[res.chosen["key"]]["mc.force_error_std.z"]
+    assert lo <= mid <= hi and hi == res.chosen[name]
+    # the quantile is not the nominal: designs differ in their spread, not only their centre
+    assert any(r[name] > r["mc.force_error_std.z.mean"] for r in ok)
+    cfg, _ = load_robust_config("examples/uncertainty_sweep_flexure.toml")
+    assert name in cfg.objectives
+
+
+def test_robust_config_refuses_an_unknown_mc_metric():
+    from designlab.optimize.robust import robust_config
+
+    with pytest.raises(ParameterError) as e:
+        robust_config({"part": "flexure", "parameters": {"wire_radius": [0.8, 1.3]},
+                       "uncertainty": {}, "objectives": {"mc.force_error.z.p95": "min"}})
+    assert "force_error_std.z" in str(e.value) and "\n" not in str(e.value)
