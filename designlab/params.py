@@ -87,6 +87,79 @@ def fmt_bound(x: float) -> str:
     return f"{x:.12g}"
 
 
+def _fmt_toward(x: float, up: bool, digits: int = 5) -> str:
+    """``x`` as short text that is still an allowed value: the shortest decimal (up to 6
+    significant digits) equal to ``x`` up to rounding, else ``x`` rounded to ``digits``
+    significant digits *inward* (up for a lower bound, down for an upper one), so typing the printed bound
+    back is always accepted."""
+    if abs(x) < 1e-12:
+        return "0"
+    for d in range(1, 7):
+        s = f"{x:.{d}g}"
+        if close(float(s), x):
+            return s
+    e = math.floor(math.log10(abs(x))) - (digits - 1)
+    q = x / 10.0 ** e
+    q = math.ceil(q) if up else math.floor(q)
+    return f"{q * 10.0 ** e:.{digits + 1}g}"
+
+
+def fmt_lo(x: float) -> str:
+    """A lower bound as an allowed value (rounded up when it is not short)."""
+    return _fmt_toward(x, True)
+
+
+def fmt_hi(x: float) -> str:
+    """An upper bound as an allowed value (rounded down when it is not short)."""
+    return _fmt_toward(x, False)
+
+
+def _unit(unit: str) -> str:
+    return f" {unit}" if unit else ""
+
+
+def _why(why: str) -> str:
+    return f" ({why})" if why else ""
+
+
+def at_least(name: str, value: float, bound: float, why: str = "", unit: str = "mm") -> None:
+    """``value >= bound`` up to rounding, else a one-line :class:`ParameterError` printing the
+    bound as an allowed value: ``slot_pitch=2.3 is not allowed: >= 2.4 mm (why)``."""
+    if not above(value, bound):
+        raise ParameterError(name, value, f">= {fmt_lo(bound)}{_unit(unit)}{_why(why)}")
+
+
+def at_most(name: str, value: float, bound: float, why: str = "", unit: str = "mm") -> None:
+    """``value <= bound`` up to rounding (see :func:`at_least`)."""
+    if not above(bound, value):
+        raise ParameterError(name, value, f"<= {fmt_hi(bound)}{_unit(unit)}{_why(why)}")
+
+
+def within(name: str, value: float, lo: float, hi: float, why: str = "",
+           unit: str = "mm") -> None:
+    """``lo <= value <= hi`` up to rounding. The caller makes sure the range is not empty (an
+    empty range is a constraint of other parameters, which the caller names instead)."""
+    if not (above(value, lo) and above(hi, value)):
+        for digits in range(5, 16):  # a narrow range gets the digits it needs to stay ordered
+            a, b = _fmt_toward(lo, True, digits), _fmt_toward(hi, False, digits)
+            if float(a) <= float(b):
+                break
+        if close(lo, hi) or float(a) > float(b):
+            text = f"= {fmt_lo(lo)}"  # a single value (up to rounding)
+        else:
+            text = f"{a} <= value <= {b}"
+        raise ParameterError(name, value, f"{text}{_unit(unit)}{_why(why)}")
+
+
+def field_range(cls_or_obj: Any, name: str) -> tuple[float, float]:
+    """The documented ``(lo, hi)`` of a field (``-inf``/``inf`` where open)."""
+    for f in dataclasses.fields(cls_or_obj):
+        if f.name == name:
+            lo, hi = f.metadata.get("lo"), f.metadata.get("hi")
+            return (-math.inf if lo is None else lo, math.inf if hi is None else hi)
+    raise KeyError(name)
+
+
 def did_you_mean(name: str, choices: Iterable[str]) -> str:
     """`` (did you mean 'x'?)`` when ``name`` is close to one of ``choices``, else ``""``."""
     m = difflib.get_close_matches(str(name), [str(c) for c in choices], n=1, cutoff=0.6)

@@ -84,8 +84,12 @@ def prepare(name: str, bodies: Mapping[str, Body], nozzle: float = 0.4, layer: f
 def prepare_part(part: Any, name: str | None = None, nozzle: float = 0.4,
                  layer: float = 0.1) -> Prepared:
     """:func:`prepare` for a parametric part object (``part.build() -> {name: Body}``); STEP and
-    glTF come from :func:`designlab.geometry.assembly.assembly`."""
+    glTF come from :func:`designlab.geometry.assembly.assembly`. A part that declares its own
+    ``layer_height`` (the strap: its traces are whole layers) is checked at that layer height,
+    not at ``layer``."""
     from designlab.geometry import assembly as asm
+
+    layer = float(getattr(part, "layer_height", layer))
 
     if name is None:
         from designlab.geometry.parts import part_name
@@ -318,7 +322,8 @@ def resolve_parts(target: str, overrides: Mapping[str, str] | None = None,
 def export_parts(parts: Mapping[str, Any], out_dir: str | Path, formats: Iterable[str] = FORMATS,
                  png: bool = True, nozzle: float = 0.4, layer: float = 0.1,
                  progress: Callable[[str, int, int], None] | None = None) -> "ExportResult":
-    """Check every part, then (only if all are printable) write them all. ``progress(text, done,
+    """Check every part, then (only if all are printable) write them all (``layer``: for parts
+    without a ``layer_height`` of their own, see :func:`prepare_part`). ``progress(text, done,
     total)`` is called per step (build/check of each part, then writing of each part).
     Raises :class:`PrintabilityError` (nothing written) when a body fails its checks."""
     formats = parse_formats(formats)

@@ -38,7 +38,7 @@ from build123d import (Axis, Box, CenterArc, Cylinder, Line, Plane, Pos, Sphere,
 from designlab.errors import ParameterError
 from designlab.geometry.body import Body, FacetSelector
 from designlab.geometry.solids import single_solid
-from designlab.params import rng, validate
+from designlab.params import at_least, at_most, rng, validate, within
 
 #: seed 001 Table II: heights of the lateral (G1) loads and radii of the axial (G2) loads, mm
 TABLE_II_HEIGHTS = (22.76, 21.92, 20.52, 18.72, 16.76, 14.76, 12.76, 10.76, 8.76)
@@ -66,8 +66,8 @@ class CantileverFingertip:
                                                doc="top rounding radius (<= fingertip_radius)"))
     fingertip_radius: float = field(default=9.0, metadata=rng(5.5, 15, unit="mm",
                                                               doc="seed 001: diameter 18"))
-    ball_diameter: float = field(default=9.4, metadata=rng(4, 12, unit="mm",
-                                                           doc="seed 001: 9.4"))
+    ball_diameter: float = field(default=9.4, metadata=rng(6, 12, unit="mm",
+                                                           doc="seed 001: 9.4; takes the bolt"))
     gap: float = field(default=0.5, metadata=rng(0.2, 3, unit="mm",
                                                  doc="fingertip-to-base clearance"))
     base_height: float = field(default=8.0, metadata=rng(4, 30, unit="mm"))
@@ -196,41 +196,30 @@ class CantileverFingertip:
                 for k, (p, d) in self.load_points(azimuth_deg).items()}
 
     def _check(self) -> None:
+        """Constraints between parameters; each error names a parameter whose allowed range
+        (printed as an allowed value) is not empty given the others."""
         R, rb = self.fingertip_radius, self.ball_radius
-        if self.r > R:
-            raise ParameterError("r", self.r, f"<= fingertip_radius = {R:g} mm")
-        need = rb + MIN_WALL
-        if self.h + self.r < need - 1e-9:
-            raise ParameterError("r", self.r, f">= {need - self.h:.3g} mm with h={self.h:g} "
-                                 f"(h + r >= ball radius + {MIN_WALL:g} mm wall covers the seat)")
-        if R < rb + MIN_WALL:
-            raise ParameterError("fingertip_radius", R, f">= {rb + MIN_WALL:.3g} mm "
-                                 "(ball radius + wall)")
+        at_least("fingertip_radius", R, rb + MIN_WALL, f"ball radius {rb:g} + {MIN_WALL:g} mm wall")
+        at_most("r", self.r, R, f"fingertip_radius = {R:g} mm")
+        # r's range [ball radius + wall - h, fingertip_radius] is not empty: R >= ball radius + wall
+        at_least("r", self.r, rb + MIN_WALL - self.h, f"with h={self.h:g}: h + r >= ball radius + "
+                 f"{MIN_WALL:g} mm wall covers the seat")
         # base: the well floors must stay inside the base (wall MIN_WALL)
         s2 = (self.sensor_size + 2 * self.well_clearance) / 2
         c = math.cos(math.radians(SENSOR_ELEVATION_DEG))
         z_low = -(self.well_depth * c + s2 * c)
-        need_h = -z_low + MIN_WALL - self.gap
-        if self.base_height < need_h - 1e-9:
-            raise ParameterError("base_height", self.base_height,
-                                 f">= {need_h:.3g} mm (sensor wells + {MIN_WALL:g} mm floor)")
+        at_least("base_height", self.base_height, -z_low + MIN_WALL - self.gap,
+                 f"sensor wells + {MIN_WALL:g} mm floor")
         rho = math.hypot(self.well_depth * c + s2 * c, s2)
-        if self.base_radius < rho + MIN_WALL - 1e-9:
-            raise ParameterError("base_radius", self.base_radius,
-                                 f">= {rho + MIN_WALL:.3g} mm (sensor wells + wall)")
-        if self.head_diameter < self.bolt_diameter + 0.8:
-            raise ParameterError("head_diameter", self.head_diameter,
-                                 f">= {self.bolt_diameter + 0.8:g} mm (bolt diameter + 0.8)")
+        at_least("base_radius", self.base_radius, rho + MIN_WALL, "sensor wells + wall")
+        at_least("head_diameter", self.head_diameter, self.bolt_diameter + 0.8,
+                 "bolt_diameter + 0.8")
+        # the ball takes the bolt (radius >= bolt diameter + 0.4): not empty, as ball_diameter >= 6
+        at_most("bolt_diameter", self.bolt_diameter, rb - 0.4, "ball radius - 0.4")
         lo, hi = -rb + 2.0, -0.5  # thread engagement >= 2 mm, blind hole below the ball centre
-        top = self.bolt_top_z
-        if not lo <= top <= hi:
-            base = self.bolt_length - top
-            raise ParameterError("bolt_length", self.bolt_length,
-                                 f"{base + lo:.3g} <= value <= {base + hi:.3g} mm (>= 2 mm thread "
-                                 "in the ball, blind hole below its centre)")
-        if self.bolt_diameter / 2 + 0.2 > rb / 2:
-            raise ParameterError("bolt_diameter", self.bolt_diameter,
-                                 f"<= {rb - 0.4:.3g} mm (half the ball diameter - 0.4)")
+        base = self.bolt_length - self.bolt_top_z  # cap bottom to ball centre
+        within("bolt_length", self.bolt_length, base + lo, base + hi,
+               ">= 2 mm thread in the ball, blind hole below its centre")
 
     # ------------------------------------------------------------------------------ API
     def build(self) -> dict[str, Body]:

@@ -33,7 +33,7 @@ from build123d import Box, Cylinder, Helix, Plane, Pos, Spline, sweep, Circle
 from designlab.errors import ParameterError
 from designlab.geometry.body import Body, FacetSelector
 from designlab.geometry.solids import single_solid
-from designlab.params import rng, validate
+from designlab.params import at_least, at_most, rng, validate
 
 #: clearance between neighbouring turns, as a fraction of the wire diameter (dead coils and the
 #: smallest allowed active pitch), so the swept solid never touches itself
@@ -113,26 +113,20 @@ class SpringFlexure:
         return np.array([0.0, 0.0, self.length / 2])
 
     def _check(self) -> None:
+        """Constraints between parameters (each named range is not empty given the others)."""
         d, D = self.wire_diameter, self.mean_diameter
-        if D < 3 * d:
-            raise ParameterError("mean_diameter", D, f">= {3 * d:.3g} mm (spring index D/d >= 3)")
+        at_least("mean_diameter", D, 3 * d, "spring index D/d >= 3")
         p_min = (1 + DEAD_GAP) * d
-        if self.pitch <= p_min:
-            a_min = math.atan(p_min / (math.pi * D))
-            raise ParameterError("pitch_angle", self.pitch_angle,
-                                 f"> {a_min:.4g} rad (pitch {self.pitch:.3g} mm per coil: coils "
-                                 f"touch below {p_min:.3g} mm = 2 x wire radius + 10 %)")
-        if self.ends == "closed_ground" and self.active_coils < 2 * RAMP:
-            raise ParameterError("active_coils", self.active_coils,
-                                 f">= {2 * RAMP:g} for closed_ground ends")
-        r_out = D / 2 + self.wire_radius
-        if self.disc_radius < r_out + 0.5:
-            raise ParameterError("disc_radius", self.disc_radius,
-                                 f">= {r_out + 0.5:.3g} mm (spring outer radius + 0.5)")
-        r_in = D / 2 - self.wire_radius
-        if self.disc_bore > r_in - 0.5:
-            raise ParameterError("disc_bore", self.disc_bore,
-                                 f"<= {r_in - 0.5:.3g} mm (spring inner radius - 0.5)")
+        a_min = math.atan(p_min / (math.pi * D))
+        at_least("pitch_angle", self.pitch_angle, a_min,
+                 f"pitch {self.pitch:.3g} mm per coil: coils touch below {p_min:.3g} mm = "
+                 "2 x wire radius + 10 %", unit="rad")
+        if self.ends == "closed_ground":
+            at_least("active_coils", self.active_coils, 2 * RAMP, "closed_ground ends", unit="")
+        at_least("disc_radius", self.disc_radius, D / 2 + self.wire_radius + 0.5,
+                 "spring outer radius + 0.5")
+        at_most("disc_bore", self.disc_bore, D / 2 - self.wire_radius - 0.5,
+                "spring inner radius - 0.5")
 
     # ------------------------------------------------------------------ centreline
     def pitch_profile(self, u: np.ndarray) -> np.ndarray:

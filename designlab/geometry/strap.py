@@ -32,11 +32,15 @@ from build123d import Plane, Pos, RectangleRounded, Sketch, SlotOverall, extrude
 
 from designlab.errors import ParameterError
 from designlab.geometry.body import Body, FacetSelector
+from designlab.geometry.printability import MM_WALL_FACTOR
 from designlab.geometry.solids import annular_sector, polygon_face, single_solid
-from designlab.params import rng, validate
+from designlab.params import above, at_least, at_most, field_range, rng, validate, within
 
 #: nozzle diameter (mm): the narrowest printable meander line and gap
 NOZZLE = 0.4
+#: narrowest embedded trace line (mm): a second-extruder line inside the strap needs
+#: ``MM_WALL_FACTOR`` nozzle widths (PrusaSlicer drops a 0.6 mm one; see printability)
+MIN_TRACE = MM_WALL_FACTOR * NOZZLE
 #: squares of a right-angle bend of a strip of constant width (Hall, "Resistance calculations
 #: for thin film patterns", Thin Solid Films 1 (1967) 277-295: 0.559)
 CORNER_SQUARES = 0.559
@@ -61,13 +65,14 @@ class ArchStrap:
     tab_length: float = field(default=14.0, metadata=rng(4, 40, unit="mm"))
     slot_count: int = field(default=3, metadata=rng(1, 6, doc="seed 000: 3 per end"))
     slot_length: float = field(default=9.0, metadata=rng(1, 25, unit="mm", doc="across strap"))
-    slot_width: float = field(default=1.6, metadata=rng(0.6, 5, unit="mm", doc="along strap"))
+    slot_width: float = field(default=1.6, metadata=rng(0.8, 5, unit="mm",
+                                                        doc="along strap; the lug is 0.3 narrower"))
     slot_pitch: float = field(default=3.5, metadata=rng(1, 10, unit="mm"))
     slot_end_margin: float = field(default=2.0, metadata=rng(0.8, 10, unit="mm",
                                                              doc="strap end to last slot"))
     legs: int = field(default=4, metadata=rng(2, 16, doc="meander legs (even)"))
-    trace_width: float = field(default=0.8, metadata=rng(NOZZLE, 4, unit="mm",
-                                                         doc=">= one 0.4 mm nozzle line"))
+    trace_width: float = field(default=0.8, metadata=rng(MIN_TRACE, 4, unit="mm",
+                                                         doc=">= two 0.4 mm nozzle lines"))
     trace_gap: float = field(default=0.8, metadata=rng(NOZZLE, 4, unit="mm"))
     gauge_length: float = field(default=8.0, metadata=rng(1, 40, unit="mm",
                                                           doc="leg length along the strap"))
@@ -197,69 +202,101 @@ class ArchStrap:
             - self.lead_length - self.pad_length
         return lo, hi
 
+    def _arch_width_for(self, short: float) -> float:
+        """Smallest arch_width (same arch_height) whose half arc is ``short`` mm longer."""
+        def half_arc(aw: float) -> float:
+            h = min(self.arch_height, aw / 2)
+            R = (aw * aw / 4 + h * h) / (2 * h)
+            return math.atan2(aw / 2, R - h) * R
+        target = half_arc(self.arch_width) + short
+        lo, hi = self.arch_width, field_range(ArchStrap, "arch_width")[1]
+        for _ in range(60):
+            mid = (lo + hi) / 2
+            lo, hi = (mid, hi) if half_arc(mid) < target else (lo, mid)
+        return hi
+
     def _check(self) -> None:
-        w, n, g = self.trace_width, self.legs, self.trace_gap
-        if self.arch_height > self.arch_width / 2:
-            raise ParameterError("arch_height", self.arch_height,
-                                 f"<= {self.arch_width / 2:g} mm (arch_width / 2: at most a "
-                                 "semicircle)")
-        if self.strap_width > 2 * (self.radius - 2):
-            raise ParameterError("strap_width", self.strap_width,
-                                 f"<= {2 * (self.radius - 2):.3g} mm (2 x (arch radius - 2 mm))")
-        top = self.thickness - self.trace_cover - self.trace_thickness
-        if self.trace_cover < self.layer_height:
-            raise ParameterError("trace_cover", self.trace_cover,
-                                 f">= {self.layer_height:g} mm (one layer)")
-        if top < self.layer_height - 1e-9:
-            raise ParameterError("trace_thickness", self.trace_thickness,
-                                 f"<= {self.thickness - self.trace_cover - self.layer_height:.3g}"
-                                 " mm (thickness - trace_cover - one layer of cover)")
-        if self.trace_thickness < self.layer_height - 1e-9:
-            raise ParameterError("trace_thickness", self.trace_thickness,
-                                 f">= {self.layer_height:g} mm (one layer)")
+        """Constraints between parameters. Each error names a parameter whose allowed range
+        (printed as an allowed value) is not empty given the others; where it would be empty,
+        the parameter that empties it is named instead."""
+        w, n, g, lh = self.trace_width, self.legs, self.trace_gap, self.layer_height
+        at_most("arch_height", self.arch_height, self.arch_width / 2,
+                "arch_width / 2: at most a semicircle")
+        at_most("strap_width", self.strap_width, 2 * (self.radius - 2),
+                "2 x (arch radius - 2 mm)")
+        at_least("trace_cover", self.trace_cover, lh, f"one layer_height of {lh:g} mm")
+        at_least("trace_thickness", self.trace_thickness, lh, f"one layer_height of {lh:g} mm")
+        tt_max = self.thickness - self.trace_cover - lh
+        if above(tt_max, lh):  # a trace of at least one layer fits: the trace is too thick
+            at_most("trace_thickness", self.trace_thickness, tt_max,
+                    "thickness - trace_cover - one layer of cover")
+        at_least("thickness", self.thickness, self.trace_cover + self.trace_thickness + lh,
+                 f"trace_cover {self.trace_cover:g} + trace_thickness {self.trace_thickness:g} "
+                 f"+ one {lh:g} mm layer of cover")
         if n % 2:
             raise ParameterError("legs", n, "an even number (both pads at the outer end)")
         avail = self.strap_width - 2 * self.edge_margin
-        w_max = min((avail - (n - 1) * g) / n, (avail - self.pad_width) / (n - 1) - g)
-        if w > w_max + 1e-9:
-            raise ParameterError("trace_width", w,
-                                 f"<= {w_max:.3g} mm (strap width - 2 edge margins, {n} legs, "
-                                 f"gap {g:g}, pad {self.pad_width:g})")
-        pw_max = (n - 1) * (w + g) - g
-        if self.pad_width > pw_max + 1e-9:
-            raise ParameterError("pad_width", self.pad_width,
-                                 f"<= {pw_max:.3g} mm (outer leg spacing - trace_gap)")
-        if self.pad_width < w:
-            raise ParameterError("pad_width", self.pad_width, f">= trace_width = {w:g} mm")
-        if n > 2 and self.lead_length < w + g - 1e-9:
-            raise ParameterError("lead_length", self.lead_length,
-                                 f">= {w + g:g} mm (trace_width + trace_gap: pads clear the "
-                                 "outer turns)")
+        need = max(n * w + (n - 1) * g, (n - 1) * (w + g) + self.pad_width)
+        if not above(avail, need):
+            w_lo = field_range(ArchStrap, "trace_width")[0]
+            w_max = min((avail - (n - 1) * g) / n, (avail - self.pad_width) / (n - 1) - g)
+            pad_max = avail - (n - 1) * (w + g)
+            if above(w_max, w_lo):
+                at_most("trace_width", w, w_max, f"strap_width - 2 edge margins, {n} legs, gap "
+                        f"{g:g}, pad {self.pad_width:g}")
+            if above(pad_max, w):
+                at_most("pad_width", self.pad_width, pad_max,
+                        f"strap_width - 2 edge margins - {n - 1} x (trace_width + trace_gap)")
+            sw_need = 2 * self.edge_margin + need
+            if above(field_range(ArchStrap, "strap_width")[1], sw_need):
+                at_least("strap_width", self.strap_width, sw_need,
+                         f"2 edge margins + {n} legs of {w:g} mm, gaps {g:g}, pad {self.pad_width:g}")
+            fit = [k for k in range(2, n, 2) if above(avail, max(
+                k * w + (k - 1) * g, (k - 1) * (w + g) + self.pad_width))]
+            if fit:
+                at_most("legs", n, max(fit), f"legs that fit in strap_width {self.strap_width:g}"
+                        " - 2 edge margins", unit="")
+            at_most("edge_margin", self.edge_margin, (self.strap_width - need) / 2,
+                    f"room for {n} legs")
+        within("pad_width", self.pad_width, w, (n - 1) * (w + g) - g,
+               "trace_width to outer leg spacing - trace_gap")
+        if n > 2:
+            at_least("lead_length", self.lead_length, w + g,
+                     "trace_width + trace_gap: pads clear the outer turns")
         lo, hi = self.gauge_offset_range()
-        if not lo <= self.gauge_offset <= hi:
-            raise ParameterError("gauge_offset", self.gauge_offset,
-                                 f"{lo:.3g} <= value <= {hi:.3g} mm (gauges apart at the apex and "
-                                 "pads on the arch)")
-        if self.slot_length > avail + 1e-9:
-            raise ParameterError("slot_length", self.slot_length,
-                                 f"<= {avail:.3g} mm (strap width - 2 edge margins)")
-        if self.slot_pitch < self.slot_width + 0.8:
-            raise ParameterError("slot_pitch", self.slot_pitch,
-                                 f">= {self.slot_width + 0.8:.3g} mm (slot_width + 0.8 mm web)")
+        if not above(hi, lo):  # the arch is too short for the gauges: name what to shorten
+            short = lo - hi  # each of these lengths counts once in it
+            lead_lo = (w + g) if n > 2 else 0.0
+            for name, floor in (("gauge_length", 0.0), ("pad_length", 0.0),
+                                ("lead_length", lead_lo), ("edge_margin", 0.0)):
+                v = getattr(self, name)
+                if above(v - short, max(floor, field_range(ArchStrap, name)[0])):
+                    at_most(name, v, v - short, "both gauges with their leads and pads fit "
+                            f"on the arch of length {self.arc_length:.4g} mm")
+            at_least("arch_width", self.arch_width, self._arch_width_for(short),
+                     f"an arch long enough for both gauges with arch_height {self.arch_height:g}")
+        within("gauge_offset", self.gauge_offset, lo, hi,
+               "gauges apart at the apex and pads on the arch")
+        if not above(avail, self.slot_width + 0.2):
+            at_most("slot_width", self.slot_width, avail - 0.2,
+                    "slot_length <= strap_width - 2 edge margins must exceed it by 0.2")
+        within("slot_length", self.slot_length, self.slot_width + 0.2, avail,
+               "longer than slot_width + 0.2 (the lug), at most strap_width - 2 edge margins")
+        at_least("slot_pitch", self.slot_pitch, self.slot_width + 0.8,
+                 "slot_width + 0.8 mm web")
         tab_min = self.slot_end_margin + (self.slot_count - 1) * self.slot_pitch \
             + self.slot_width + 1.0
-        if self.tab_length < tab_min - 1e-9:
-            raise ParameterError("tab_length", self.tab_length,
-                                 f">= {tab_min:.3g} mm (room for {self.slot_count} slots)")
-        if self.contact_length > self.arc_length:
-            raise ParameterError("contact_length", self.contact_length,
-                                 f"<= {self.arc_length:.3g} mm (arch length)")
-        if self.nail_plate_length < 2 * self.slot_width + 4:
-            raise ParameterError("nail_plate_length", self.nail_plate_length,
-                                 f">= {2 * self.slot_width + 4:.3g} mm (two lugs)")
-        if self.nail_plate_width < self.slot_length:
-            raise ParameterError("nail_plate_width", self.nail_plate_width,
-                                 f">= slot_length = {self.slot_length:g} mm")
+        if not above(field_range(ArchStrap, "tab_length")[1], tab_min):
+            k = int((field_range(ArchStrap, "tab_length")[1] - self.slot_end_margin
+                     - self.slot_width - 1.0) // self.slot_pitch) + 1
+            at_most("slot_count", self.slot_count, k, f"slots at pitch {self.slot_pitch:g} mm "
+                    "on the longest tab", unit="")
+        at_least("tab_length", self.tab_length, tab_min, f"room for {self.slot_count} slots")
+        at_most("contact_length", self.contact_length, self.arc_length, "arch length")
+        at_least("nail_plate_length", self.nail_plate_length, 2 * self.slot_width + 4,
+                 "two lugs")
+        at_least("nail_plate_width", self.nail_plate_width, self.slot_length,
+                 f"slot_length = {self.slot_length:g} mm")
 
     # ------------------------------------------------------------------------------ geometry
     def tab_frames(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
@@ -380,7 +417,9 @@ def _trace_right(p: ArchStrap):
         if p.lead_length > 0:
             faces.append(annular_sector(c, R + yi - hw, R + yi + hw, ang["b"], ang["p0"]))
     layer = extrude(Pos(0, 0, z0) * _fuse_faces(faces), amount=z1 - z0)
-    pads = [annular_sector(c, R + yi - p.pad_width / 2, R + yi + p.pad_width / 2,
+    # a pad as wide as the lead (up to rounding) is built exactly as wide: no sliver faces
+    pw = p.trace_width if abs(p.pad_width - p.trace_width) < 1e-3 else p.pad_width
+    pads = [annular_sector(c, R + yi - pw / 2, R + yi + pw / 2,
                            ang["p0"], ang["p1"]) for yi in (y[0], y[-1])]
     pad_solid = extrude(Pos(0, 0, z0) * _fuse_faces(pads), amount=p.thickness - z0)
     return single_solid((layer + pad_solid).clean(), "trace_right")
