@@ -78,7 +78,7 @@ def _flexure():
 
 
 def test_flexure_force_error_within_1_5x_of_table_I_with_the_split():
-    from designlab.sensors.flexure.force_test import run_force_test
+    from designlab.sensors.flexure.force_error import run_force_test
 
     K, Kd = _flexure()
     r = run_force_test(K, Kd)
@@ -91,7 +91,7 @@ def test_flexure_force_error_within_1_5x_of_table_I_with_the_split():
 
 
 def test_flexure_mechanisms_alone():
-    from designlab.sensors.flexure.force_test import FlexureForceTest, run_force_test
+    from designlab.sensors.flexure.force_error import FlexureForceTest, run_force_test
 
     K, Kd = _flexure()
     clean = run_force_test(K, Kd, FlexureForceTest(pose_noise_mm=0.0, hysteresis_percent=0.0))

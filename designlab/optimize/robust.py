@@ -25,20 +25,9 @@ from typing import Any
 
 from designlab.errors import ParameterError
 from designlab.params import did_you_mean, load_toml
+from designlab.sensors.uncertainty import MC_METRICS
 
 STATS = ("mean", "std", "p5", "p50", "p95")
-#: the Monte Carlo metrics of each sensor (keys of ``run_batch`` rows)
-MC_METRICS = {
-    "fingertip": ("force_error_std.x", "force_error_std.y", "force_error_std.z",
-                  "force_error_max_abs.x", "force_error_max_abs.y", "force_error_max_abs.z",
-                  "relative_rms_error.x", "relative_rms_error.y", "relative_rms_error.z",
-                  "Pz_error_over_xy", "worst_axis_is_z", "condition_number", "stick_margin",
-                  "share_through_sensors.z"),
-    "flexure": tuple(f"{k}.{a}" for k in ("force_error_std", "force_error_mean",
-                                           "force_error_max_abs", "split_std.pose_noise",
-                                           "split_std.hysteresis", "split_std.model_error")
-                     for a in "xyz"),
-}
 
 
 def _check_mc_name(part: str, where: str, name: str) -> None:

@@ -761,12 +761,25 @@ def paper_comparison_figure(contact: dict[str, Any], plt):
     return fig
 
 
+def apply_model(*args, **kw):
+    """loop -> predict: :func:`designlab.sensors.fingertip_loop.apply_model`."""
+    from designlab.sensors.fingertip_loop import apply_model as apply
+
+    return apply(*args, **kw)
+
+
+def load_cases(*args, **kw):
+    """Stress load cases: :func:`designlab.sensors.fingertip_loads.load_cases`."""
+    from designlab.sensors.fingertip_loads import load_cases as cases
+
+    return cases(*args, **kw)
+
+
 SENSOR = Sensor(
     name="fingertip", paper="seed 001 (cantilever fingertip on a ball and three FSS015 sensors)",
     protocol=HangingWeightTest, settings=FingertipModelSettings, run=run, plots=plots,
     gains=gains, finish=finish, design_protocol=design_protocol, cached=True,
-    apply_model=lambda *a, **k: __import__("designlab.sensors.fingertip_loop",
-                                           fromlist=["apply_model"]).apply_model(*a, **k),
+    apply_model=apply_model, load_cases=load_cases,
     convergence=("condition_number", "hysteresis_percent.overall",
                  "hysteresis_percent.overall_noise_free",
                  "hysteresis_percent.by_group_noise_free.G1"))

@@ -1,6 +1,6 @@
 """Noise and error sources of the three sensors, each with the value and the source it comes from.
 
-One place for the numbers the error budgets (:mod:`designlab.sensors.flexure.force_test`,
+One place for the numbers the error budgets (:mod:`designlab.sensors.flexure.force_error`,
 :mod:`designlab.sensors.fingertip_calibration`) and the Monte Carlo defaults
 (:mod:`designlab.sensors.uncertainty`) use. The fingertip's readout noise (FSS015 repeatability,
 zero drift, DAQ quantisation) is the colleague's model in

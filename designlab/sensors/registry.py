@@ -4,18 +4,14 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 from designlab.errors import ParameterError
-from designlab.sensors import fingertip, fingertip_loads, strap
+from designlab.sensors import fingertip, strap
 from designlab.sensors.flexure import virtual as flexure
 from designlab.sensors.sensor import Sensor
 
 SENSORS: dict[str, Sensor] = {s.name: s for s in (
     strap.SENSOR,
-    # the fingertip's stress load cases live beside its module (fingertip_loads.py)
-    dataclasses.replace(fingertip.SENSOR, load_cases=fingertip_loads.load_cases)
-    if fingertip.SENSOR.load_cases is None else fingertip.SENSOR,
+    fingertip.SENSOR,
     flexure.SENSOR,
 )}
 

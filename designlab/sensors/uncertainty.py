@@ -186,6 +186,20 @@ FLEXURE_INPUTS = (
 
 INPUTS: dict[str, tuple[Input, ...]] = {"fingertip": FINGERTIP_INPUTS, "flexure": FLEXURE_INPUTS}
 
+#: the Monte Carlo metrics of each sensor (keys of ``run_batch`` rows)
+MC_METRICS = {
+    "fingertip": ("force_error_std.x", "force_error_std.y", "force_error_std.z",
+                  "force_error_max_abs.x", "force_error_max_abs.y", "force_error_max_abs.z",
+                  "relative_rms_error.x", "relative_rms_error.y", "relative_rms_error.z",
+                  "Pz_error_over_xy", "worst_axis_is_z", "condition_number", "stick_margin",
+                  "share_through_sensors.z"),
+    "flexure": tuple(f"{k}.{a}" for k in ("force_error_std", "force_error_mean",
+                                           "force_error_max_abs", "split_std.pose_noise",
+                                           "split_std.hysteresis", "split_std.model_error")
+                     for a in "xyz"),
+}
+
+
 
 def sensor_inputs(sensor: str) -> tuple[Input, ...]:
     """The uncertain inputs of ``sensor`` (``Sensor.uncertainty`` when set, else the table of
@@ -364,7 +378,7 @@ def _fingertip_metrics(part, fem, settings, protocol, values, seed) -> dict[str,
 
 
 def _flexure_metrics(K_true, K_design, values, seed) -> dict[str, Any]:
-    from designlab.sensors.flexure.force_test import FlexureForceTest, run_force_test
+    from designlab.sensors.flexure.force_error import FlexureForceTest, run_force_test
 
     t = FlexureForceTest(hysteresis_percent=values["hysteresis_percent"],
                          pose_noise_mm=values["pose_noise_mm"], seed=seed)
