@@ -199,7 +199,79 @@ class ChainResult:
         return None if self.K_loaded is None else to_si(self.at(self.centre, loaded=True))
 
 
-class Chain:
+class ActiveSet:
+    """Unilateral penalty contacts on a linear structure with a 6-dof master (u, th), solved by
+    an active-set iteration. A subclass sets ``Kq`` (sparse, n_q square: the structure),
+    ``N`` (n_c, n_q: the gap opening per dof), ``kn``, ``g0`` (penalty N/mm and initial gap mm
+    per contact), ``m`` (the master's 6 indices into q), ``nq`` and ``s`` (a
+    :class:`ChainSettings`: perturbations, iteration limit). Shared by the beam chain and the
+    condensed solid FEM (:mod:`designlab.sensors.flexure.helix_fem`)."""
+
+    # ------------------------------------------------------------------ solves
+    def solve(self, q_master=None, f_master=None, ref: dict | None = None) -> dict:
+        """Active-set solve with the master displaced to ``q_master`` (u, th) or loaded by
+        ``f_master`` (f, m; the master free), starting from the active set of ``ref``."""
+        nq, m = self.nq, self.m
+        nc = len(self.contacts)
+        closed = np.zeros(nc, bool) if ref is None else ref["closed"].copy()
+        q = np.zeros(nq) if ref is None else ref["q"].copy()
+        fext = np.zeros(nq)
+        if f_master is not None:
+            fext[m] = f_master
+        free = np.arange(nq) if q_master is None else np.setdiff1d(np.arange(nq), m)
+        if q_master is not None:
+            q[m] = q_master
+        N, kn, g0 = self.N, self.kn, self.g0
+        tol = 1e-6 * self.s.perturbation_mm
+        seen = set()
+        for it in range(self.s.max_iterations):
+            w = kn * closed
+            A = (self.Kq + N.T @ sp.diags(w) @ N).tocsc()
+            b = fext - N.T @ (w * g0)
+            rhs = b[free] - (A[free][:, m] @ q[m] if q_master is not None else 0.0)
+            try:
+                q[free] = spla.splu(A[free][:, free]).solve(rhs)
+            except RuntimeError:
+                raise ModelError("beam chain: singular stiffness (a spring end is not held)") from None
+            g = g0 + N @ q
+            # a band of +-tol around zero gap keeps the current state (no chatter at g ~ 0)
+            new = np.where(g < -tol, True, np.where(g > tol, False, closed))
+            if np.array_equal(new, closed):
+                break
+            key = new.tobytes()
+            if key in seen:
+                # a cycle: change only the contact that violates its state most
+                bad = np.nonzero(new != closed)[0]
+                new = closed.copy()
+                k = bad[np.argmax(np.abs(g[bad]))]
+                new[k] = not closed[k]
+            seen.add(key)
+            closed = new
+        else:
+            raise ModelError(f"beam chain: contact active set did not settle in "
+                             f"{self.s.max_iterations} iterations")
+        reaction = (A @ q - b)[m] + (fext[m] if q_master is None else 0.0)
+        return {"q": q.copy(), "closed": closed, "f_n": np.where(closed, -kn * np.minimum(g, 0), 0.0),
+                "reaction": reaction, "iterations": it + 1}
+
+    def stiffness(self, ref: dict | None = None) -> tuple[np.ndarray, list]:
+        """6x6 (twist -> wrench order) by symmetric master perturbations around ``ref``."""
+        amp = np.r_[[self.s.perturbation_mm] * 3, [self.s.perturbation_rad] * 3]
+        q0 = np.zeros(6) if ref is None else ref["q"][self.m]
+        Kq = np.zeros((6, 6))
+        closed = []
+        for j in range(6):
+            res = []
+            for sgn in (1.0, -1.0):
+                r = self.solve(q_master=q0 + sgn * amp[j] * np.eye(6)[j], ref=ref)
+                res.append(r)
+                closed.append(int(np.count_nonzero(r["closed"])))
+            Kq[:, j] = (res[0]["reaction"] - res[1]["reaction"]) / (2 * amp[j])
+        K = Kq[np.ix_(_PERM, _PERM)]
+        return (K + K.T) / 2, closed
+
+
+class Chain(ActiveSet):
     """Assembled chain: reduced stiffness, contact operators, active-set solves."""
 
     def __init__(self, coil: Coil, settings: ChainSettings):
@@ -316,70 +388,6 @@ class Chain:
                 seat[:, self.m] = self._rigid(self.X[i] + ez)[:3]
                 row = seat[2] - self._uz(i)                             # seat - wire top
                 self.contacts.append(_Contact(row, max(float(c_tip[i]) - r, 0.0), k_n, "seat"))
-
-    # ------------------------------------------------------------------ solves
-    def solve(self, q_master=None, f_master=None, ref: dict | None = None) -> dict:
-        """Active-set solve with the master displaced to ``q_master`` (u, th) or loaded by
-        ``f_master`` (f, m; the master free), starting from the active set of ``ref``."""
-        nq, m = self.nq, self.m
-        nc = len(self.contacts)
-        closed = np.zeros(nc, bool) if ref is None else ref["closed"].copy()
-        q = np.zeros(nq) if ref is None else ref["q"].copy()
-        fext = np.zeros(nq)
-        if f_master is not None:
-            fext[m] = f_master
-        free = np.arange(nq) if q_master is None else np.setdiff1d(np.arange(nq), m)
-        if q_master is not None:
-            q[m] = q_master
-        N, kn, g0 = self.N, self.kn, self.g0
-        tol = 1e-6 * self.s.perturbation_mm
-        seen = set()
-        for it in range(self.s.max_iterations):
-            w = kn * closed
-            A = (self.Kq + N.T @ sp.diags(w) @ N).tocsc()
-            b = fext - N.T @ (w * g0)
-            rhs = b[free] - (A[free][:, m] @ q[m] if q_master is not None else 0.0)
-            try:
-                q[free] = spla.splu(A[free][:, free]).solve(rhs)
-            except RuntimeError:
-                raise ModelError("beam chain: singular stiffness (a spring end is not held)") from None
-            g = g0 + N @ q
-            # a band of +-tol around zero gap keeps the current state (no chatter at g ~ 0)
-            new = np.where(g < -tol, True, np.where(g > tol, False, closed))
-            if np.array_equal(new, closed):
-                break
-            key = new.tobytes()
-            if key in seen:
-                # a cycle: change only the contact that violates its state most
-                bad = np.nonzero(new != closed)[0]
-                new = closed.copy()
-                k = bad[np.argmax(np.abs(g[bad]))]
-                new[k] = not closed[k]
-            seen.add(key)
-            closed = new
-        else:
-            raise ModelError(f"beam chain: contact active set did not settle in "
-                             f"{self.s.max_iterations} iterations")
-        reaction = (A @ q - b)[m] + (fext[m] if q_master is None else 0.0)
-        return {"q": q.copy(), "closed": closed, "f_n": np.where(closed, -kn * np.minimum(g, 0), 0.0),
-                "reaction": reaction, "iterations": it + 1}
-
-    def stiffness(self, ref: dict | None = None) -> tuple[np.ndarray, list]:
-        """6x6 (twist -> wrench order) by symmetric master perturbations around ``ref``."""
-        amp = np.r_[[self.s.perturbation_mm] * 3, [self.s.perturbation_rad] * 3]
-        q0 = np.zeros(6) if ref is None else ref["q"][self.m]
-        Kq = np.zeros((6, 6))
-        closed = []
-        for j in range(6):
-            res = []
-            for sgn in (1.0, -1.0):
-                r = self.solve(q_master=q0 + sgn * amp[j] * np.eye(6)[j], ref=ref)
-                res.append(r)
-                closed.append(int(np.count_nonzero(r["closed"])))
-            Kq[:, j] = (res[0]["reaction"] - res[1]["reaction"]) / (2 * amp[j])
-        K = Kq[np.ix_(_PERM, _PERM)]
-        return (K + K.T) / 2, closed
-
 
 def chain_stiffness(spring, settings: ChainSettings | None = None, *,
                     geometry: str = "as_built") -> ChainResult:
