@@ -140,8 +140,17 @@ EFFECTS = ["relaxation", "piezo_relaxation", "drift", "thermal", "hysteresis", "
            "pi_hysteresis", "mpl_cells", "friction_arm", "cross_gain"]
 
 
+#: checked by their own tests: gain_offset needs a loaded (not fitted) base
+OWN_TEST = ["gain_offset"]
+#: planted-effect cases in the default run: at least one per mechanism family (viscoelastic:
+#: relaxation; rate-independent hysteresis: hysteresis; static shape: nonlinearity; time:
+#: drift; load location: moment_arm (friction_arm: the seed 001 staircase); runs: run_offset);
+#: the others are marked slow
+FAST = {"relaxation", "hysteresis", "nonlinearity", "drift", "moment_arm", "run_offset"}
+
+
 def test_every_library_effect_is_covered():
-    assert set(EFFECTS) == set(fx.EFFECTS)
+    assert set(EFFECTS) | set(OWN_TEST) == set(fx.EFFECTS)
 
 
 def test_candidate_order_and_reasons():
@@ -159,8 +168,8 @@ def test_candidate_order_and_reasons():
     assert [c.key for c in cands] == [
         *[f"{e}[displacement]" for e in per], "friction_arm[displacement]",
         *[f"{e}[displacement_y]" for e in per], "cross_axis[displacement_y]",
-        "cross_gain[displacement_y]", "friction_arm[displacement_y]", "piezo_relaxation",
-        "drift", "thermal[temperature]", "moment_arm[location]", "run_offset", "lag"]
+        "cross_gain[displacement_y]", "friction_arm[displacement_y]", "gain_offset",
+        "piezo_relaxation", "drift", "thermal[temperature]", "moment_arm[location]", "run_offset", "lag"]
     assert skipped["relaxation[displacement]"] == "electrical output: see piezo_relaxation"
     assert skipped["*[force]"] == "input is constant in the training data"
     assert skipped["qlv[displacement_y]"].startswith("electrical output")
@@ -170,7 +179,8 @@ def test_candidate_order_and_reasons():
            "mpl_cells", "parallel_path"]
     assert [c.key for c in cands] == [
         *[f"{e}[displacement]" for e in per], *[f"{e}[displacement_y]" for e in per],
-        "cross_axis[displacement_y]", "cross_gain[displacement_y]", "drift", "lag"]
+        "cross_axis[displacement_y]", "cross_gain[displacement_y]", "gain_offset", "drift",
+        "lag"]
     assert list(skipped) == ["friction_arm[displacement]", "friction_arm[displacement_y]",
                              "piezo_relaxation", "thermal", "moment_arm", "run_offset"]
 
@@ -231,7 +241,8 @@ def test_a_new_effect_is_one_class(square_effect):
     assert keys == ["relaxation[displacement]", "qlv[displacement]", "hysteresis[displacement]",
                     "pi_hysteresis[displacement]", "mullins[displacement]",
                     "nonlinearity[displacement]", "mpl_cells[displacement]",
-                    "parallel_path[displacement]", "square[displacement]", "drift", "lag"]
+                    "parallel_path[displacement]", "square[displacement]", "gain_offset",
+                    "drift", "lag"]
     sq = cands[8]
     x = train.inputs["displacement"]
     ctx = fx.Context(train, "force", 0.2 + 0.3 * x, ("displacement",), train.outputs["force"])
@@ -251,7 +262,8 @@ def test_registry_is_clean_after_the_new_effect():
     assert "square" not in fx.EFFECTS
 
 
-@pytest.mark.parametrize("name", EFFECTS)
+@pytest.mark.parametrize("name", [n if n in FAST else pytest.param(n, marks=pytest.mark.slow)
+                                  for n in EFFECTS])
 def test_loop_finds_the_missing_effect(name):
     ds, base = case(name)
     res = run_loop(ds, base, max_effects=2, peer=False)
@@ -262,6 +274,7 @@ def test_loop_finds_the_missing_effect(name):
     assert res.report["effects"][0]["error_after"] < res.report["effects"][0]["error_before"]
 
 
+@pytest.mark.slow
 def test_parameters_are_recovered():
     ds, base = case("lag")
     e = run_loop(ds, base, max_effects=1).report["effects"][0]
@@ -273,7 +286,8 @@ def test_parameters_are_recovered():
     assert 4.0 < taus[k] < 16.0 and g[k] == pytest.approx(0.12, rel=0.3)
 
 
-@pytest.mark.parametrize("seed", [1, 2, 3, 4, 5])
+@pytest.mark.parametrize("seed", [1, *(pytest.param(k, marks=pytest.mark.slow)
+                                       for k in (2, 3, 4, 5))])
 def test_pure_noise_adds_nothing(seed):
     ds, base = case("noise", seed)
     res = run_loop(ds, base)
@@ -327,7 +341,8 @@ def test_several_runs_select_by_leave_one_run_out():
     assert out["error_after"] < 0.5 * out["error_before"]
 
 
-@pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.parametrize("seed", [1, *(pytest.param(k, marks=pytest.mark.slow)
+                                       for k in (2, 3))])
 def test_several_runs_of_noise_add_nothing(seed):
     res = run_loop(runs_case(seed, 0.0), "linear", peer=False)
     assert res.report["outputs"]["force"]["effects"] == []
@@ -387,7 +402,7 @@ def test_a_run_shorter_than_the_longest_lag_is_one_line():
 
 def test_report_model_and_continuation(tmp_path):
     ds, base = case("nonlinearity")
-    res = run_loop(ds, base, max_effects=1)
+    res = run_loop(ds, base, max_effects=1, peer=False)
     files = write_outputs(res, tmp_path)
     rep = json.loads((tmp_path / "loop.json").read_text())
     for key in ("effects", "error_before", "error_after", "metric", "validation",
@@ -405,7 +420,7 @@ def test_report_model_and_continuation(tmp_path):
     val = ds.validate()
     np.testing.assert_allclose(model.predict(val, "force"), res.series["force"]["final_val"],
                                rtol=1e-9, atol=1e-9)
-    res2 = run_loop(ds, model, max_effects=1)
+    res2 = run_loop(ds, model, max_effects=1, peer=False)
     assert res2.report["error_before"] == pytest.approx(res.report["error_after"], rel=1e-9)
     assert all(x["name"] != "nonlinearity" for x in res2.report["effects"])
 
@@ -450,3 +465,60 @@ def test_seed001_staircase_friction_times_moment_arm():
     assert e["key"] == "friction_arm[load]", out["rounds"][0]["candidates"]
     assert e["parameters"]["friction_per_arm"] == pytest.approx(0.01, rel=0.3)
     assert e["error_after"] < 0.5 * out["error_before"]
+
+
+def test_two_mechanisms_planted_together_are_both_found():
+    """Friction hysteresis in the displacement and a temperature coefficient (TCR) in one truth
+    (no single effect covers both): both are accepted (in either order), the hysteresis with
+    about its planted size, and together they at least halve the held-out error."""
+    rng = np.random.default_rng(11)
+    T = 900.0
+    x = drive(rng, T)
+    t = np.arange(x.size) * DT
+    seg = np.zeros(x.size, int)
+    temp = 25 + 4 * np.sin(2 * np.pi * t / 170.0) + 2 * np.sign(np.sin(2 * np.pi * t / 61.0))
+    y = (0.2 + 0.3 * x) * (1 + 0.01 * (temp - 25.0)) + 0.1 * fx.dahl(x, np.array([0.3]), seg)[:, 0]
+    y = y + rng.normal(0, 0.01, x.size)
+    ds = from_arrays(t, {"displacement": x, "temperature": temp}, {"force": y},
+                     role=np.where(t <= 0.6 * T, "train", "validate"))
+    out = run_loop(ds, "linear:displacement", max_effects=3,
+                   peer=False).report["outputs"]["force"]
+    names = [e["name"] for e in out["effects"]]
+    assert set(names[:2]) == {"hysteresis", "thermal"}, out["rounds"]
+    assert out["error_after"] < 0.5 * out["error_before"]
+    h = next(e for e in out["effects"] if e["name"] == "hysteresis")
+    if h["parameters"]["variant"] == "dahl":
+        assert h["parameters"]["amplitude"] == pytest.approx(0.1, rel=0.3), h["parameters"]
+
+
+def test_gain_offset_of_a_loaded_model_goes_first():
+    """A model not fitted on the data (a `predict` model.json: FEM gains) that is 8 % too
+    stiff and off by 0.05 N, with a friction hysteresis it lacks: gain_offset is taken first
+    with the planted numbers, then the hysteresis; with a fitted base it is not offered."""
+    from designlab.sensors.sensor import linear_sensor_model
+
+    rng = np.random.default_rng(12)
+    T = 900.0
+    x = drive(rng, T)
+    t = np.arange(x.size) * DT
+    seg = np.zeros(x.size, int)
+    model_y = 0.2 + 0.3 * x
+    y = 1.08 * model_y + 0.05 + 0.1 * fx.dahl(x, np.array([0.3]), seg)[:, 0]
+    y = y + rng.normal(0, 0.01, x.size)
+    ds = from_arrays(t, {"displacement": x}, {"force": y},
+                     role=np.where(t <= 0.6 * T, "train", "validate"))
+    start = linear_sensor_model({"force": {"displacement": 0.3}}, {"force": "N"}, {})
+    start.base.parameters["force"]["intercept"] = 0.2
+    out = run_loop(ds, start, max_effects=2, peer=False).report["outputs"]["force"]
+    assert [e["name"] for e in out["effects"]] == ["gain_offset", "hysteresis"], out["rounds"]
+    p = out["effects"][0]["parameters"]
+    # offset and gain trade against each other, and the part of the hysteresis that follows the
+    # input goes into the gain (fitted first: 0.099 here): the corrected line is the planted
+    # one over the model's range (0.2 .. 3.2 N) to 0.05 N, against 0.29 N uncorrected
+    line = np.array([0.2, 1.7, 3.2])
+    assert p["relative_gain"] == pytest.approx(0.08, abs=0.03)
+    np.testing.assert_allclose((1 + p["relative_gain"]) * line + p["offset"],
+                               1.08 * line + 0.05, atol=0.05)
+    assert out["error_after"] < 0.5 * out["error_before"]
+    fitted = run_loop(ds, "linear", max_effects=1, peer=False).report["outputs"]["force"]
+    assert "gain_offset" in fitted["not_applicable"]
