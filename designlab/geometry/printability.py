@@ -10,8 +10,11 @@ Per printed body:
   opposite wall (VTK cell locator): *walls* (samples whose normal is mostly horizontal) must be at
   least the nozzle diameter wide, *skins* (normal mostly vertical) at least one layer thick.
   A conductive trace's thickness is thus governed by the layer height (0.2 mm = two 0.1 mm
-  layers is fine) and its width by the nozzle. A thin region counts as a failure only when its
-  surface area exceeds ``THIN_AREA_MM2``; smaller ones (slivers, wedge tips where two cuts meet,
+  layers is fine) and its width by the nozzle. The thin surface area is measured over the area
+  (points drawn uniformly over the surface with a fixed seed, ~50 per mm^2, each standing for
+  its share of the area), not per face; a ray counts where it reaches a wall facing back
+  (``WALL_OPPOSED``), so a 90 deg corner tessellated with chords is not a thin wall. A thin region counts as a failure only when that
+  area exceeds ``THIN_AREA_MM2``; smaller ones (slivers, wedge tips where two cuts meet,
   which a slicer drops without consequence) are reported as warnings. Bodies printed by another extruder inside a host
   body (the traces) need ``MM_WALL_FACTOR`` nozzle widths: PrusaSlicer 2.5 (default Arachne
   perimeters, 0.4 mm nozzle, 0.1 mm layers) silently drops an embedded second-extruder line
@@ -39,6 +42,10 @@ from designlab.geometry.tessellate import tessellate, topods
 SKIN_NZ = 0.7
 #: embedded bodies of a second extruder need this many nozzle widths (see module docstring)
 MM_WALL_FACTOR = 2.0
+#: a ray measures a wall only where it reaches a face turned back towards it (normals more than
+#: 120 deg apart): the chord facets of a curved side meeting a flat bottom at 90 deg are a
+#: corner, not a thin wall (without it the default fingertip dome reads 0.8 mm^2 "thin")
+WALL_OPPOSED = 0.5
 #: thin regions up to this surface area (mm^2) are slivers/wedge tips: a warning, not a failure
 THIN_AREA_MM2 = 0.5
 #: overlaps smaller than this fraction of the smaller body (or 1e-3 mm^3) are tessellation noise
@@ -62,6 +69,9 @@ class BodyReport:
     nozzle_mm: float = 0.4
     layer_mm: float = 0.1
     wall_required_mm: float = 0.4
+    #: surface area (mm^2) whose wall / skin is thinner than required (failure above THIN_AREA_MM2)
+    thin_wall_mm2: float = float("nan")
+    thin_skin_mm2: float = float("nan")
     problems: tuple[str, ...] = field(default_factory=tuple)
     warnings: tuple[str, ...] = field(default_factory=tuple)
 
@@ -105,26 +115,33 @@ def manifold_of(mesh: trimesh.Trimesh):
                                tri_verts=np.asarray(mesh.faces, np.uint32)))
 
 
-def _surface_samples(mesh: trimesh.Trimesh, max_faces: int, n_area: int,
+def _surface_samples(mesh: trimesh.Trimesh, max_faces: int,
                      seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Points and outward unit normals: face centroids (all, or a random subset of ``max_faces``:
-    tessellation is finest on small features) plus ``n_area`` area-weighted samples."""
+    """Face centroids (all, or a random subset of ``max_faces``) and their outward unit normals:
+    the tessellation is finest on small features, so they find the thinnest spot (the *minimum*
+    reported; the thin *area* comes from :func:`_area_samples`)."""
     rng = np.random.default_rng(seed)
     nf = len(mesh.faces)
     idx = np.arange(nf) if nf <= max_faces else rng.choice(nf, max_faces, replace=False)
-    pts = [mesh.triangles_center[idx]]
-    nrm = [mesh.face_normals[idx]]
-    if n_area:
-        p, fi = trimesh.sample.sample_surface(mesh, n_area, seed=seed)
-        pts.append(p)
-        nrm.append(mesh.face_normals[fi])
-    return np.vstack(pts), np.vstack(nrm)
+    return mesh.triangles_center[idx], mesh.face_normals[idx]
+
+
+def _area_samples(mesh: trimesh.Trimesh, per_mm2: float, n_min: int, n_max: int,
+                  seed: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """Points drawn uniformly over the surface area (``trimesh.sample.sample_surface``, fixed
+    seed), their outward normals and the area (mm^2) each one stands for."""
+    n = int(np.clip(mesh.area * per_mm2, n_min, n_max))
+    pts, fi = trimesh.sample.sample_surface(mesh, n, seed=seed)
+    return pts, mesh.face_normals[fi], float(mesh.area) / max(len(pts), 1)
 
 
 def ray_thickness(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray,
-                  max_depth: float | None = None) -> np.ndarray:
+                  max_depth: float | None = None, opposed: float | None = None) -> np.ndarray:
     """Distance (mm) from each surface point along its inward normal to the opposite wall
-    (inf when the ray leaves the bounding box without a hit)."""
+    (inf when the ray leaves the bounding box without a hit). With ``opposed``, a hit counts
+    only when the wall it reaches faces back (``n_start . n_hit < -opposed``): a ray that
+    grazes out through a face at a corner (a 90 deg edge, tessellated with chords) is a corner,
+    not a wall; sharp wedges (faces closer than ``acos(opposed)`` to antiparallel) still count."""
     import vtk
     from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
     from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData, vtkStaticCellLocator
@@ -147,44 +164,56 @@ def ray_thickness(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray
     starts = points - eps * normals
     ends = points - depth * normals
     out = np.full(len(points), np.inf)
+    fn = np.asarray(mesh.face_normals)
     for i in range(len(points)):
         if loc.IntersectWithLine(starts[i], ends[i], 1e-9, t, x, pc, sub, cid):
+            if opposed is not None and fn[cid.get()] @ normals[i] > -opposed:
+                continue
             out[i] = eps + t.get() * (depth - eps)
     return out
 
 
 @dataclass(frozen=True)
 class FeatureSizes:
-    """Smallest wall width and skin thickness seen (mm) and the surface area (mm^2) of faces
-    whose wall/skin is thinner than required."""
+    """Smallest wall width and skin thickness seen (mm) and the surface area (mm^2) whose
+    wall/skin is thinner than required, measured over the area (even surface samples)."""
 
     min_wall: float
     min_skin: float
     thin_wall_area: float
     thin_skin_area: float
+    samples: int = 0
+
+
+#: even surface samples per mm^2 for the thin areas (each stands for ~0.02 mm^2), and bounds
+AREA_SAMPLES_PER_MM2 = 50.0
+AREA_SAMPLES_MIN, AREA_SAMPLES_MAX = 20000, 200000
 
 
 def feature_sizes(mesh: trimesh.Trimesh, min_wall: float = 0.4, min_skin: float = 0.1,
-                  max_faces: int = 20000, n_area: int = 4000, seed: int = 0) -> FeatureSizes:
-    """Thicknesses from samples whose normal is mostly horizontal (wall width) or mostly vertical
-    (skin thickness); ``inf`` when there are none. Thin areas are the summed areas of the faces
-    whose centroid is thinner than ``0.99 * min_wall`` / ``0.99 * min_skin`` (1 % slack for
-    tessellation chords on exact-size features), scaled up when faces were subsampled."""
-    p, n = _surface_samples(mesh, max_faces, n_area, seed)
-    d = ray_thickness(mesh, p, n)
+                  max_faces: int = 20000, seed: int = 0,
+                  per_mm2: float = AREA_SAMPLES_PER_MM2) -> FeatureSizes:
+    """Thicknesses along the inward normal of surface points whose normal is mostly horizontal
+    (wall width) or mostly vertical (skin thickness); ``inf`` when there are none.
+
+    The thin *areas* are measured over the area: points spread evenly over the surface
+    (:func:`_area_samples`, fixed seed), each standing for an equal share of the surface area
+    (a ray counts only where it reaches a wall facing back, ``WALL_OPPOSED``);
+    a point thinner than ``0.99 * min_wall`` / ``0.99 * min_skin`` (1 % slack for tessellation
+    chords on exact-size features) adds its share. The minima also include every face centroid
+    (the tessellation is finest on small features)."""
+    pa, na, share = _area_samples(mesh, per_mm2, AREA_SAMPLES_MIN, AREA_SAMPLES_MAX, seed)
+    pc, nc = _surface_samples(mesh, max_faces, seed)
+    p, n = np.vstack([pa, pc]), np.vstack([na, nc])
+    d = ray_thickness(mesh, p, n, opposed=WALL_OPPOSED)
     skin = np.abs(n[:, 2]) >= SKIN_NZ
     wall = float(d[~skin].min()) if (~skin).any() else float("inf")
     skin_t = float(d[skin].min()) if skin.any() else float("inf")
-    nf = len(mesh.faces)
-    k = min(nf, max_faces)  # the first k samples are face centroids
-    fidx = np.arange(nf) if nf <= max_faces else None
-    if fidx is None:  # recover the subsampled face indices (same generator as above)
-        fidx = np.random.default_rng(seed).choice(nf, max_faces, replace=False)
-    area = mesh.area_faces[fidx] * (nf / k)
-    dk, sk = d[:k], skin[:k]
-    thin_w = float(area[~sk & (dk < 0.99 * min_wall)].sum())
-    thin_s = float(area[sk & (dk < 0.99 * min_skin)].sum())
-    return FeatureSizes(wall, skin_t, thin_w, thin_s)
+    k = len(pa)
+    da, sa = d[:k], skin[:k]
+    thin_w = share * int(np.count_nonzero(~sa & (da < 0.99 * min_wall)))
+    thin_s = share * int(np.count_nonzero(sa & (da < 0.99 * min_skin)))
+    return FeatureSizes(wall, skin_t, thin_w, thin_s, k)
 
 
 def check_body(part: str, body: Body, nozzle: float = 0.4, layer: float = 0.1,
@@ -215,11 +244,12 @@ def check_body(part: str, body: Body, nozzle: float = 0.4, layer: float = 0.1,
     volume = float(mesh.volume)
     if not volume > 0:
         problems.append(f"volume {volume:.3g} mm^3 is not positive")
-    wall = skin = float("nan")
+    wall = skin = thin_w = thin_s = float("nan")
     warnings = []
     if watertight and volume > 0:
         fs = feature_sizes(mesh, min_wall, layer)
         wall, skin = fs.min_wall, fs.min_skin
+        thin_w, thin_s = fs.thin_wall_area, fs.thin_skin_area
         what = (f"the {nozzle:g} mm nozzle" if min_wall == nozzle else
                 f"{min_wall:g} mm ({min_wall / nozzle:g} nozzle widths, embedded extruder "
                 f"{body.extruder} body)")
@@ -233,6 +263,7 @@ def check_body(part: str, body: Body, nozzle: float = 0.4, layer: float = 0.1,
             (problems if area > THIN_AREA_MM2 else warnings).append(msg)
     return BodyReport(**base, volume_mm3=volume, watertight=watertight, manifold=is_manifold,
                       valid_brep=valid_brep, min_wall_mm=wall, min_skin_mm=skin,
+                      thin_wall_mm2=thin_w, thin_skin_mm2=thin_s,
                       problems=tuple(problems), warnings=tuple(warnings))
 
 
