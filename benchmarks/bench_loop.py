@@ -3,8 +3,10 @@
 Times the stages of one loop on multisine_600s_1 (training, ~6,300 samples at 10 Hz after
 resampling) validated on multisine_300s_2: reading the card (repair + resampling), the
 stretch-fem base (FEM stiffness of the specimen), and the greedy effect search for force and
-resistance. Peers in the same run: the loop with the closed-form base (no FEM), the loop from
-the `linear` base, and the loop at the logs' own ~12 Hz rate. Prints one table.
+resistance, with the NARX peer (the default) side by side with the same loop without it and
+with the plain NARX fit alone (seed 000's network, both outputs: what the peer costs). Peers
+in the same run: the loop with the closed-form base (no FEM), the loop from the `linear` base,
+and the loop at the logs' own ~12 Hz rate. Prints one table.
 
 Run from the project root:  OMP_NUM_THREADS=1 python benchmarks/bench_loop.py
 """
@@ -20,7 +22,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 from designlab.loop import base_models  # noqa: E402
 from designlab.measured.dataset import load_card  # noqa: E402
-from designlab.loop.loop import run_loop, write_outputs  # noqa: E402
+from designlab.loop.loop import fit_peer, run_loop, write_outputs  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 CARD = ROOT / "examples" / "stretch_card.toml"
@@ -49,6 +51,16 @@ def main() -> None:
                         for o, r in res.report["outputs"].items())
         rows.append((label, t, errs, eff))
         if base == "stretch-fem":
+            res0, t0 = timed(lambda: run_loop(card_ds, base, peer=False))
+            errs0 = "; ".join(f"{o} {r['error_after']:.4g} {r['unit']}"
+                              for o, r in res0.report["outputs"].items())
+            rows.append(("  the same loop without the NARX peer", t0, errs0, ""))
+            peers, t_n = timed(lambda: {o: fit_peer(card_ds, o) for o in card_ds.outputs})
+            perr = "; ".join(f"{o} peer {r['peer']['error']:.4g} {r['unit']}"
+                             for o, r in res.report["outputs"].items())
+            rows.append(("  plain NARX fit alone (both outputs)", t_n, perr,
+                         ", ".join(f"{o}: {info['iterations']} iterations"
+                                   for o, (_, info) in peers.items())))
             with tempfile.TemporaryDirectory() as tmp:
                 _, t_w = timed(lambda: write_outputs(res, tmp))
             rows.append(("write loop.json, model.json, plots", t_w, "", ""))
