@@ -145,7 +145,7 @@ def within(name: str, value: float, lo: float, hi: float, why: str = "",
             if float(a) <= float(b):
                 break
         if close(lo, hi) or float(a) > float(b):
-            text = f"= {fmt_lo(lo)}"  # a single value (up to rounding)
+            text = f"= {fmt_bound((lo + hi) / 2)}"  # a single value (up to rounding)
         else:
             text = f"{a} <= value <= {b}"
         raise ParameterError(name, value, f"{text}{_unit(unit)}{_why(why)}")

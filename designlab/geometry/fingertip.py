@@ -199,6 +199,8 @@ class CantileverFingertip:
         """Constraints between parameters; each error names a parameter whose allowed range
         (printed as an allowed value) is not empty given the others."""
         R, rb = self.fingertip_radius, self.ball_radius
+        if 0 < self.skin_thickness < 0.2:  # thinner is no castable coating (and no solid)
+            at_least("skin_thickness", self.skin_thickness, 0.2, "a cast coating; 0 = none")
         at_least("fingertip_radius", R, rb + MIN_WALL, f"ball radius {rb:g} + {MIN_WALL:g} mm wall")
         at_most("r", self.r, R, f"fingertip_radius = {R:g} mm")
         # r's range [ball radius + wall - h, fingertip_radius] is not empty: R >= ball radius + wall

@@ -258,8 +258,11 @@ class ArchStrap:
                         " - 2 edge margins", unit="")
             at_most("edge_margin", self.edge_margin, (self.strap_width - need) / 2,
                     f"room for {n} legs")
-        within("pad_width", self.pad_width, w, (n - 1) * (w + g) - g,
+        within("pad_width", self.pad_width, w,
+               min((n - 1) * (w + g) - g, field_range(ArchStrap, "pad_width")[1]),
                "trace_width to outer leg spacing - trace_gap")
+        if 0 < self.lead_length < 0.1:  # a lead shorter than that is a sliver, not a lead
+            at_least("lead_length", self.lead_length, 0.1, "or 0: no lead")
         if n > 2:
             at_least("lead_length", self.lead_length, w + g,
                      "trace_width + trace_gap: pads clear the outer turns")
