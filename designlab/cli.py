@@ -253,8 +253,8 @@ def flexure(preset: str = typer.Option("visiflex-catalog", "--preset",
             frame: str = typer.Option("camera", "--frame", help="spring (centre of the spring) or camera."),
             json_out: Optional[Path] = typer.Option(None, "--json", help="Write all matrices as JSON (SI)."),
             fem: bool = typer.Option(False, "--fem/--no-fem",
-                                     help="Also mesh and solve the solid helix (about a minute; "
-                                          "the beam chain always runs)."),
+                                     help="Also mesh and solve the solid helix with coil and seat "
+                                          "contact (minutes; the beam chain always runs)."),
             seat: str = typer.Option("bonded", "--seat",
                                      help="Beam chain ends: bonded (ground faces epoxied), "
                                           "contact (seated, wire end bonded) or potted (dead turn in epoxy)."),
@@ -276,20 +276,25 @@ def flexure(preset: str = typer.Option("visiflex-catalog", "--preset",
     spring = with_overrides(spring_preset(preset), parse_sets(set_))
     paper = fr.load_paper(paper_json)
     chain = chain_stiffness(spring, ChainSettings(seat=seat, working_load_N=working_load))
-    K_fem = None
+    K_fem = K_fem_loaded = None
     fem_info = None
     if fem:
-        from designlab.sensors.flexure.helix_fem import fem_stiffness
+        from designlab.sensors.flexure.helix_fem import fem_contact_stiffness
 
         with progress_bar("FEM 6x6") as bar:
             def step(text: str, done: int, total: int) -> None:
                 bar(f"FEM: {text}", completed=done, total=total)
 
-            sol = fem_stiffness(spring, edge_length=edge_length, progress=step)
-        K_fem, fem_info = sol.K_centre_si, sol.summary()
+            sol = fem_contact_stiffness(spring, edge_length=edge_length, progress=step,
+                                        settings=ChainSettings(seat="bonded",
+                                                               working_load_N=working_load))
+        K_fem = sol.centre_si("unloaded")
+        K_fem_loaded = sol.centre_si("loaded") if sol.K_loaded is not None else None
+        fem_info = dict(sol.info, K_free_centre_si=sol.centre_si("free").tolist())
     report = fr.flexure_report(spring, frame=frame, K_fem_spring_si=K_fem, paper=paper,
                                K_chain_spring_si=chain.K_centre_si,
-                               K_chain_loaded_si=chain.K_loaded_centre_si)
+                               K_chain_loaded_si=chain.K_loaded_centre_si,
+                               K_fem_loaded_si=K_fem_loaded)
     report["fem_info"] = fem_info
     report["chain_info"] = chain.info
     for table in fr.report_tables(report):
@@ -303,7 +308,10 @@ def flexure(preset: str = typer.Option("visiflex-catalog", "--preset",
                   f"pairs, {ci['seconds']:.2f} s", highlight=False)
     if fem_info is not None:
         console.print(f"FEM: {fem_info['n_nodes']} nodes, {fem_info['n_cells']} TET{fem_info['cell_nodes']}"
-                      f", asymmetry ||K-K^T||/||K|| = {fem_info['asymmetry']:.2e}", highlight=False)
+                      f", {fem_info['coil_pairs']} coil + {fem_info['seat_contacts']} seat contacts "
+                      f"(frictionless, {fem_info['gaps']} gaps), condensed "
+                      f"asymmetry {fem_info['asymmetry']:.2e}, {fem_info['timings_s']['total']:.0f} s",
+                      highlight=False)
     for note in report["notes"]:
         console.print(f"[bold]note:[/] {note}", highlight=False)
     if json_out is not None:

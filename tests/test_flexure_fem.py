@@ -108,3 +108,29 @@ def test_small_pitch_helix_axial_stiffness_matches_closed_form():
     assert fem.K_centre[2, 2] == pytest.approx(K[2, 2], rel=0.15)
     assert fem.asymmetry < 1e-6
     assert np.all(np.linalg.eigvalsh(fem.K) > 0)
+
+
+@pytest.mark.slow
+def test_solid_fem_with_contact_condenses_exactly_and_contact_stiffens():
+    """The Visiflex helix (gmsh TET10) condensed on its contact nodes and the tip master:
+    with every contact open it is the plain solid FEM (the 6x6 recorded in test_beam_chain from
+    `fem_stiffness(VISIFLEX_CATALOG)`: 538.07, 538.16, 647.77 N*mm/rad, 4.5588, 4.5577,
+    2.4125 N/mm) within 0.5 %; with the meshed gaps (>= 0.4 mm) kept no contact
+    closes under the 0.02 mm / 2 mrad perturbations; at the 10 N working load contact stiffens
+    the axial and lateral terms. Minutes on a shared machine (one factorisation per call)."""
+    from designlab.sensors.flexure.beam_chain import ChainSettings
+    from designlab.sensors.flexure.helix_fem import fem_contact_stiffness
+    from designlab.sensors.flexure.spring import VISIFLEX_CATALOG
+
+    solid = np.array([538.07, 538.16, 647.77, 4.5588, 4.5577, 2.4125])
+    res = fem_contact_stiffness(VISIFLEX_CATALOG)
+    free = np.diag(res.at(res.centre, "free"))
+    assert free == pytest.approx(solid, rel=5e-3)
+    assert res.info["asymmetry"] < 1e-5 and res.info["coil_pairs"] > 50
+    loaded = np.diag(res.at(res.centre, "loaded"))
+    assert loaded[5] > 1.1 * free[5] and loaded[3] > 1.05 * free[3]
+    assert res.info["working_load"]["closed_contacts"] > 0
+    kept = fem_contact_stiffness(VISIFLEX_CATALOG, gaps="meshed", mesh=res.mesh,
+                                 settings=ChainSettings(working_load_N=0.0))
+    assert kept.info["closed_during_perturbations"] == [0, 0]
+    np.testing.assert_allclose(kept.K, kept.K_free, rtol=1e-9, atol=1e-9 * np.abs(kept.K).max())

@@ -212,7 +212,7 @@ class ActiveSet:
         """Active-set solve with the master displaced to ``q_master`` (u, th) or loaded by
         ``f_master`` (f, m; the master free), starting from the active set of ``ref``."""
         nq, m = self.nq, self.m
-        nc = len(self.contacts)
+        nc = len(self.kn)
         closed = np.zeros(nc, bool) if ref is None else ref["closed"].copy()
         q = np.zeros(nq) if ref is None else ref["q"].copy()
         fext = np.zeros(nq)

@@ -167,12 +167,14 @@ def goal_metrics(rows: list, key: str) -> dict | None:
 
 def flexure_report(spring: HelicalSpring, frame: str = "camera", K_fem_spring_si: np.ndarray | None = None,
                    paper: dict | None = None, K_chain_spring_si: np.ndarray | None = None,
-                   K_chain_loaded_si: np.ndarray | None = None) -> dict:
+                   K_chain_loaded_si: np.ndarray | None = None,
+                   K_fem_loaded_si: np.ndarray | None = None) -> dict:
     """All numbers of the ``designlab flexure`` table, in SI and in ``frame``.
 
     ``K_fem_spring_si``: the FEM stiffness at the spring centre (SI), or None (no FEM column).
     ``K_chain_spring_si`` / ``K_chain_loaded_si``: the beam chain's, unloaded and at the working
-    load (columns ``chain`` and ``chain_loaded``).
+    load (columns ``chain`` and ``chain_loaded``); ``K_fem_loaded_si`` the solid FEM with
+    contact at the working load (column ``fem_loaded``).
     Keys: closed_form, closed_form_timoshenko, fem, frame, paper_theory, paper_measured, ratios,
     common_factor, explanation (None unless the factor is common and != 1), offset_m, rows,
     condition_numbers, units.
@@ -188,7 +190,8 @@ def flexure_report(spring: HelicalSpring, frame: str = "camera", K_fem_spring_si
     mats = {"closed_form": to_frame(K_cf, frame, h), "closed_form_timoshenko": to_frame(K_tim, frame, h),
             "chain": None if K_chain_spring_si is None else to_frame(K_chain_spring_si, frame, h),
             "chain_loaded": None if K_chain_loaded_si is None else to_frame(K_chain_loaded_si, frame, h),
-            "fem": None if K_fem_spring_si is None else to_frame(K_fem_spring_si, frame, h)}
+            "fem": None if K_fem_spring_si is None else to_frame(K_fem_spring_si, frame, h),
+            "fem_loaded": None if K_fem_loaded_si is None else to_frame(K_fem_loaded_si, frame, h)}
     cf = common_factor(K_cf, paper["K_f_theory"])
     explanation = None
     if cf["is_common"] and abs(cf["factor"] - 1.0) > COMMON_FACTOR_SPREAD:
@@ -238,7 +241,8 @@ def flexure_report(spring: HelicalSpring, frame: str = "camera", K_fem_spring_si
                  f"K_f -> K_c couplings); the measured K_c has its zero-coupling point "
                  f"{1e3 * centre_measured:.2f} mm above the camera origin")
     spring_frame = {"closed_form_timoshenko": K_tim, "chain": K_chain_spring_si,
-                    "chain_loaded": K_chain_loaded_si, "fem": K_fem_spring_si}
+                    "chain_loaded": K_chain_loaded_si, "fem": K_fem_spring_si,
+                    "fem_loaded": K_fem_loaded_si}
     camera_fit = {k: fit_camera_offset(K, paper["K_c_measured"]) for k, K in spring_frame.items()
                   if K is not None}
     for k, fit in camera_fit.items():
@@ -257,7 +261,8 @@ def flexure_report(spring: HelicalSpring, frame: str = "camera", K_fem_spring_si
                                 for k, v in centre_terms(spring).items()},
             "closed_form": tolist(mats["closed_form"]),
             "closed_form_timoshenko": tolist(mats["closed_form_timoshenko"]),
-            "fem": tolist(mats["fem"]), "chain": tolist(mats["chain"]),
+            "fem": tolist(mats["fem"]), "fem_loaded": tolist(mats["fem_loaded"]),
+            "chain": tolist(mats["chain"]),
             "chain_loaded": tolist(mats["chain_loaded"]),
             "goals": goals, "camera_fit": camera_fit,
             "paper_theory": tolist(theory), "paper_measured": tolist(measured),
@@ -278,7 +283,8 @@ def write_json(path: str | Path, report: dict) -> Path:
 
 #: report columns: key, table heading
 COLUMNS = (("closed_form", "closed form"), ("closed_form_timoshenko", "Timoshenko"),
-           ("chain", "chain"), ("chain_loaded", "chain @load"), ("fem", "solid FEM"))
+           ("chain", "chain"), ("chain_loaded", "chain @load"), ("fem", "solid FEM"),
+           ("fem_loaded", "solid FEM @load"))
 
 
 def report_tables(report: dict) -> list:
