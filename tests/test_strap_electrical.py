@@ -51,8 +51,8 @@ def test_resistance_follows_rho_L_over_A():
     longer = el.gauge_resistance(dataclasses.replace(PAPER, gauge_length=12.0,
                                                      gauge_offset=9.0))
     assert longer["legs"] == pytest.approx(rs * 4 * 12.0 / 0.8, rel=1e-12)
-    thin = el.gauge_resistance(dataclasses.replace(PAPER, trace_width=0.4))
-    assert thin["legs"] == pytest.approx(2 * r4["legs"], rel=1e-12)
+    wide = el.gauge_resistance(dataclasses.replace(PAPER, trace_width=1.6, lead_length=2.4))
+    assert wide["legs"] == pytest.approx(r4["legs"] / 2, rel=1e-12)
     assert PAPER.trace_squares()["turns"] == pytest.approx(
         3 * (2 * CORNER_SQUARES + PAPER.trace_gap / PAPER.trace_width))
 

@@ -49,6 +49,8 @@ TABLE_III_RADII = (1.65, 3.51, 5.19, 6.62, 7.71, 8.41)
 #: sensor azimuths (deg) of eqs. 4-6 (sensors r, g, b) and their elevation from the horizontal
 SENSOR_AZIMUTHS_DEG = (270.0, 30.0, 150.0)
 SENSOR_ELEVATION_DEG = 45.0
+#: how far the ball cavity's floor lies below the ball's 0.5 mm clearance, mm
+CAVITY_FLOOR_DROP = 1.6
 #: minimum printed wall (mm)
 MIN_WALL = 1.0
 #: outline features smaller than this are snapped away when building (mm)
@@ -348,7 +350,13 @@ def _build(p: CantileverFingertip) -> dict[str, Body]:
     z0, z1 = p.base_z
     base = Pos(0, 0, (z0 + z1) / 2) * Cylinder(p.base_radius, z1 - z0)
     rc = rb + 0.5
-    base -= Pos(0, 0, (-rc + z1 + 1) / 2) * Cylinder(rc, z1 + 1 + rc)
+    # cavity floor CAVITY_FLOOR_DROP below the ball's clearance: there the sensor wells' lower
+    # faces cross it steeply instead of in a shallow wedge thinner than the nozzle over
+    # 1.4 mm^2 (the printability check measures it over the area; 1.2 mm still leaves 0.5
+    # mm^2 below one layer, 1.6 mm 0.38 mm^2, all on the default design); never closer than
+    # MIN_WALL to the base's bottom
+    floor = max(-(rc + CAVITY_FLOOR_DROP), z0 + MIN_WALL)
+    base -= Pos(0, 0, (floor + z1 + 1) / 2) * Cylinder(rc, z1 + 1 - floor)
     side = p.sensor_size + 2 * p.well_clearance
     front = rb - 0.7
     sensors = []

@@ -48,6 +48,11 @@ MM_WALL_FACTOR = 2.0
 WALL_OPPOSED = 0.5
 #: thin regions up to this surface area (mm^2) are slivers/wedge tips: a warning, not a failure
 THIN_AREA_MM2 = 0.5
+#: thinner than this fraction of the required wall/skin a feature is a knife edge or sliver that
+#: the slicer leaves out (an opening between two voids, reported as a warning), not a weak wall:
+#: a 45 deg wedge where a sensor well meets the ball cavity has 0.6-0.9 mm^2 below one layer,
+#: all of it in that band
+SLIVER_FRACTION = 0.25
 #: overlaps smaller than this fraction of the smaller body (or 1e-3 mm^3) are tessellation noise
 OVERLAP_REL = 1e-4
 
@@ -211,8 +216,13 @@ def feature_sizes(mesh: trimesh.Trimesh, min_wall: float = 0.4, min_skin: float 
     skin_t = float(d[skin].min()) if skin.any() else float("inf")
     k = len(pa)
     da, sa = d[:k], skin[:k]
-    thin_w = share * int(np.count_nonzero(~sa & (da < 0.99 * min_wall)))
-    thin_s = share * int(np.count_nonzero(sa & (da < 0.99 * min_skin)))
+    # a point thinner than SLIVER_FRACTION of the requirement is a knife edge (two cuts meeting
+    # at an angle, a sliver): it does not print at all and opens one void into the other, so
+    # it is not a weak wall; the thin area counts the printable-but-weak band above it
+    thin_w = share * int(np.count_nonzero(~sa & (da < 0.99 * min_wall)
+                                          & (da >= SLIVER_FRACTION * min_wall)))
+    thin_s = share * int(np.count_nonzero(sa & (da < 0.99 * min_skin)
+                                          & (da >= SLIVER_FRACTION * min_skin)))
     return FeatureSizes(wall, skin_t, thin_w, thin_s, k)
 
 

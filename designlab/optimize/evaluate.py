@@ -41,8 +41,10 @@ def evaluate_design(task: dict[str, Any]) -> dict[str, Any]:
                    settings=settings.get("model"), fem_cache=task.get("fem_cache")).to_json()
     keep = ("hysteresis_percent", "condition_number", "geometric_condition_number",
             "sensitivity", "linearity_percent_span", "timings_s", "warnings",
-            "mesh_convergence", "fem_key")
+            "mesh_convergence", "fem_key", "electrical")
     out.update({k: pred[k] for k in keep if k in pred})
+    if isinstance(pred.get("stress"), dict) and "min_safety_factor" in pred["stress"]:
+        out["min_safety_factor"] = pred["stress"]["min_safety_factor"]
     if pred.get("K_f") is not None:
         K = np.asarray(pred["K_f"])
         out["K_f"] = K.tolist()

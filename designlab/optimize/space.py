@@ -95,9 +95,10 @@ MAX_LEVELS = 10_000        # grid levels or listed values of one parameter
 #: members depend on the sensor (``hysteresis_percent.overall``, ``sensitivity.V_per_N.z``...)
 METRICS = ("printed_volume_mm3", "printable", "min_wall_mm", "condition_number",
            "geometric_condition_number", "linearity_percent_span", "k_x_N_per_m",
-           "k_y_N_per_m", "k_z_N_per_m", "K_f_target_error", "axial_share_through_sensors")
+           "k_y_N_per_m", "k_z_N_per_m", "K_f_target_error", "axial_share_through_sensors",
+           "min_safety_factor")
 METRIC_FAMILIES = ("hysteresis_percent.", "sensitivity.", "timings_s.",
-                   "linearity_percent_span.")
+                   "linearity_percent_span.", "electrical.", "mesh_convergence.")
 SETTINGS = ("model", "K_f_target_N_per_m")
 
 

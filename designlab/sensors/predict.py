@@ -252,7 +252,7 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
     if model_path is not None:
         report["uncorrected"] = {k: report[k] for k in ("hysteresis_percent", "condition_number",
                                                         "calibration_matrix") if k in report}
-        report.update(sensor.apply_model(report, result, model_path, proto, sett))
+        report.update(sensor.apply_model(report, result, model_path, proto, sett, part=part))
     report.setdefault("geometric_condition_number", None)
     t0 = time.perf_counter()
     if progress:

@@ -29,7 +29,7 @@ class Sensor:
     finish:    ``finish(report, result, part, protocol)``: paper comparison and extra keys, in place
     design_protocol: ``(protocol, design, overrides) -> protocol``: defaults that depend on the
                design (the fingertip's load table), applied when no protocol file is given
-    apply_model: ``(report, result, model_path, protocol, settings) -> report``: the effects a
+    apply_model: ``(report, result, model_path, protocol, settings, part=) -> report``: the effects a
                loop learned on a measured sensor added to this design's virtual test (loop ->
                predict); None where not supported
     cached:    ``run`` takes ``cache=`` (a :class:`~designlab.fem.cache.FEMCache`) and computes

@@ -590,7 +590,8 @@ def gains(report: dict[str, Any], prediction: StrapPrediction | None = None) -> 
 
 
 def apply_model(report: dict[str, Any], prediction: StrapPrediction, model_path: str | Path,
-                protocol: StrapLoadTest, settings: StrapModelSettings) -> dict[str, Any]:
+                protocol: StrapLoadTest, settings: StrapModelSettings, part=None
+                ) -> dict[str, Any]:
     """loop -> predict: the effects a measured-data loop learned on a printed strap
     (``model.json`` of ``designlab loop``) are added to this design's virtual-test channels
     (their base is this design's FEM, not the measured one), and the metrics are evaluated

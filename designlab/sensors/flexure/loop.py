@@ -84,7 +84,7 @@ def corrected_poses(learned, C: np.ndarray, t: np.ndarray, W: np.ndarray,
 
 
 def apply_model(report: dict[str, Any], prediction, model_path: str | Path, protocol,
-                settings) -> dict[str, Any]:
+                settings, part=None) -> dict[str, Any]:
     """loop -> predict: the effects a loop learned on a measured flexure are added to this
     design's poses and the wrench error, calibration and hysteresis are evaluated again.
     Returns the corrected metrics with ``learned_effects`` and ``learned_from``."""

@@ -413,9 +413,15 @@ def gains(report: dict[str, Any], prediction: FlexurePrediction) -> tuple[dict, 
     return outs, {o: ("rad" if o.startswith("w") else "mm") for o in outs}
 
 
+def apply_model(*args, **kw):
+    """loop -> predict: :func:`designlab.sensors.flexure.loop.apply_model`."""
+    from designlab.sensors.flexure.loop import apply_model as apply
+
+    return apply(*args, **kw)
+
+
 SENSOR = Sensor(
     name="flexure", paper="seed 002 (fingertip on a helical spring flexure, Visiflex)",
     protocol=FlexureWrenchTest, settings=FlexureModelSettings, run=run, plots=plots,
     gains=gains, meshed=lambda settings: settings.truth == "fem",
-    apply_model=lambda *a, **k: __import__("designlab.sensors.flexure.loop",
-                                           fromlist=["apply_model"]).apply_model(*a, **k))
+    apply_model=apply_model)
