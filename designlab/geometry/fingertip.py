@@ -50,7 +50,7 @@ TABLE_III_RADII = (1.65, 3.51, 5.19, 6.62, 7.71, 8.41)
 SENSOR_AZIMUTHS_DEG = (270.0, 30.0, 150.0)
 SENSOR_ELEVATION_DEG = 45.0
 #: how far the ball cavity's floor lies below the ball's 0.5 mm clearance, mm
-CAVITY_FLOOR_DROP = 1.6
+CAVITY_FLOOR_DROP = 1.1
 #: minimum printed wall (mm)
 MIN_WALL = 1.0
 #: outline features smaller than this are snapped away when building (mm)
@@ -351,10 +351,10 @@ def _build(p: CantileverFingertip) -> dict[str, Body]:
     base = Pos(0, 0, (z0 + z1) / 2) * Cylinder(p.base_radius, z1 - z0)
     rc = rb + 0.5
     # cavity floor CAVITY_FLOOR_DROP below the ball's clearance: there the sensor wells' lower
-    # faces cross it steeply instead of in a shallow wedge thinner than the nozzle over
-    # 1.4 mm^2 (the printability check measures it over the area; 1.2 mm still leaves 0.5
-    # mm^2 below one layer, 1.6 mm 0.38 mm^2, all on the default design); never closer than
-    # MIN_WALL to the base's bottom
+    # faces cross it more steeply than in the shallow wedge (1.4 mm^2 thinner than the nozzle)
+    # of a floor at the clearance (the printability check measures it over the area): 1.1 mm
+    # leaves 0.44 mm^2 below one layer and keeps 83 % of each well's seat (deeper floors bite
+    # the seats); never closer than MIN_WALL to the base's bottom
     floor = max(-(rc + CAVITY_FLOOR_DROP), z0 + MIN_WALL)
     base -= Pos(0, 0, (floor + z1 + 1) / 2) * Cylinder(rc, z1 + 1 - floor)
     side = p.sensor_size + 2 * p.well_clearance
