@@ -177,7 +177,7 @@ def test_cli_bad_input_exits_2_and_writes_nothing(tmp_path, capsys):
         (["--train", str(jitter), "--time", "t"], "not uniformly sampled"),
         (["--train", str(good)], "time"),                                     # neither --time nor --dt
         (["--train", str(good), "--dt", "0.05", "--model", "kalman"], "model"),
-        (["--train", str(good), "--dt", "0.05", "--cells", "-1"], "mpl_cells"),
+        (["--train", str(good), "--dt", "0.05", "--cells", "-1"], "--cells"),
         (["--train", str(tmp_path / "missing.csv"), "--dt", "0.05"], "not found"),
     ]
     for k, (extra, text) in enumerate(cases):
