@@ -209,12 +209,19 @@ def test_lost_thin_body_is_detected(monkeypatch):
         mesh_bodies(_bodies(), edge_length=1.0, order=1, mesher="tetwild")
 
 
+def _abort(*args):
+    """Stands for a C++ abort inside fTetWild (module level: the child process imports it)."""
+    import os
+
+    os.abort()
+
+
 def test_fTetWild_abort_is_contained(monkeypatch):
     """fTetWild runs in a forked child: a C++ abort there is a MeshingError here."""
     import os
 
     monkeypatch.setattr(meshing, "_attempts", lambda h, eps, e: [(h, eps, e)])
-    monkeypatch.setattr(meshing, "_tetwild_call", lambda *a: os.abort())
+    monkeypatch.setattr(meshing, "_tetwild_call", _abort)
     with pytest.raises(MeshingError, match="crashed"):
         mesh_bodies(_bodies(), edge_length=1.0, order=1, mesher="tetwild")
 

@@ -251,14 +251,15 @@ def _tetwild_call(vertices, faces, edge_length, epsilon, stop_energy, sizing, th
     return np.asarray(points, float), np.asarray(cells, np.int64)
 
 
-def _child(conn, args, parent_pid=None):
+def _child(conn, args, parent_pid=None, call=None):
     from designlab.atomic import die_with_parent
 
     die_with_parent(parent_pid)            # a killed caller takes fTetWild with it
+    call = call or _tetwild_call
     try:
         # fTetWild writes __tracked_surface.stl into the working directory: give it a temp one
         os.chdir(tempfile.mkdtemp(prefix="designlab-tetwild-"))
-        conn.send(("ok", _tetwild_call(*args)))
+        conn.send(("ok", call(*args)))
     except BaseException as exc:  # reported to the parent, which decides
         conn.send(("error", f"{type(exc).__name__}: {exc}"))
     finally:
@@ -272,11 +273,13 @@ def _tetwild(vertices, faces, edge_length, epsilon, stop_energy, sizing, threads
     import multiprocessing as mp
 
     args = (vertices, faces, edge_length, epsilon, stop_energy, sizing, threads)
-    if not isolate or "fork" not in mp.get_all_start_methods():
+    if not isolate:
         return _tetwild_call(*args)
-    ctx = mp.get_context("fork")
+    # a fresh interpreter, not a fork: forking a process that runs solver/VTK threads can copy
+    # a lock held by one of them into the child, which then waits for ever (seen in the tests)
+    ctx = mp.get_context("spawn")
     recv, send = ctx.Pipe(duplex=False)
-    proc = ctx.Process(target=_child, args=(send, args, os.getpid()), daemon=True)
+    proc = ctx.Process(target=_child, args=(send, args, os.getpid(), _tetwild_call), daemon=True)
     proc.start()
     send.close()
     try:
