@@ -168,23 +168,26 @@ def test_default_protocol_keeps_the_load_points_a_design_has():
 
 def test_load_only_parameters_leave_the_meshed_bodies_unchanged(tmp_path):
     """The FEM key ignores LOAD_ONLY_PARAMS: the meshed bodies' exact B-rep must not change
-    with them (else two designs would share a FEM they do not have)."""
-    from build123d import export_brep
-
+    with them (else two designs would share a FEM they do not have). Compared by volume, area
+    and every vertex (a BREP file also carries a triangulation when the shape was tessellated
+    earlier in the process)."""
     from designlab.sensors.fingertip import LOAD_ONLY_PARAMS
 
     a = CantileverFingertip()
     b = CantileverFingertip(h=12.0, r=7.0, fingertip_radius=10.0, load_table="II",
                             load_patch_radius=2.0, skin_thickness=1.0)
     assert {f for f in LOAD_ONLY_PARAMS} <= set(vars(a))
+
+    def signature(shape):
+        v = np.array(sorted(tuple(round(c, 9) for c in tuple(x)) for x in shape.vertices()))
+        return round(shape.volume, 9), round(shape.area, 9), len(shape.faces()), v
+
     for name in ("base", "cap"):
-        pa, pb = tmp_path / f"a_{name}.brep", tmp_path / f"b_{name}.brep"
-        export_brep(a.build()[name].shape, str(pa))
-        export_brep(b.build()[name].shape, str(pb))
-        assert pa.read_bytes() == pb.read_bytes(), name
+        sa, sb = signature(a.build()[name].shape), signature(b.build()[name].shape)
+        assert sa[:3] == sb[:3], name
+        assert np.array_equal(sa[3], sb[3]), name
 
 
-@pytest.mark.parametrize("contact", [True, False])
 def test_designs_that_share_the_fem_solve_it_once(tmp_path, contact):
     """Two (h, r) designs: the second reuses the first one's FEM from the cache folder and its
     numbers equal an uncached run's exactly; a base parameter changes the key. Both models:
