@@ -188,6 +188,7 @@ def test_load_only_parameters_leave_the_meshed_bodies_unchanged(tmp_path):
         assert np.array_equal(sa[3], sb[3]), name
 
 
+@pytest.mark.parametrize("contact", [True, False], ids=["contact", "linear"])
 def test_designs_that_share_the_fem_solve_it_once(tmp_path, contact):
     """Two (h, r) designs: the second reuses the first one's FEM from the cache folder and its
     numbers equal an uncached run's exactly; a base parameter changes the key. Both models:
