@@ -27,7 +27,6 @@ try:  # optional: scikit-sparse's CHOLMOD
 except ImportError:  # pragma: no cover - depends on the environment
     _cholmod_cholesky = None
 
-SOLVERS = ("auto", "direct", "pardiso", "cholmod", "amg")
 #: "auto" uses SuperLU up to this many unknowns for one or a few right-hand sides (its
 #: fill-in on 3D TET10 meshes grows fast: ~6 s for 14k, ~400 s for 108k unknowns here) ...
 DIRECT_MAX_DOFS = 12_000
@@ -50,17 +49,25 @@ class LinearSolver(abc.ABC):
     ``kind`` names the method, ``setup_seconds`` the factorisation time."""
 
     kind = ""
+    #: ``solve(F, x0)`` uses the starting guess (iterative kinds)
+    uses_x0 = False
 
     def __init__(self, K: sp.spmatrix):
         self.n = K.shape[0]
         self.setup_seconds = 0.0
+
+    @classmethod
+    def create(cls, K: sp.spmatrix, near_null=None, coarse=None) -> "LinearSolver":
+        """The solver of ``K`` as :func:`factorize` builds it (``near_null``/``coarse`` are
+        for the kinds that use them: values or callables returning them)."""
+        return cls(K)
 
     def solve(self, F: np.ndarray, x0: np.ndarray | None = None) -> np.ndarray:
         """Solution of K U = F; ``x0`` (same shape) is a starting guess for iterative kinds."""
         F = np.asarray(F, float)
         if F.shape[0] != self.n:
             raise ParameterError("F", F.shape, f"first dimension {self.n}")
-        if x0 is not None and self.kind == "amg":
+        if x0 is not None and self.uses_x0:
             U = self._solve(F.reshape(self.n, -1), np.asarray(x0, float).reshape(self.n, -1))
         else:
             U = self._solve(F.reshape(self.n, -1))
@@ -184,6 +191,7 @@ class AMGSolver(LinearSolver):
     P^T K P, which converges far better than SA-AMG on quadratic elements directly."""
 
     kind = "amg"
+    uses_x0 = True
 
     def __init__(self, K, near_null=None, coarse=None, rtol=1e-10, maxiter=1000):
         import pyamg
@@ -208,6 +216,11 @@ class AMGSolver(LinearSolver):
                                                    max_coarse=500)
             self._M = ml.aspreconditioner(cycle="V")
         self.setup_seconds = time.perf_counter() - t
+
+    @classmethod
+    def create(cls, K, near_null=None, coarse=None) -> "AMGSolver":
+        ev = lambda v: v() if callable(v) else v  # noqa: E731
+        return cls(K, near_null=ev(near_null), coarse=ev(coarse))
 
     def _two_level(self, r, Mc):
         from pyamg.relaxation.relaxation import gauss_seidel
@@ -240,9 +253,21 @@ class AMGSolver(LinearSolver):
         return U
 
 
+#: the solver kinds by name: adding a solver is a :class:`LinearSolver` subclass and its entry
+#: here (every ``solver`` setting accepts it from then on)
+KINDS: dict[str, type[LinearSolver]] = {
+    "direct": DirectSolver,
+    "pardiso": PardisoSolver,
+    "cholmod": CholmodSolver,
+    "amg": AMGSolver,
+}
+#: the choices of a ``solver`` setting: "auto" (see :func:`choose_solver`) and the kinds
+SOLVERS: tuple[str, ...] = ("auto", *KINDS)
+
+
 def choose_solver(n: int, solver: str = "auto", n_rhs: int = 1) -> str:
     """The concrete method ``factorize`` uses for ``n`` unknowns and ``n_rhs`` expected
-    right-hand sides."""
+    right-hand sides; an unknown ``solver`` is a one-line :class:`ParameterError`."""
     if solver not in SOLVERS:
         raise ParameterError("solver", solver, "one of " + ", ".join(SOLVERS))
     if solver == "auto":
@@ -262,13 +287,5 @@ def factorize(K: sp.spmatrix, solver: str = "auto", near_null=None, coarse=None,
     """Factor (or precondition) the SPD matrix ``K`` once; see module docstring.
     ``near_null`` ((n, k) array) and ``coarse`` ((P, B_c) or None): values or callables
     returning them, evaluated only for AMG. ``n_rhs``: expected number of solves (guides
-    "auto")."""
-    solver = choose_solver(K.shape[0], solver, n_rhs)
-    if solver == "direct":
-        return DirectSolver(K)
-    if solver == "pardiso":
-        return PardisoSolver(K)
-    if solver == "cholmod":
-        return CholmodSolver(K)
-    ev = lambda v: v() if callable(v) else v  # noqa: E731
-    return AMGSolver(K, near_null=ev(near_null), coarse=ev(coarse))
+    "auto"). The kind is looked up in :data:`KINDS`."""
+    return KINDS[choose_solver(K.shape[0], solver, n_rhs)].create(K, near_null, coarse)
