@@ -31,11 +31,22 @@ if TYPE_CHECKING:
 
 def __getattr__(name: str) -> Any:
     """The API names, imported when first used (``import designlab`` stays light)."""
-    if name in ("Fingertip", "Strap", "Flexure", "PARTS"):
+    if name == "Fingertip":
+        from designlab.geometry.fingertip import CantileverFingertip
+
+        return _with_api(CantileverFingertip)
+    if name == "Strap":
+        from designlab.geometry.strap import ArchStrap
+
+        return _with_api(ArchStrap)
+    if name == "Flexure":
+        from designlab.geometry.flexure import SpringFlexure
+
+        return _with_api(SpringFlexure)
+    if name == "PARTS":
         from designlab.geometry.parts import PARTS
 
-        return {"Fingertip": PARTS["fingertip"], "Strap": PARTS["strap"],
-                "Flexure": PARTS["flexure"], "PARTS": PARTS}[name]
+        return PARTS
     if name in ("Prediction", "predict", "write_prediction"):
         from designlab.sensors import predict as _p
 
@@ -49,6 +60,14 @@ def __getattr__(name: str) -> Any:
 
         return getattr(_m, name)
     raise AttributeError(f"module 'designlab' has no attribute {name!r}")
+
+
+def _with_api(cls: type) -> type:
+    """``cls`` once :mod:`designlab.geometry.parts` has given the part classes their
+    ``params()``/``show()`` methods (importing it does)."""
+    import designlab.geometry.parts  # noqa: F401
+
+    return cls
 
 
 def __dir__() -> list[str]:

@@ -25,6 +25,27 @@ def test_part_api():
         dl.no_such_name
 
 
+def test_facade_names_are_the_part_classes_with_their_api():
+    """``dl.Fingertip``/``dl.Strap``/``dl.Flexure`` are the geometry modules' classes (looked up
+    by class, not by sensor name), the same as ``dl.PARTS`` holds, and carry ``params()`` even
+    when the facade is the first thing imported (a fresh interpreter)."""
+    import subprocess
+    import sys
+
+    import designlab as dl
+    from designlab.geometry.fingertip import CantileverFingertip
+    from designlab.geometry.flexure import SpringFlexure
+    from designlab.geometry.strap import ArchStrap
+
+    assert (dl.Fingertip, dl.Strap, dl.Flexure) == (CantileverFingertip, ArchStrap, SpringFlexure)
+    assert set(dl.PARTS.values()) == {dl.Fingertip, dl.Strap, dl.Flexure}
+    code = ("import designlab as dl; print(*(n for n in ('Fingertip', 'Strap', 'Flexure') "
+            "if len(getattr(dl, n)().params()) > 0))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300, check=True).stdout.split()
+    assert out == ["Fingertip", "Strap", "Flexure"]
+
+
 def test_show_writes_a_png_in_a_script(tmp_path):
     import designlab as dl
 
