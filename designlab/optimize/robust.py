@@ -25,17 +25,18 @@ from typing import Any
 
 from designlab.errors import ParameterError
 from designlab.params import did_you_mean, load_toml
-from designlab.sensors.uncertainty import MC_METRICS
+from designlab.sensors.uncertainty import mc_metrics
 
 STATS = ("mean", "std", "p5", "p50", "p95")
 
 
 def _check_mc_name(part: str, where: str, name: str) -> None:
-    allowed = [f"mc.{m}.{s}" for m in MC_METRICS.get(part, ()) for s in STATS] + ["mc.failed"]
+    metrics = mc_metrics(part)
+    allowed = [f"mc.{m}.{s}" for m in metrics for s in STATS] + ["mc.failed"]
     if name not in allowed:
         raise ParameterError(f"{where}.{name}", name, f"a Monte Carlo metric of the {part}: "
                              f"mc.<metric>.<{'|'.join(STATS)}> with <metric> one of "
-                             + ", ".join(MC_METRICS.get(part, ())) + did_you_mean(name, allowed))
+                             + ", ".join(metrics) + did_you_mean(name, allowed))
 
 
 def robust_config(data: dict[str, Any]):

@@ -42,6 +42,7 @@ from designlab.calibration.calibration_matrix import (condition_number, cross_ta
                                                       linearity_percent)
 from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
 from designlab.sensors.protocols import HangingWeightTest
+from designlab.sensors.montecarlo_fingertip import MONTE_CARLO
 from designlab.sensors.sensor import Sensor
 from designlab.errors import ParameterError
 from designlab.fem.contact import MU_MAX
@@ -779,7 +780,7 @@ SENSOR = Sensor(
     name="fingertip", paper="seed 001 (cantilever fingertip on a ball and three FSS015 sensors)",
     protocol=HangingWeightTest, settings=FingertipModelSettings, run=run, plots=plots,
     gains=gains, finish=finish, design_protocol=design_protocol, cached=True,
-    apply_model=apply_model, load_cases=load_cases,
+    apply_model=apply_model, load_cases=load_cases, uncertainty=MONTE_CARLO,
     convergence=("condition_number", "hysteresis_percent.overall",
                  "hysteresis_percent.overall_noise_free",
                  "hysteresis_percent.by_group_noise_free.G1"))

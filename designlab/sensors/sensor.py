@@ -40,6 +40,8 @@ class Sensor:
     load_cases: ``load_cases(part, protocol, settings, result, cache) -> [LoadCase]``: the
                virtual test's load cases as displacements of ``result.mesh`` (stress and
                safety factor of each); None: the one case of ``result.displacement``
+    uncertainty: its Monte Carlo model (:class:`designlab.sensors.uncertainty.MonteCarloModel`:
+               uncertain inputs, metrics, FEM stage, one virtual build); None: no Monte Carlo
     """
 
     name: str
@@ -56,6 +58,7 @@ class Sensor:
     meshed: Callable[[Any], bool] | None = None
     convergence: tuple[str, ...] = ("condition_number", "hysteresis_percent.overall")
     load_cases: Callable[..., list["LoadCase"]] | None = None
+    uncertainty: Any = None
 
     @property
     def part(self) -> type:

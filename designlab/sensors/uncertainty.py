@@ -37,14 +37,12 @@ import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
 from designlab.errors import ParameterError
 from designlab.params import check_keys, did_you_mean
-from designlab.sensors.noise import (FLEXURE_HYSTERESIS_RANGE_PCT, FSS015_SENSITIVITY_MV_PER_V_PER_N,
-                                     POSE_MAX_ERROR_XY_MM, POSE_NOISE_SIGMA_MM)
 
 DISTRIBUTIONS = ("normal", "lognormal", "uniform", "fixed")
 _KEYS = {"normal": ("mean", "std", "lo", "hi"), "lognormal": ("mean", "std", "lo", "hi"),
@@ -142,81 +140,51 @@ class Input:
     per_build: int = 1
 
 
-# ------------------------------------------------------------------------ the sensors' inputs
+@dataclass(frozen=True)
+class MonteCarloModel:
+    """What the Monte Carlo needs of one sensor (its ``Sensor.uncertainty``): adding a sensor
+    touches its own module only.
 
-_ABS_SCATTER = ("assumed: printed ABS modulus between the datasheet's across-layer and "
-                "in-plane ratio (ABSplus-P430 yield strength 26 MPa ZX / 31 MPa XZ = 0.84) and "
-                "the datasheet value (scale 1.0); no modulus scatter is published for ABSplus")
+    inputs:    the uncertain inputs (default distributions with their sources)
+    metrics:   the names ``build`` returns (the ``mc.<metric>.<stat>`` columns of a robust sweep)
+    fem_stage: ``(part, settings_dict, protocol_dict, cache) -> context``: the design's FEM stage
+               through the cache (computed once by the parent, read by every worker)
+    build:     ``(context, values, seed) -> {metric: value}``: one virtual build, its inputs by
+               name (per-build inputs as lists), its readout noise from ``seed``
+    paper:     the paper's numbers the metrics compare with (shown beside the summary)
+    """
 
-FINGERTIP_INPUTS = (
-    Input("printed_modulus_scale",
-          Distribution("uniform", lo=0.84, hi=1.0, source=_ABS_SCATTER),
-          "scale of the printed material's moduli (exact on the condensed FEM)"),
-    Input("fss015_sensitivity",
-          Distribution("uniform", lo=FSS015_SENSITIVITY_MV_PER_V_PER_N[0],
-                       hi=FSS015_SENSITIVITY_MV_PER_V_PER_N[2],
-                       source="FSS015 min/max 2.2-2.6 mV/V/N (seed 001 Table I), each of the "
-                              "three units drawn independently"),
-          "FSS015 sensitivity, mV/V/N, one draw per sensor", per_build=3),
-    Input("bolt_preload_N",
-          Distribution("uniform", lo=0.7 * 20.0, hi=1.3 * 20.0,
-                       source="20 N from T = K F d at 0.01 N m (fingertip_contact); torque "
-                              "tightening scatters the preload about +-30 % through the nut "
-                              "factor (Shigley, Mechanical Engineering Design, Sec. 8-8)"),
-          "bolt tension after tightening, N (sets the Hertz contact stiffnesses)"),
-    Input("friction_coefficient",
-          Distribution("uniform", lo=0.21, hi=0.25,
-                       source="chromium on steel, kinetic 0.21 to static 0.25 (Wypych 2018, "
-                              "Table 11.1; fingertip_contact)"),
-          "ball/sensor Coulomb coefficient (decides the stick margin)"),
-)
+    inputs: tuple[Input, ...]
+    metrics: tuple[str, ...]
+    fem_stage: Callable[..., Any]
+    build: Callable[..., dict[str, Any]]
+    paper: dict[str, Any] = dataclasses.field(default_factory=dict)
 
-FLEXURE_INPUTS = (
-    Input("hysteresis_percent",
-          Distribution("uniform", lo=FLEXURE_HYSTERESIS_RANGE_PCT[0],
-                       hi=FLEXURE_HYSTERESIS_RANGE_PCT[1],
-                       source="seed 002 Sec. V-B-1: max error 2-5 % of the full range"),
-          "hysteresis of the built flexure, % of range (Iwan model)"),
-    Input("pose_noise_mm",
-          Distribution("uniform", lo=POSE_NOISE_SIGMA_MM, hi=POSE_MAX_ERROR_XY_MM / 3.1,
-                       source="seed 002 Sec. V-A: 20 um mean |error| (std 25.1 um) to max "
-                              "|error| < 100 um over 530 estimates (std <= 100/3.1 = 32 um)"),
-          "camera pose noise, std per translation, mm"),
-)
 
-INPUTS: dict[str, tuple[Input, ...]] = {"fingertip": FINGERTIP_INPUTS, "flexure": FLEXURE_INPUTS}
+def model_of(sensor: str) -> MonteCarloModel:
+    """The Monte Carlo model of ``sensor`` (its ``Sensor.uncertainty``), or a one-line error
+    listing the sensors that have one."""
+    from designlab.sensors.registry import SENSORS, get_sensor
 
-#: the Monte Carlo metrics of each sensor (keys of ``run_batch`` rows)
-MC_METRICS = {
-    "fingertip": ("force_error_std.x", "force_error_std.y", "force_error_std.z",
-                  "force_error_max_abs.x", "force_error_max_abs.y", "force_error_max_abs.z",
-                  "relative_rms_error.x", "relative_rms_error.y", "relative_rms_error.z",
-                  "Pz_error_over_xy", "worst_axis_is_z", "condition_number", "stick_margin",
-                  "share_through_sensors.z"),
-    "flexure": tuple(f"{k}.{a}" for k in ("force_error_std", "force_error_mean",
-                                           "force_error_max_abs", "split_std.pose_noise",
-                                           "split_std.hysteresis", "split_std.model_error")
-                     for a in "xyz"),
-}
-
+    m = get_sensor(sensor).uncertainty
+    if m is None:
+        have = sorted(n for n, s in SENSORS.items() if s.uncertainty is not None)
+        raise ParameterError("part", sensor, "a sensor with an uncertainty model: "
+                             + ", ".join(have))
+    return m
 
 
 def sensor_inputs(sensor: str) -> tuple[Input, ...]:
-    """The uncertain inputs of ``sensor`` (``Sensor.uncertainty`` when set, else the table of
-    this module)."""
-    from designlab.sensors.registry import get_sensor
+    """The uncertain inputs of ``sensor``."""
+    return tuple(model_of(sensor).inputs)
 
-    s = get_sensor(sensor)
-    hook = getattr(s, "uncertainty", None)
-    if hook:
-        import importlib
 
-        mod, _, attr = str(hook).partition(":")
-        return tuple(getattr(importlib.import_module(mod), attr))
-    if sensor not in INPUTS:
-        raise ParameterError("part", sensor, "a sensor with an uncertainty model: "
-                             + ", ".join(sorted(INPUTS)))
-    return INPUTS[sensor]
+def mc_metrics(sensor: str) -> tuple[str, ...]:
+    """The Monte Carlo metrics of ``sensor`` (empty when it has no uncertainty model)."""
+    from designlab.sensors.registry import SENSORS
+
+    s = SENSORS.get(sensor)
+    return tuple(s.uncertainty.metrics) if s is not None and s.uncertainty is not None else ()
 
 
 # ---------------------------------------------------------------------------------- the spec
@@ -356,43 +324,6 @@ def build_values(spec: UncertaintySpec, cols: list[str], row: np.ndarray) -> dic
 
 # ------------------------------------------------------------------------- one build, a batch
 
-def _fingertip_metrics(part, fem, settings, protocol, values, seed) -> dict[str, Any]:
-    from designlab.sensors.fingertip_calibration import calibration_test, nominal_build
-
-    b = dataclasses.replace(nominal_build(), printed_modulus_scale=values["printed_modulus_scale"],
-                            sensitivity_mV_per_V_per_N=tuple(values["fss015_sensitivity"]),
-                            bolt_preload_N=values["bolt_preload_N"],
-                            friction_coefficient=values["friction_coefficient"], seed=seed)
-    r = calibration_test(part, fem, settings, protocol, b)
-    out = {}
-    for a in ("x", "y", "z"):
-        out[f"force_error_std.{a}"] = r["per_axis"][a]["std"]
-        out[f"force_error_max_abs.{a}"] = r["per_axis"][a]["max_abs"]
-        out[f"relative_rms_error.{a}"] = r["relative_rms_error"][a]
-    out["Pz_error_over_xy"] = r["Pz_error_over_xy"]
-    out["worst_axis_is_z"] = float(r["worst_axis"] == "z")
-    out["condition_number"] = r["condition_number"]
-    out["stick_margin"] = r["stick_margin"]
-    out["share_through_sensors.z"] = r["share_through_sensors"]["z"]
-    return out
-
-
-def _flexure_metrics(K_true, K_design, values, seed) -> dict[str, Any]:
-    from designlab.sensors.flexure.force_error import FlexureForceTest, run_force_test
-
-    t = FlexureForceTest(hysteresis_percent=values["hysteresis_percent"],
-                         pose_noise_mm=values["pose_noise_mm"], seed=seed)
-    r = run_force_test(K_true, K_design, t)
-    out = {}
-    for a in ("x", "y", "z"):
-        out[f"force_error_std.{a}"] = r["per_axis"][a]["std"]
-        out[f"force_error_mean.{a}"] = r["per_axis"][a]["mean"]
-        out[f"force_error_max_abs.{a}"] = r["per_axis"][a]["max_abs"]
-        for m, s in r["split_std"][a].items():
-            out[f"split_std.{m}.{a}"] = s
-    return out
-
-
 def build_seed(seed: int, index: int) -> int:
     """The readout-noise seed of build ``index`` (independent of batching and scheduling)."""
     return int(np.random.SeedSequence([seed, index]).generate_state(1)[0])
@@ -403,24 +334,11 @@ def _fem_stage(sensor: str, params: dict, settings: dict | None, protocol: dict 
     """(context, fem misses): the design's FEM stage through the cache."""
     from designlab.fem.cache import FEMCache
     from designlab.geometry.parts import make_part
-    from designlab.sensors.predict import model_settings, protocol_from
 
     part = make_part(sensor, params)
     cache = FEMCache(fem_dir)
-    if sensor == "fingertip":
-        from designlab.sensors.fingertip_calibration import structure
-        from designlab.sensors.protocols import HangingWeightTest
-
-        sett = model_settings(sensor, settings)
-        proto = (protocol_from(sensor, None, protocol, design=part) if protocol
-                 else HangingWeightTest.preset("optimized"))
-        fem = structure(part, sett, proto, cache)
-        return {"part": part, "fem": fem, "settings": sett, "protocol": proto}, cache.misses
-    from designlab.sensors.flexure.virtual import run
-
-    sett = model_settings(sensor, settings)
-    pred = run(part, protocol_from(sensor, None, protocol), sett)
-    return {"K_true": pred.K_true, "K_design": pred.K_design}, cache.misses
+    ctx = model_of(sensor).fem_stage(part, settings, protocol, cache)
+    return ctx, cache.misses
 
 
 def run_batch(task: dict[str, Any]) -> dict[str, Any]:
@@ -428,17 +346,14 @@ def run_batch(task: dict[str, Any]) -> dict[str, Any]:
     the executors' unit of work. Failed builds are returned with their error."""
     sensor = task["sensor"]
     t0 = time.perf_counter()
+    model = model_of(sensor)
     ctx, misses = _fem_stage(sensor, task["params"], task.get("settings"),
                              task.get("protocol"), task.get("fem_cache"))
     rows = []
     for idx, values in zip(task["indices"], task["values"]):
         seed = build_seed(task["seed"], idx)
         try:
-            if sensor == "fingertip":
-                m = _fingertip_metrics(ctx["part"], ctx["fem"], ctx["settings"],
-                                       ctx["protocol"], values, seed)
-            else:
-                m = _flexure_metrics(ctx["K_true"], ctx["K_design"], values, seed)
+            m = model.build(ctx, values, seed)
             bad = [k for k, v in m.items() if v is not None and not np.isfinite(v)]
             if bad:
                 raise FloatingPointError(f"non-finite {bad[0]}")
@@ -499,7 +414,8 @@ def summarize(spec: UncertaintySpec, cols: list[str], V: np.ndarray, rows: list[
             "sensitivity_method": ("Sobol indices (SALib, Saltelli design)"
                                    if spec.sensitivity == "sobol"
                                    else "Spearman rank correlation"),
-            "spec": spec.to_json(), "inputs_sampled": cols, "metrics": metrics}
+            "spec": spec.to_json(), "inputs_sampled": cols, "metrics": metrics,
+            "paper": model_of(spec.sensor).paper}
 
 
 def summary_rows(summary: dict[str, Any], drivers: int = 2) -> list[tuple[str, str, str, str, str]]:
