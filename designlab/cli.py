@@ -143,23 +143,25 @@ def sweep(config: Path = typer.Argument(..., help="Sweep config (TOML): part, pa
           retry_failed: bool = typer.Option(False, "--retry-failed", help="Evaluate failed designs again.")):
     """Explore a design space: every design -> prediction, cached, resumable; Pareto report."""
     from designlab.optimize.report import write_report
-    from designlab.optimize.space import load_sweep_config
+    from designlab.optimize.robust import band_lines, load_sweep
     from designlab.optimize.sweep import run_sweep
 
     _check_out(out)
     _check_options(("--workers", workers, 1, 512))
-    cfg = load_sweep_config(config)
+    cfg, evaluator = load_sweep(config)      # [uncertainty]: robust (Monte Carlo per design)
     executor = _executor(scheduler, workers)
     try:
         with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
             res = run_sweep(cfg, out, executor=executor, progress=_sweep_callback(bar),
-                            retry_failed=retry_failed)
+                            retry_failed=retry_failed, evaluator=evaluator)
     except KeyboardInterrupt:
         err_console.print("interrupted: finished designs are stored; run the same command to resume")
         raise typer.Exit(130)
     write_report(out, res.rows, cfg, res.pareto_keys, res.best_key,
                  title=f"designlab sweep: {config.name}", tie_keys=res.tie_keys, kind="sweep")
     _summary_table(res.rows, cfg, res.pareto_keys, res.best_key, tie_keys=res.tie_keys)
+    for line in band_lines(res.rows, cfg, [res.best_key] if res.best_key else None):
+        console.print("Monte Carlo band " + line, highlight=False, markup=False)
     if res.tie_keys:
         console.print(f"{len(res.tie_keys) + 1} designs are not distinguishable by "
                       f"{next(iter(cfg.objectives))}: their differences are within the mesh "
@@ -184,7 +186,7 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
     """Optimise a design (surrogate/DE, or Pareto for several objectives) and export the winner."""
     from designlab.optimize.optimizer import optimize as run_optimize
     from designlab.optimize.report import write_report
-    from designlab.optimize.space import load_sweep_config
+    from designlab.optimize.robust import band_lines, load_sweep
     from designlab.atomic import atomic_write_json
 
     from designlab.errors import ParameterError
@@ -195,12 +197,13 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
     if method not in ("auto", "surrogate", "de", "pareto"):
         raise ParameterError("--method", method, "one of auto, surrogate, de, pareto")
     parse_formats(formats)
-    cfg = load_sweep_config(config)
+    cfg, evaluator = load_sweep(config)      # [uncertainty]: robust (Monte Carlo per design)
     executor = _executor(scheduler, workers)
     try:
         with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
             res = run_optimize(cfg, out, method=method, executor=executor,
-                               progress=_sweep_callback(bar), maxiter=maxiter)
+                               progress=_sweep_callback(bar), maxiter=maxiter,
+                               evaluator=evaluator)
     except KeyboardInterrupt:
         err_console.print("interrupted: finished designs are stored; run the same command to resume")
         raise typer.Exit(130)
@@ -221,6 +224,9 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
                   "is chosen on it; exported the one with the least printed volume "
                   f"({chosen.get('printed_volume_mm3', float('nan')):.4g} mm^3)")
     _summary_table(res.sweep.rows, cfg, res.sweep.pareto_keys, chosen["key"], tie_keys=ties)
+    for line in band_lines(rows, cfg, [chosen["key"]], limit=1):
+        console.print("Monte Carlo band of the chosen design " + line, highlight=False,
+                      markup=False)
     design_dir = out / "chosen"
     from designlab.optimize.evaluate import export_design
 

@@ -118,3 +118,38 @@ def bands(rows: list[dict[str, Any]], cfg) -> dict[str, dict[str, Any]]:
         out[r["key"]] = {n: tuple(r.get(f"{n}.{q}") for q in ("p5", "p50", "p95"))
                          for n in sorted(names)}
     return out
+
+
+def load_sweep(path: str | Path):
+    """(SweepConfig, evaluator) of a sweep/optimize TOML: with an ``[uncertainty]`` table the
+    robust config and a :class:`RobustEvaluator`, else the plain config and None (the sweep's
+    default evaluator)."""
+    from designlab.optimize.space import sweep_config
+
+    data = load_toml(path, "config")
+    if "uncertainty" in data:
+        cfg, spec = robust_config(data)
+        return cfg, RobustEvaluator(spec)
+    return sweep_config(data), None
+
+
+def band_lines(rows: list[dict[str, Any]], cfg, keys: list[str] | None = None,
+               limit: int = 10) -> list[str]:
+    """One text line per design (``keys`` first, then the table order, at most ``limit``):
+    each Monte Carlo objective/constraint's 5 / 50 / 95 % band and the failed builds."""
+    b = bands(rows, cfg)
+    if not any(b.values()):
+        return []
+    by = {r["key"]: r for r in rows}
+    order = list(dict.fromkeys([*(keys or []), *(r["key"] for r in rows)]))
+    out = []
+    for k in order[:limit]:
+        r = by.get(k)
+        if r is None or r.get("status") != "ok":
+            continue
+        txt = "; ".join(f"{n} {lo:.4g} / {mid:.4g} / {hi:.4g}" for n, (lo, mid, hi) in b[k].items()
+                        if None not in (lo, mid, hi))
+        failed = r.get("mc.failed")
+        out.append(f"{k[:8]}: {txt} (5 / 50 / 95 %"
+                   + (f"; {int(failed)} failed builds" if failed else "") + ")")
+    return out
