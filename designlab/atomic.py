@@ -149,13 +149,17 @@ def jsonable(x):
     return x
 
 
-def atomic_write_json(path: str | Path, obj, indent: int = 1) -> Path:
+def atomic_write_json(path: str | Path, obj, indent: int = 1, *,
+                      keep_suffix: bool = True) -> Path:
     """``obj`` as JSON, written atomically: the package's one JSON writer and its one rule for
-    non-finite numbers (NaN and inf become null, see :func:`jsonable`)."""
+    non-finite numbers (NaN and inf become null, see :func:`jsonable`). ``keep_suffix=False``:
+    the temporary name ends in ``.tmp`` (a glob for ``*.json`` never sees it; see
+    :func:`atomic_path`)."""
     import json
 
     return atomic_write_bytes(path, json.dumps(jsonable(obj), indent=indent,
-                                               allow_nan=False).encode())
+                                               allow_nan=False).encode(),
+                              keep_suffix=keep_suffix)
 
 
 def atomic_savefig(fig, path: str | Path, dpi: int = 120) -> Path:

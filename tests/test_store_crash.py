@@ -14,6 +14,7 @@ import textwrap
 import time
 from pathlib import Path
 
+import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
@@ -186,4 +187,45 @@ def test_temporary_names_never_match_the_store(tmp_path, reference):
     assert res.reused == N_DESIGNS and res.new == 0
     assert live.exists() and not dead.exists()
     live.unlink()
+    assert _table(tmp_path) == reference
+
+
+FEM_SCRIPT = """
+import os, signal
+import numpy as np
+from designlab.fem.cache import FEMCache
+real = os.replace
+def replace(a, b):
+    os.kill(os.getpid(), signal.SIGKILL)          # killed right before the rename
+os.replace = replace
+FEMCache({fem!r}).get_or_compute("ab" * 32, lambda: {{"K": np.eye(3)}})
+"""
+
+
+def test_recover_removes_the_temporary_files_of_a_killed_fem_stage(tmp_path, reference):
+    """A worker killed while it wrote a shared FEM stage (``OUT/fem``, the sweep's
+    :class:`~designlab.fem.cache.FEMCache`) leaves its temporary file; the next run's recovery
+    removes it, keeps a live writer's, and the FEM stage is computed again."""
+    from designlab.fem.cache import FEMCache
+    from designlab.optimize.store import ResultStore
+
+    fem = tmp_path / "fem"
+    proc = subprocess.run([sys.executable, "-c", FEM_SCRIPT.format(fem=str(fem))], timeout=120)
+    assert proc.returncode == -signal.SIGKILL
+    dead = [p for p in fem.iterdir() if ".tmp" in p.name]
+    assert len(dead) == 1 and dead[0].name.endswith(".tmp.npz")   # FEMCache's own naming
+    assert not (fem / f"{'ab' * 32}.npz").exists()
+    live = fem / f".{'cd' * 32}.{os.getpid()}.abcdefgh.tmp.npz"
+    live.write_bytes(b"PK")
+    assert ResultStore(tmp_path).recover()["temporary_files"] == 1
+    assert not dead[0].exists() and live.exists()
+    live.unlink()
+    cache = FEMCache(fem)
+    assert cache.get_or_compute("ab" * 32, lambda: {"K": 2 * np.eye(3)})["K"][0, 0] == 2.0
+    assert cache.misses == 1 and (fem / f"{'ab' * 32}.npz").is_file()
+    # the sweep's start runs the same recovery (ResultStore.recover on OUT)
+    dead2 = fem / f".{'ef' * 32}.999999999.abcdefgh.tmp.npz"
+    dead2.write_bytes(b"PK")
+    run_sweep(sweep_config(CFG), tmp_path, evaluator=quadratic, executor=LocalExecutor(1))
+    assert not dead2.exists()
     assert _table(tmp_path) == reference

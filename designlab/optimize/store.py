@@ -6,13 +6,15 @@ Layout under the sweep's output directory::
     cache/<key>.json          the full result of one design (atomic write)
     results/<key>.parquet     one row per finished design: a Parquet dataset (atomic write)
     results.parquet           the consolidated table (written at the end of a run)
+    fem/<key>.npz             the FEM stages the designs share (:mod:`designlab.fem.cache`)
 
 Every file is written to a temporary name and renamed, so an interrupted sweep (Ctrl-C, kill -9)
 leaves only complete files; the key (a hash of part, parameters, settings, protocol and the
 designlab version) names both files, so a resumed sweep never duplicates a design. Temporary
 names (``.KEY.RANDOM.tmp``) never match the store's own names (``KEY.parquet``, ``KEY.json``),
-and :meth:`ResultStore.recover` removes those a killed run left (under the directory's lock,
-:func:`designlab.atomic.out_lock`, so never another live run's).
+and :meth:`ResultStore.recover` removes those a killed run left, in ``fem/`` too (under the
+directory's lock, :func:`designlab.atomic.out_lock`, so never another live run's). JSON is
+written by :func:`designlab.atomic.atomic_write_json` (its one NaN rule: null).
 """
 
 from __future__ import annotations
@@ -28,7 +30,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from designlab import __version__
-from designlab.atomic import atomic_write_bytes, jsonable as _jsonable, sweep_temps
+from designlab.atomic import atomic_write_bytes, atomic_write_json, jsonable as _jsonable
+from designlab.atomic import sweep_temps
 
 KEY = re.compile(r"^[0-9a-f]{20}$")
 
@@ -71,11 +74,14 @@ class ResultStore:
         self.root = Path(root)
         self.cache_dir = self.root / "cache"
         self.rows_dir = self.root / "results"
+        self.fem_dir = self.root / "fem"
 
     def recover(self) -> dict[str, int]:
-        """After a kill: remove temporary files, and row or cache files that cannot be read
-        (a file system that lost a write); those designs are evaluated again. Returns counts."""
-        temps = len(sweep_temps(self.rows_dir)) + len(sweep_temps(self.cache_dir))
+        """After a kill: remove temporary files (of rows, cache and the FEM stages in
+        ``fem/``), and row or cache files that cannot be read (a file system that lost a
+        write); those designs are evaluated again (an unreadable FEM stage is computed again
+        by :class:`~designlab.fem.cache.FEMCache` itself). Returns counts."""
+        temps = sum(len(sweep_temps(d)) for d in (self.rows_dir, self.cache_dir, self.fem_dir))
         broken = 0
         for p in self._row_files():
             try:
@@ -110,9 +116,7 @@ class ResultStore:
     def put(self, key: str, row: dict[str, Any], result: dict[str, Any] | None) -> None:
         """Store a finished design: its full result in the cache, then its table row."""
         if result is not None:
-            atomic_write_bytes(self.cache_dir / f"{key}.json",
-                               json.dumps(_jsonable(result), indent=1).encode(),
-                               keep_suffix=False)
+            atomic_write_json(self.cache_dir / f"{key}.json", result, keep_suffix=False)
         table = pa.Table.from_pylist([row])
         sink = pa.BufferOutputStream()
         pq.write_table(table, sink)
