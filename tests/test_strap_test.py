@@ -211,3 +211,87 @@ def test_prestrained_run_matches_the_slot_table(flat_mesh, prediction):
     assert p["electrical"]["resistance_at_rest_ohm"] > 1800.0
     with pytest.raises(ParameterError, match="slot"):
         st.StrapModelSettings(slot=2, configuration="flat")
+
+
+# ------------------------------------------------------------------------- the FEM stage cache
+
+#: a short viscoelastic protocol on a coarse TET4 mesh: the cache tests stay cheap
+SHORT = StrapLoadTest(n_steps=2, step_hold_s=1.0, dt_s=0.25, cycles=1, cycle_period_s=1.0)
+CHEAP = st.StrapModelSettings(edge_length=2.0, order=1)
+
+
+def test_load_only_parameters_leave_the_meshed_bodies_unchanged():
+    """The FEM key ignores LOAD_ONLY_PARAMS (the nail plate): the meshed bodies' exact B-rep must
+    not change with them, else two designs would share a FEM they do not have."""
+    a = ArchStrap()
+    b = ArchStrap(nail_plate_length=20.0, nail_plate_width=14.0, nail_plate_thickness=2.0)
+    assert set(st.LOAD_ONLY_PARAMS) <= set(vars(a))
+
+    def signature(shape):
+        v = np.array(sorted(tuple(round(c, 9) for c in tuple(x)) for x in shape.vertices()))
+        return round(shape.volume, 9), round(shape.area, 9), len(shape.faces()), v
+
+    for name in a.mesh_bodies():
+        sa, sb = signature(a.build()[name].shape), signature(b.build()[name].shape)
+        assert sa[:3] == sb[:3], name
+        assert np.array_equal(sa[3], sb[3]), name
+    assert a.build()["nail_plate"].shape.volume != b.build()["nail_plate"].shape.volume
+
+
+def test_fem_key_holds_what_the_fem_depends_on():
+    """Readout settings, the wrap's slot and the nail plate leave the key; the mesh, the model,
+    the materials and (a relaxing material) the protocol change it."""
+    key = st.fem_key(PART, SHORT, CHEAP)
+    same = [st.fem_key(PART, SHORT, dataclasses.replace(CHEAP, **kw)) for kw in (
+        {"divider_ohm": 4700.0}, {"supply_V": 3.3}, {"adc_bits": 12}, {"bandwidth_hz": 50.0},
+        {"contact_ohm": 20.0}, {"read_fraction": 0.5}, {"slot": 2}, {"wrap_length": 60.0},
+        {"mesh_convergence": False})]
+    same.append(st.fem_key(ArchStrap(nail_plate_width=14.0), SHORT, CHEAP))
+    assert set(same) == {key}
+    other = [st.fem_key(PART, SHORT, dataclasses.replace(CHEAP, **kw)) for kw in (
+        {"edge_length": 2.5}, {"order": 2}, {"tissue_stiffness": 0.05}, {"finger_radius": 8.0},
+        {"load": "traction"}, {"solver": "amg"}, {"mesher": "tetwild"})]
+    other.append(st.fem_key(ArchStrap(thickness=0.8), SHORT, CHEAP))
+    other.append(st.fem_key(PART, dataclasses.replace(SHORT, normal_N=4.0), CHEAP))
+    assert len(set(other)) == len(other) and key not in other
+    # elastic materials: one static solve of the unit loads, whatever the protocol
+    el = _elastic()
+    assert st.fem_key(PART, SHORT, CHEAP, el) != key
+    assert st.fem_key(PART, SHORT, CHEAP, el) == st.fem_key(
+        PART, dataclasses.replace(SHORT, normal_N=4.0, cycles=2), CHEAP, el)
+
+
+def test_designs_that_share_the_fem_solve_it_once(tmp_path):
+    """Two designs that differ in readout settings only (divider, supply, ADC, bandwidth, the
+    wrap's slot): the second reuses the first one's FEM from the cache folder and its numbers
+    equal an uncached run's exactly; the report says which mesher and solver ran."""
+    from designlab.fem.cache import FEMCache, clear_memory
+
+    a = CHEAP
+    b = dataclasses.replace(CHEAP, divider_ohm=4700.0, supply_V=3.3, adc_bits=12,
+                            bandwidth_hz=50.0, slot=2)
+    clear_memory()
+    cache = FEMCache(tmp_path / "fem")
+    ra = st.run(PART, SHORT, a, cache=cache)
+    clear_memory()                                       # the second design reads the folder
+    rb = st.run(PART, SHORT, b, cache=cache)
+    assert (cache.misses, cache.hits) == (1, 1)
+    assert not ra.report["fem_reused"] and rb.report["fem_reused"]
+    assert ra.report["fem_key"] == rb.report["fem_key"]
+    assert rb.report["timings_s"]["solve"] == 0.0 and rb.report["timings_s"]["fem_cache"] > 0
+    assert len(list((tmp_path / "fem").glob("*.npz"))) == 1
+    clear_memory()
+    fresh = st.run(PART, SHORT, b)                       # no cache folder: solved again
+    assert not fresh.report["fem_reused"]
+    for k in ("condition_number", "hysteresis_percent", "sensitivity", "electrical",
+              "prestrain", "calibration_matrix", "series"):
+        assert fresh.report[k] == rb.report[k], k
+    assert np.array_equal(fresh.dV, rb.dV) and np.array_equal(fresh.displacement, rb.displacement)
+    assert rb.report["viscoelastic"] and rb.report["hysteresis_percent"]["overall"] > 0
+    # the readout did change: another divider and supply, another sensitivity
+    assert rb.report["sensitivity"]["V_per_N"]["sum"]["F_n"] != \
+        ra.report["sensitivity"]["V_per_N"]["sum"]["F_n"]
+    assert "4.7 kOhm divider at 3.3 V" in rb.report["model"]["readout"]
+    m = rb.report["mesh"]
+    assert m["mesher"] == "gmsh" and m["solver"] == "direct" and m["attempts"]
+    assert m == ra.report["mesh"]

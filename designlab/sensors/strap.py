@@ -31,6 +31,14 @@ F_x), the premise of seed 000. ``configuration="flat"`` is kept for comparison.
 Elastic materials: one static solve with the unit load cases ``F_n`` and ``F_x`` scaled by the
 protocol; with Prony series: the whole history through
 :func:`~designlab.fem.viscoelastic.solve_history` (both cases, one History).
+
+The FEM stage (:func:`solve_fem`: mesh, wrap, model, the gauges' strain history) is cached under
+:func:`fem_key`, a key of only what it depends on; the readout (divider, ADC, the wrap's
+prestrain from the slot, the staircase read window) runs after it, so designs that differ only
+there share one solve. Unit-load step responses superposed over the protocol were measured and
+not taken: two separate histories in one march cost 1.3x the combined one on the default mesh
+(41.8k DOF, 60 steps: 13.9 vs 10.6 s CPU incl. the factorisation), and the default protocol
+(51 s) is shorter than the 7 tau_max (76 s) after which a step response could be cut.
 """
 
 from __future__ import annotations
@@ -52,6 +60,7 @@ from designlab.sensors.protocols import StrapLoadTest
 from designlab.sensors.sensor import Sensor, linear_sensor_model
 from designlab.errors import ParameterError
 from designlab.fem.settings import FEMSettings
+from designlab.fem.transducers import StrainGauge
 from designlab.params import rng, validate
 
 CHANNELS = ("Ch1", "Ch2")          #: Ch1 = left gauge (x < 0), Ch2 = right gauge (x > 0)
@@ -188,8 +197,10 @@ def pad_frame(part, settings: StrapModelSettings) -> dict[str, np.ndarray]:
             "n": np.array([0.0, -sa, ca]), "t": np.array([1.0, 0.0, 0.0])}
 
 
-def mesh_strap(part, settings: StrapModelSettings):
-    """Flat TET mesh of the strap and traces with the part's facet sets (see the settings)."""
+def mesh_strap(part, settings: StrapModelSettings, detailed: bool = False):
+    """Flat TET mesh of the strap and traces with the part's facet sets (see the settings);
+    ``detailed``: the :class:`~designlab.mesh.meshing.MeshResult` (which mesher made it, the
+    attempts)."""
     from designlab.mesh.meshing import mesh_bodies_detailed
 
     built = part.build()
@@ -200,7 +211,7 @@ def mesh_strap(part, settings: StrapModelSettings):
                                refinement=ref, epsilon=settings.epsilon,
                                quality=settings.mesh_quality, order=settings.order,
                                mesher=settings.mesher)
-    return res.mesh
+    return res if detailed else res.mesh
 
 
 # ------------------------------------------------------------------------------------ model
@@ -294,24 +305,73 @@ class StrapPrediction:
     displacement: Any = None    # peak normal force, for the VTU of the deformed sensor
 
 
-def run(part=None, protocol: StrapLoadTest | None = None,
-        settings: StrapModelSettings | None = None, *, materials=None, mesh=None,
-        progress: Callable[[str], None] | None = None) -> StrapPrediction:
-    """Mesh (unless ``mesh``, the flat printed mesh, is given), wrap, build, run the protocol's
-    history and evaluate the metrics."""
+#: settings that act after the FEM: the readout (electrical, divider, ADC), the staircase read
+#: window and the wrap's prestrain (applied to the solved strains as an operating point and a
+#: factor, strap_fit): designs that differ only in them share one FEM. Every other setting (a new
+#: one too) is part of the FEM key.
+READOUT_SETTINGS = ("read_fraction", "slot", "wrap_length", "contact_ohm", "divider_ohm",
+                    "supply_V", "adc_bits", "bandwidth_hz")
+
+#: part parameters the FEM does not depend on: they shape the nail plate, which is not meshed
+#: (its tabs are fixed: the ``nail_plate`` facets of the strap); the readout still uses them
+#: (tests/test_strap_test.py checks that the meshed bodies' B-rep does not change with them)
+LOAD_ONLY_PARAMS = ("nail_plate_length", "nail_plate_width", "nail_plate_thickness")
+
+
+def _viscous(part, materials=None) -> bool:
+    """Whether a meshed body's material relaxes (a Prony series): then the FEM stage marches the
+    protocol's history and depends on it."""
+    from designlab.fem.materials import Material, get_material
+
+    built = part.build()
+    over = dict(materials or {})
+    for name in part.mesh_bodies():
+        spec = over.get(name, built[name].material)
+        if (spec if isinstance(spec, Material) else get_material(spec)).prony is not None:
+            return True
+    return False
+
+
+def fem_key(part, protocol: StrapLoadTest, settings: StrapModelSettings, materials=None) -> str:
+    """Key of the FEM stage: the part's parameters except :data:`LOAD_ONLY_PARAMS`, the model
+    settings except :data:`READOUT_SETTINGS` and the error-bar level, the material library and
+    overrides, and, when a material relaxes, the protocol (the solved history is its own)."""
+    from designlab.fem.cache import fem_key as key
+    from designlab.fem.materials import MATERIALS
+    from designlab.params import as_dict
+
+    params = {k: v for k, v in as_dict(part).items() if k not in LOAD_ONLY_PARAMS}
+    skip = {"mesh_convergence", "coarse_factor", *READOUT_SETTINGS}
+    sett = {k: v for k, v in as_dict(settings).items() if k not in skip}
+    viscous = _viscous(part, materials)
+    return key("strap-gauge-strain", params=params, settings=sett,
+               materials=repr(sorted(MATERIALS.items())),
+               overrides=repr(sorted((materials or {}).items())),
+               protocol=as_dict(protocol) if viscous else None)
+
+
+def solve_fem(part, protocol: StrapLoadTest, settings: StrapModelSettings, materials=None,
+              mesh=None, say: Callable[[str], None] = lambda s: None) -> dict[str, Any]:
+    """The FEM stage: mesh (unless the flat ``mesh`` is given), wrap, build, solve.
+
+    Returns plain arrays: the worn mesh (``points``, ``cells``, ``region``, ``region_names``,
+    ``region_materials``), ``dofs``, ``viscoelastic``, the gauges' ``gauge_factor`` and
+    ``gauge_quadratic`` (Ch1, Ch2), and either the gauge strain history ``strain`` (n_t, 2) and
+    the displacement ``u_peak`` at the peak normal force (a relaxing material: the protocol's
+    history is marched) or the strain per newton ``unit`` (channel, case) and the displacement
+    per newton of F_n ``U_n`` (elastic: one static solve of the unit cases); ``timings`` (mesh,
+    assemble, solve s), ``mesher``, ``mesh_attempts``, ``solver`` (the one that ran)."""
     from designlab.fem import solve_static
     from designlab.fem.viscoelastic import History, solve_history
-    from designlab.geometry.strap import ArchStrap
 
-    part = part or ArchStrap()
-    protocol = protocol or StrapLoadTest()
-    settings = settings or StrapModelSettings()
-    say = progress or (lambda s: None)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     if mesh is None:
         say("meshing")
-        mesh = mesh_strap(part, settings)
+        res_mesh = mesh_strap(part, settings, detailed=True)
+        mesh, mesher, attempts = res_mesh.mesh, res_mesh.mesher, list(res_mesh.attempts)
+    else:
+        mesher, attempts = "given", []
     timings["mesh"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -324,27 +384,112 @@ def run(part=None, protocol: StrapLoadTest | None = None,
     t, fn, fx = protocol.time_history()
     t0 = time.perf_counter()
     viscous = any(m.prony is not None for m in model.region_materials.values())
+    out: dict[str, Any] = {}
     if viscous:
         say("viscoelastic history")
         res = solve_history(model, History(t, {"F_n": fn, "F_x": fx}), solver=settings.solver)
-        strain = np.column_stack([gauges[c].strain(res.U) for c in CHANNELS])
-        unit = None
-        u_peak = res.displacement(int(np.argmax(fn)))
+        out["strain"] = np.column_stack([gauges[c].strain(res.U) for c in CHANNELS])
+        out["u_peak"] = res.displacement(int(np.argmax(fn)))
+        solver = res.solvers[0].kind
     else:
         say("static solve")
         res = solve_static(model, solver=settings.solver)
         U = res.U[:, [res.system.case_index(c) for c in CASES]]
-        unit = np.array([gauges[c].strain(U) for c in CHANNELS])       # (channel, case)
-        strain = np.column_stack([fn, fx]) @ unit.T
-        u_peak = res.displacement(CASES[0]) * float(fn.max())
+        out["unit"] = np.array([gauges[c].strain(U) for c in CHANNELS])   # (channel, case)
+        out["U_n"] = res.displacement(CASES[0])
+        solver = res.solver.kind
     timings["solve"] = time.perf_counter() - t0
+    names = [mesh.region_names[k] for k in sorted(mesh.region_names)]
+    return {**out, "points": mesh.points, "cells": mesh.cells, "region": mesh.region,
+            "region_names": np.array(names),
+            "region_materials": np.array([mesh.materials[n] for n in names]),
+            "dofs": np.array(model.n_dofs), "viscoelastic": np.array(bool(viscous)),
+            "gauge_factor": np.array([gauges[c].gauge_factor for c in CHANNELS]),
+            "gauge_quadratic": np.array([gauges[c].gauge_quadratic for c in CHANNELS]),
+            "timings": np.array([timings["mesh"], timings["assemble"], timings["solve"]]),
+            "mesher": np.array(mesher), "mesh_attempts": np.array(attempts, dtype=str),
+            "solver": np.array(solver)}
+
+
+@dataclass(frozen=True)
+class _Gauge:
+    """A channel's readout after the FEM stage: :class:`~designlab.fem.transducers.StrainGauge`'s
+    own resistance and divider formulas (borrowed below) on the stored gauge factor, without
+    the model the gauge was measured on."""
+
+    gauge_factor: float
+    gauge_quadratic: float
+    R0: float
+    R_fixed: float
+    V_s: float
+    tcr: float = 0.0
+    T0: float = 20.0
+
+    dR_R = StrainGauge.dR_R
+    resistance = StrainGauge.resistance
+    voltage = StrainGauge.voltage
+
+
+def run(part=None, protocol: StrapLoadTest | None = None,
+        settings: StrapModelSettings | None = None, *, materials=None, mesh=None,
+        progress: Callable[[str], None] | None = None, cache=None) -> StrapPrediction:
+    """Mesh (unless ``mesh``, the flat printed mesh, is given), wrap, build, run the protocol's
+    history and evaluate the metrics. ``cache`` (:class:`~designlab.fem.cache.FEMCache`): the
+    FEM stage (:func:`solve_fem`) is computed once per :func:`fem_key` and reused by every
+    design that shares it (readout settings, the wrap's slot, the nail plate)."""
+    from designlab.fem import Model
+    from designlab.fem.cache import FEMCache
+    from designlab.geometry.strap import ArchStrap
+    from designlab.mesh.tetmesh import TetMesh
+
+    part = part or ArchStrap()
+    protocol = protocol or StrapLoadTest()
+    settings = settings or StrapModelSettings()
+    say = progress or (lambda s: None)
+    t0 = time.perf_counter()
+    key = None
+    if mesh is not None:
+        fem = solve_fem(part, protocol, settings, materials, mesh, say)
+        reused = False
+    else:
+        cache = cache if cache is not None else FEMCache()
+        hits = cache.hits
+        key = fem_key(part, protocol, settings, materials)
+        fem = cache.get_or_compute(key, lambda: solve_fem(part, protocol, settings, materials,
+                                                          None, say))
+        reused = cache.hits > hits
+    wall = time.perf_counter() - t0
+    mesh_t, assemble_t, solve_t = (float(x) for x in fem["timings"])
+    timings: dict[str, float] = ({"mesh": 0.0, "assemble": 0.0, "solve": 0.0, "fem_cache": wall}
+                                 if reused else {"mesh": mesh_t, "assemble": assemble_t,
+                                                 "solve": solve_t})
+    names = [str(n) for n in fem["region_names"]]
+    mesh = TetMesh(fem["points"], fem["cells"], fem["region"], dict(enumerate(names)),
+                   dict(zip(names, (str(m) for m in fem["region_materials"]))))
+    region_materials = Model(mesh, materials).region_materials
+    frame = pad_frame(part, settings)
+
+    t, fn, fx = protocol.time_history()
+    viscous = bool(fem["viscoelastic"])
+    if viscous:
+        strain = np.array(fem["strain"], float)
+        unit = None
+        u_peak = np.array(fem["u_peak"], float)
+    else:
+        unit = np.array(fem["unit"], float)
+        strain = np.column_stack([fn, fx]) @ unit.T
+        u_peak = np.array(fem["U_n"], float) * float(fn.max())
 
     t0 = time.perf_counter()
     from designlab.sensors import strap_electrical as el
     from designlab.sensors import strap_fit as sf
 
+    R0 = el.gauge_resistance(part, settings.contact_ohm)["total"]
+    gauges = {c: _Gauge(float(fem["gauge_factor"][i]), float(fem["gauge_quadratic"][i]), R0,
+                        settings.divider_ohm, settings.supply_V)
+              for i, c in enumerate(CHANNELS)}
     g1 = gauges[CHANNELS[0]]
-    trace_mat = model.region_materials[mesh.region_id(GAUGE_REGIONS[0])]
+    trace_mat = region_materials[mesh.region_id(GAUGE_REGIONS[0])]
     pre = None
     eps0 = 0.0
     if settings.prestrained:
@@ -379,9 +524,14 @@ def run(part=None, protocol: StrapLoadTest | None = None,
     timings["metrics"] = time.perf_counter() - t0
     report["timings_s"] = timings
     report["mesh"] = {"points": int(mesh.n_points), "cells": int(mesh.n_cells),
-                      "order": int(mesh.order), "dofs": int(model.n_dofs),
+                      "order": int(mesh.order), "dofs": int(fem["dofs"]),
                       "edge_length_mm": settings.edge_length,
-                      "refinement_edge_mm": settings.refinement_edge}
+                      "refinement_edge_mm": settings.refinement_edge,
+                      "mesher": str(fem["mesher"]),
+                      "attempts": [str(a) for a in fem["mesh_attempts"]],
+                      "solver": str(fem["solver"])}
+    report["fem_reused"] = reused
+    report["fem_key"] = key[:16] if key is not None else None
     report["model"] = {
         "configuration": settings.configuration,
         "finger_radius_mm": settings.finger_radius if settings.configuration == "worn" else None,
@@ -389,9 +539,9 @@ def run(part=None, protocol: StrapLoadTest | None = None,
         "F_n_direction": frame["n"].tolist(), "F_x_direction": frame["t"].tolist(),
         "gauge_factor": {c: gauges[c].gauge_factor for c in CHANNELS},
         "channels": {"Ch1": "trace_left", "Ch2": "trace_right"},
-        "readout": "voltage across the gauge, 2.2 kOhm divider at 5 V (seed 000 Fig. 3)",
-        "materials": {model.mesh.region_names[r]: m.name
-                      for r, m in model.region_materials.items()},
+        "readout": f"voltage across the gauge, {settings.divider_ohm / 1e3:g} kOhm divider at "
+                   f"{settings.supply_V:g} V (seed 000 Fig. 3: 2.2 kOhm, 5 V)",
+        "materials": {mesh.region_names[r]: m.name for r, m in region_materials.items()},
     }
     if unit is not None:
         report["strain_per_N"] = {c: {"F_n": float(unit[i, 0]), "F_x": float(unit[i, 1])}
@@ -399,7 +549,7 @@ def run(part=None, protocol: StrapLoadTest | None = None,
     report["viscoelastic"] = bool(viscous)
     from designlab.fem.materials import stand_in_note
 
-    stand = sorted({n for m in model.region_materials.values()
+    stand = sorted({n for m in region_materials.values()
                     if (n := stand_in_note(m if viscous else
                                            dataclasses.replace(m, stand_ins=tuple(
                                                q for q in m.stand_ins if q != "prony"))))})
@@ -630,4 +780,4 @@ def apply_model(report: dict[str, Any], prediction: StrapPrediction, model_path:
 SENSOR = Sensor(
     name="strap", paper="seed 000 (TPU arch strap with two printed strain-gauge traces)",
     protocol=StrapLoadTest, settings=StrapModelSettings, run=run, plots=plots, gains=gains,
-    apply_model=apply_model)
+    apply_model=apply_model, cached=True)
