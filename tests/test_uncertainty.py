@@ -298,3 +298,148 @@ def test_robust_config_refuses_an_unknown_mc_metric():
         robust_config({"part": "flexure", "parameters": {"wire_radius": [0.8, 1.3]},
                        "uncertainty": {}, "objectives": {"mc.force_error.z.p95": "min"}})
     assert "force_error_std.z" in str(e.value) and "\n" not in str(e.value)
+
+
+# ------------------------------------------------------- the Monte Carlo model in the record
+
+def test_a_sensor_brings_its_own_monte_carlo_model(monkeypatch):
+    """The Monte Carlo reads the sensor's record only: a toy model given to the strap runs
+    through parse/draw/run_batch/summarize without any change in uncertainty.py."""
+    import dataclasses
+
+    from designlab.sensors import registry
+    from designlab.sensors.uncertainty import (Input, MonteCarloModel, build_values, mc_metrics,
+                                               sensor_inputs)
+
+    with pytest.raises(ParameterError) as e:
+        parse_uncertainty("strap", None)
+    assert "fingertip, flexure" in str(e.value)
+    toy = MonteCarloModel(
+        (Input("gain", Distribution("uniform", lo=1.0, hi=2.0), "a gain"),),
+        ("twice_gain",), lambda part, settings, protocol, cache: {"k": 2.0},
+        lambda ctx, values, seed: {"twice_gain": ctx["k"] * values["gain"]},
+        paper={"twice_gain": 3.0})
+    monkeypatch.setitem(registry.SENSORS, "strap",
+                        dataclasses.replace(registry.SENSORS["strap"], uncertainty=toy))
+    assert [i.name for i in sensor_inputs("strap")] == ["gain"]
+    assert mc_metrics("strap") == ("twice_gain",)
+    spec = parse_uncertainty("strap", {"samples": 5})
+    cols, V = draw(spec)
+    from designlab.geometry.parts import make_part
+    from designlab.params import as_dict
+
+    res = run_batch({"sensor": "strap", "params": as_dict(make_part("strap", {})),
+                     "settings": None, "protocol": None, "fem_cache": None, "seed": 0,
+                     "indices": list(range(5)),
+                     "values": [build_values(spec, cols, v) for v in V]})
+    got = [r["metrics"]["twice_gain"] for r in res["rows"]]
+    assert got == pytest.approx(2.0 * V[:, 0])
+    s = summarize(spec, cols, V, res["rows"])
+    assert s["paper"] == {"twice_gain": 3.0} and s["metrics"]["twice_gain"]["drivers"]["gain"] > 0.99
+
+
+def test_flexure_monte_carlo_summary_carries_the_papers_table_I(tmp_path):
+    spec = parse_uncertainty("flexure", {"samples": 3})
+    cols, V = draw(spec)
+    from designlab.sensors.uncertainty import build_values
+
+    res = run_batch(_flexure_task([build_values(spec, cols, v) for v in V], [0, 1, 2]))
+    s = summarize(spec, cols, V, res["rows"])
+    for a in "xyz":
+        assert s["paper"][f"force_error_std.{a}"] == FLEXURE_TABLE_I[a]["std"]
+        assert s["paper"][f"force_error_mean.{a}"] == FLEXURE_TABLE_I[a]["mean"]
+
+
+def test_wire_modulus_scale_scales_the_error_exactly():
+    """Part-to-part wire modulus: the built stiffness times s; with hysteresis and pose noise
+    both scaling with K (hysteresis as a share of the range, noise through K_c), the force
+    error scales by s."""
+    from designlab.sensors.flexure.montecarlo import MONTE_CARLO
+
+    K, Kd = _flexure()
+    v = {"hysteresis_percent": 3.0, "pose_noise_mm": 0.025}
+    a = MONTE_CARLO.build({"K_true": K, "K_design": Kd}, {**v, "wire_modulus_scale": 1.0}, 7)
+    b = MONTE_CARLO.build({"K_true": K, "K_design": Kd}, {**v, "wire_modulus_scale": 1.02}, 7)
+    for ax in "xyz":
+        assert b[f"split_std.pose_noise.{ax}"] == pytest.approx(
+            1.02 * a[f"split_std.pose_noise.{ax}"], rel=1e-3)
+    spec = parse_uncertainty("flexure", {"wire_modulus_scale": {"dist": "uniform", "lo": 0.983,
+                                                                "hi": 1.017}})
+    assert "wire_modulus_scale" in spec.columns()
+    assert "wire_modulus_scale" not in parse_uncertainty("flexure", None).columns()
+
+
+@pytest.mark.slow
+def test_monte_carlo_identical_on_local_processes_and_dask(tmp_path):
+    """8 flexure builds on 2 local processes and on a Dask LocalCluster: the same numbers."""
+    from distributed import LocalCluster
+
+    from designlab.optimize.executors import DaskExecutor, LocalExecutor
+    from designlab.optimize.montecarlo import monte_carlo
+
+    spec = parse_uncertainty("flexure", {"samples": 8, "batch": 4, "seed": 5})
+    local = monte_carlo("flexure", spec, tmp_path / "a", executor=LocalExecutor(2))
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        dask = monte_carlo("flexure", spec, tmp_path / "b",
+                           executor=DaskExecutor(cluster.scheduler_address))
+    assert local["ok"] == dask["ok"] == 8
+    assert local["metrics"] == dask["metrics"]
+    assert local["metrics"]["force_error_std.z"]["std"] > 0
+
+
+# ----------------------------------------------------------------------------------- strap
+
+def _strap_report(sens, johnson=1e-6, adc=2e-6):
+    return {"sensitivity": {"V_per_N": {"Ch1": {"F_n": sens[0][0], "F_x": sens[0][1]},
+                                        "Ch2": {"F_n": sens[1][0], "F_x": sens[1][1]}}},
+            "electrical": {"noise": {"johnson_V_rms": johnson, "adc_quantisation_V_rms": adc,
+                                     "bandwidth_hz": 10.0},
+                           "divider": {"R_fixed_ohm": 2200.0, "supply_V": 5.0}}}
+
+
+def test_strap_budget_noise_matches_the_resolution_and_splits_exactly():
+    from designlab.sensors.strap_noise import StrapForceTest, run_strap_force_test
+
+    # symmetric gauges: the sum sees F_n only, the difference F_x only
+    rep = _strap_report([[2e-3, 1e-3], [2e-3, -1e-3]], johnson=3e-5, adc=4e-5)
+    r = run_strap_force_test(rep, StrapForceTest(model_points=2000, test_points=20000))
+    for a, g in (("F_n", 1 / 4e-3), ("F_x", 1 / 2e-3)):
+        want = g * np.sqrt(2) * 5e-5                    # |g| sqrt(2) hypot(3e-5, 4e-5)
+        assert r["per_axis"][a]["std"] == pytest.approx(want, rel=0.03)
+        # the fitted slope is diluted by the noise (F_x: 1.5 % at this signal-to-noise)
+        assert r["fit"][a]["noise_std_predicted_N"] == pytest.approx(want, rel=0.03)
+        sp = r["split_std"][a]
+        assert sp["adc"] / sp["johnson"] == pytest.approx(4 / 3, rel=0.05)
+        # no cross-talk: the model term is only the slope the noisy fit dilutes
+        assert sp["model_error"] < 0.2 * r["per_axis"][a]["std"]
+    # noise-free: the error is the model error, here the sum's cross-talk from F_x
+    skew = _strap_report([[2e-3, 1e-3], [2e-3, -0.5e-3]])
+    clean = run_strap_force_test(skew, StrapForceTest(noise_scale=0.0))
+    assert clean["split_std"]["F_n"]["johnson"] == 0 and clean["per_axis"]["F_n"]["std"] > 0.01
+    assert clean["per_axis"]["F_n"]["std"] == pytest.approx(
+        clean["split_std"]["F_n"]["model_error"])
+    # same seed, same numbers
+    assert run_strap_force_test(rep) == run_strap_force_test(rep)
+
+
+def test_strap_budget_bad_input_is_one_line():
+    from designlab.sensors.strap_noise import StrapForceTest, run_strap_force_test
+
+    with pytest.raises(ParameterError) as e:
+        run_strap_force_test({"sensitivity": {}})
+    assert "sensitivity.V_per_N" in str(e.value) and "\n" not in str(e.value)
+    with pytest.raises(ParameterError):
+        StrapForceTest(noise_scale=-1.0)
+
+
+def test_flexure_prediction_carries_the_force_error_test_beside_table_I():
+    from designlab.sensors.predict import predict
+
+    m = predict("flexure").metrics
+    ft = m["force_error_test"]
+    for a in "xyz":
+        assert ft["paper_table_I"][a]["std"] == FLEXURE_TABLE_I[a]["std"]
+        assert 1 / 1.5 <= ft["std_over_paper"][a] <= 1.5
+        assert set(ft["split_std"][a]) == {"pose_noise", "hysteresis", "model_error"}
+    assert "model error only" in m["wrench_error"]["table_I_forces_N_note"]
