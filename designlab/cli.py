@@ -17,7 +17,7 @@ from rich.console import Console
 from designlab import __version__
 from designlab.errors import DesignlabError
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+app = typer.Typer(add_completion=True, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Design, predict and learn 3D-printed force sensors (units: mm, N, MPa, s).")
 console = Console()
 err_console = Console(stderr=True)
@@ -105,6 +105,17 @@ def _executor(scheduler: Optional[str], workers: Optional[int]):
     return LocalExecutor(workers)
 
 
+def _start_sweep_run(out: Path, what: str, config: Path, cfg, overwrite: bool) -> None:
+    """Refuse (or, with ``--overwrite``, clear) an ``--out`` holding another config's run, then
+    write ``run.json`` first: a killed run's folder still says which config it resumes."""
+    identity = _config_identity(cfg)
+    _check_out(out, what, identity, overwrite)
+    out.mkdir(parents=True, exist_ok=True)
+    _write_run(out, what, {"config": str(config), "config_sha256_16": identity,
+                           "part": cfg.part, "method": cfg.method,
+                           "settings": cfg.settings, "protocol": cfg.protocol}, identity)
+
+
 def _summary_table(rows, config, pareto_keys, best_key, limit: int = 20, tie_keys=()):
     from rich.table import Table
 
@@ -140,7 +151,9 @@ def sweep(config: Path = typer.Argument(..., help="Sweep config (TOML): part, pa
           scheduler: Optional[str] = typer.Option(None, "--scheduler",
                                                   help="Dask scheduler tcp://HOST:PORT (default: local processes)."),
           workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: all cores)."),
-          retry_failed: bool = typer.Option(False, "--retry-failed", help="Evaluate failed designs again.")):
+          retry_failed: bool = typer.Option(False, "--retry-failed", help="Evaluate failed designs again."),
+          overwrite: bool = typer.Option(False, "--overwrite", help="Replace another run's "
+                                         "results in --out (its design rows; the caches stay).")):
     """Explore a design space: every design -> prediction, cached, resumable; Pareto report."""
     from designlab.optimize.report import write_report
     from designlab.optimize.robust import band_lines, load_sweep
@@ -149,6 +162,7 @@ def sweep(config: Path = typer.Argument(..., help="Sweep config (TOML): part, pa
     _check_out(out)
     _check_options(("--workers", workers, 1, 512))
     cfg, evaluator = load_sweep(config)      # [uncertainty]: robust (Monte Carlo per design)
+    _start_sweep_run(out, "sweep", config, cfg, overwrite)
     executor = _executor(scheduler, workers)
     try:
         with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
@@ -170,9 +184,8 @@ def sweep(config: Path = typer.Argument(..., help="Sweep config (TOML): part, pa
         err_console.print(_plain(("warning:", "yellow"), " ", w), highlight=False)
     console.print(f"{res.new} evaluated, {res.reused} from the store, {res.failed} failed -> "
                   f"{res.table_path}, {out / 'report.html'}", markup=False, highlight=False)
-    console.print(f"open next: {out / 'report.html'} (the report), then designlab optimize "
-                  f"{config} --out {out} to export the best design", markup=False,
-                  highlight=False)
+    _next(f"open next: {out / 'report.html'} (the report), then designlab optimize "
+          f"{config} --out {out} to export the best design")
 
 
 @app.command()
@@ -182,7 +195,9 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
              maxiter: int = typer.Option(10, "--maxiter", help="Differential-evolution generations (method de)."),
              scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler tcp://HOST:PORT."),
              workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes."),
-             formats: str = typer.Option("stl,3mf,step", "--format", help="Export formats of the chosen design.")):
+             formats: str = typer.Option("stl,3mf,step", "--format", help="Export formats of the chosen design."),
+             overwrite: bool = typer.Option(False, "--overwrite", help="Replace another run's "
+                                            "results in --out (its design rows; the caches stay).")):
     """Optimise a design (surrogate/DE, or Pareto for several objectives) and export the winner."""
     from designlab.optimize.optimizer import optimize as run_optimize
     from designlab.optimize.report import write_report
@@ -198,6 +213,7 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
         raise ParameterError("--method", method, "one of auto, surrogate, de, pareto")
     parse_formats(formats)
     cfg, evaluator = load_sweep(config)      # [uncertainty]: robust (Monte Carlo per design)
+    _start_sweep_run(out, "optimize", config, cfg, overwrite)
     executor = _executor(scheduler, workers)
     try:
         with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
@@ -228,12 +244,8 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
         console.print("Monte Carlo band of the chosen design " + line, highlight=False,
                       markup=False)
     design_dir = out / "chosen"
-    from designlab.optimize.evaluate import export_design
-
-    with progress_bar(f"exporting the chosen design to {design_dir}"):
-        files = export_design(cfg.part, {**cfg.fixed, **chosen_params}, design_dir,
-                              formats=formats, settings=cfg.settings, protocol=cfg.protocol,
-                              fem_cache=out / "fem")
+    files = _export_chosen(cfg, {**cfg.fixed, **chosen_params}, design_dir, formats,
+                           fem_cache=out / "fem")
     summary = {"method": res.method, "chosen_params": chosen_params, "chosen": chosen,
                "choice": choice, "not_distinguishable": ties,
                "surrogate": res.surrogate, "files": [str(f) for f in files]}
@@ -245,8 +257,42 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
     console.print("exported: " + ", ".join(f"{k}={v:.4g}" for k, v in chosen_params.items()),
                   highlight=False, markup=False)
     console.print(f"exported {len(files)} files to {design_dir}", markup=False, highlight=False)
-    console.print(f"open next: {out / 'report.html'} (the report), {design_dir} (files to "
-                  "print)", markup=False, highlight=False)
+    _next(f"open next: {out / 'report.html'} (the report), {design_dir} (files to "
+          "print)")
+
+
+def _export_chosen(cfg, params: dict, design_dir: Path, formats: str, fem_cache: Path) -> list:
+    """Export and predict the chosen design into ``design_dir``, unless its ``run.json`` says it
+    already holds this design with these settings, protocol and formats (every file listed
+    there still present): a cached optimize does not export and predict again."""
+    import json
+
+    from designlab.atomic import jsonable
+    from designlab.optimize.evaluate import export_design
+
+    what = {"part": cfg.part, "params": params, "formats": formats,
+            "settings": cfg.settings, "protocol": cfg.protocol}
+    key = json.loads(json.dumps(jsonable(what), sort_keys=True, default=repr))
+    prev = _read_run(design_dir)
+    if prev is not None and prev.get("what") == "optimize chosen design" \
+            and prev.get("settings") == key:
+        files = [design_dir / f for f in prev.get("files", [])]
+        if files and all(f.is_file() for f in files):
+            console.print(f"the chosen design in {design_dir} is up to date (same design, "
+                          "settings and formats): not exported again", markup=False,
+                          highlight=False)
+            return files
+    (design_dir / "run.json").unlink(missing_ok=True)
+    with progress_bar(f"exporting the chosen design to {design_dir}"):
+        files = export_design(cfg.part, params, design_dir, formats=formats,
+                              settings=cfg.settings, protocol=cfg.protocol, fem_cache=fem_cache)
+    doc_files = [Path(f).resolve().relative_to(design_dir.resolve()).as_posix() for f in files]
+    from designlab.atomic import atomic_write_json
+    from designlab.sensors.predict import run_manifest
+
+    atomic_write_json(design_dir / "run.json",
+                      {**run_manifest("optimize chosen design", key), "files": doc_files})
+    return files
 
 
 @app.command()
@@ -269,7 +315,9 @@ def flexure(preset: str = typer.Option("visiflex-catalog", "--preset",
             edge_length: Optional[float] = typer.Option(None, "--edge-length",
                                                         help="FEM tet edge length, mm (default: wire radius)."),
             paper_json: Optional[Path] = typer.Option(None, "--paper-json",
-                                                      help="Seed 002 JSON (default ../shared/data/papers/visiflex_flexure.json).")):
+                                                      help="Seed 002 paper data (JSON; default: the copy packaged with designlab, "
+                                                           "designlab/data/papers/visiflex_flexure.json, the same file as "
+                                                           "shared/data/papers/, which is read first when present).")):
     """Seed 002 spring flexure 6x6 stiffness: closed form, beam chain, solid FEM (--fem), paper theory and measurement (SI)."""
     from designlab.sensors.flexure import report as fr
     from designlab.sensors.flexure.beam_chain import ChainSettings, chain_stiffness
@@ -320,9 +368,17 @@ def flexure(preset: str = typer.Option("visiflex-catalog", "--preset",
                       highlight=False)
     for note in report["notes"]:
         console.print(f"[bold]note:[/] {note}", highlight=False)
+    console.print("stress: not computed (the closed form and the beam chain give stiffness, "
+                  "no stress field; check the wire's strength separately)", highlight=False,
+                  markup=False)
     if json_out is not None:
         fr.write_json(json_out, report)
         console.print(f"wrote {json_out}")
+        _next(f"open next: {json_out} (every matrix, SI units); designlab predict "
+              "flexure --out OUT (its virtual test and report)")
+    else:
+        _next("open next: designlab flexure --json FILE (every matrix, SI units), or "
+              "designlab predict flexure --out OUT (its virtual test and report)")
 
 
 def _parts_from_cli(part: str, set_: Optional[List[str]], config: Optional[Path]):
@@ -346,7 +402,10 @@ def export(part: str = typer.Argument(..., help="strap | fingertip | flexure | a
                                             "one volume per body/extruder), step, gltf."),
            png: bool = typer.Option(True, "--png/--no-png", help="Also render <part>.png."),
            nozzle: float = typer.Option(0.4, "--nozzle", help="Nozzle diameter for the wall check, mm."),
-           layer: float = typer.Option(0.1, "--layer-height", help="Layer height for the skin check, mm.")):
+           layer: float = typer.Option(0.1, "--layer-height", help="Layer height for the skin check, mm."),
+           overwrite: bool = typer.Option(False, "--overwrite", help="Write into an --out that "
+                                          "holds another command's run (same-named files are "
+                                          "replaced).")):
     """Check printability, then write STL/3MF/STEP/glTF (+PNG) of a part or of all parts."""
     from designlab.errors import ParameterError
     from designlab.geometry.export import export_parts, parse_formats
@@ -358,6 +417,7 @@ def export(part: str = typer.Argument(..., help="strap | fingertip | flexure | a
         if not lo <= v <= hi:
             raise ParameterError(name, v, f"{lo:g} <= value <= {hi:g} mm")
     parts = _parts_from_cli(part, set_, config)
+    _check_out(out, f"export {part}", overwrite=overwrite)
     with progress_bar("export", 2 * len(parts)) as bar:
         def step(text: str, done: int, total: int) -> None:
             bar(text, completed=done, total=total)
@@ -368,9 +428,31 @@ def export(part: str = typer.Argument(..., help="strap | fingertip | flexure | a
             bar.stop()
             err_console.print(reports_table(exc.reports))
             raise
+    import dataclasses
+
+    run = _write_run(out, f"export {part}", {
+        "formats": formats, "nozzle_mm": nozzle, "layer_height_mm": layer,
+        "parts": {n: {f.name: getattr(o, f.name) for f in dataclasses.fields(o)}
+                  for n, o in parts.items()}})
     console.print(reports_table(res.reports))
-    for f in res.files:
+    for f in [*res.files, run]:
         console.print(f"wrote {f}", highlight=False, markup=False)
+    _next(_open_next_export(res.files))
+
+
+def _open_next_export(files) -> str:
+    """The export's next step: the 3MF (or the STLs) into the slicer, the render to look at."""
+    files = [Path(f) for f in files]
+    by = {suf: [f for f in files if f.suffix.lower() == suf] for suf in (".3mf", ".stl", ".png")}
+    slicer = by[".3mf"] or by[".stl"]
+    what = []
+    if slicer:
+        what.append(", ".join(map(str, slicer[:3])) + (" ..." if len(slicer) > 3 else "")
+                    + " (into the slicer" + (": one object, a volume per body and extruder)"
+                                             if by[".3mf"] else ")"))
+    if by[".png"]:
+        what.append(", ".join(map(str, by[".png"][:3])) + " (renders)")
+    return "open next: " + ("; ".join(what) if what else str(files[0].parent if files else ""))
 
 
 @app.command()
@@ -386,7 +468,7 @@ def show(part: str = typer.Argument(..., help="strap | fingertip | flexure", aut
     from designlab.geometry.export import write_png
 
     if part == "all":
-        raise ParameterError("part", part, "a single part: strap, fingertip or flexure")
+        raise ParameterError("part", part, "a single part: " + ", ".join(_sensor_names()))
     if out.suffix.lower() != ".png":
         raise ParameterError("--out", str(out), "a file name ending in .png")
     for name, v in (("--width", width), ("--height", height)):
@@ -395,6 +477,8 @@ def show(part: str = typer.Argument(..., help="strap | fingertip | flexure", aut
     (name, obj), = _parts_from_cli(part, set_, config).items()
     path = write_png(obj.build(), out, title=name, size=(width, height))
     console.print(f"wrote {path}", highlight=False, markup=False)
+    _next(f"open next: {path} (the render); designlab params {name} (what each "
+          f"parameter means), designlab predict {name} --out OUT (its virtual test)")
 
 
 def _names(values: Optional[List[str]]) -> list[str]:
@@ -478,16 +562,21 @@ def compensate(model: Optional[List[str]] = typer.Option(
             console.print(f"Wilcoxon {w['task']} {w['output']}: {w['a']} vs {w['b']}: p(RMSE) = "
                           f"{w['rmse']['p_value']:.3g}, p(NCC) = {w['ncc']['p_value']:.3g} "
                           f"({segments} segments)", highlight=False)
-    for path in comp.write_outputs(result, train_recs + val_recs, out):
+    written = list(comp.write_outputs(result, train_recs + val_recs, out))
+    for path in written:
         console.print(f"wrote {path}", markup=False, highlight=False)
+    _next("open next: " + ", ".join(
+f"{p} ({'validation plots' if Path(p).suffix == '.png' else 'RMSE, NCC, Wilcoxon tables'})"
+for p in written))
 
 
 @app.command("loop")
 def loop_cmd(
     data: Path = typer.Option(..., "--data", help="Dataset card (TOML) naming the measured files."),
     base: str = typer.Option("linear", "--base",
-                             help="linear | linear:IN1,IN2 | stretch-fem | specimen | "
-                                  "stretch-closed | a model .json from predict/loop."),
+                             help="linear | linear:IN1,IN2 | load-arm[:LOAD,ARM[,ANGLE]] | "
+                                  "stretch-fem | specimen | stretch-closed | a model .json from "
+                                  "predict/loop."),
     out: Path = typer.Option(..., "--out", help="Directory for loop.json, model.json and plots."),
     output: Optional[List[str]] = typer.Option(None, "--output",
                                                help="Output channel(s) to analyse (default: all)."),
@@ -533,8 +622,15 @@ def loop_cmd(
     console.print(table)
     for o, rep in result.report["outputs"].items():
         console.print(f"{o}: {rep['verdict']}", highlight=False, markup=False)
-    for path in write_outputs(result, out):
+    written = list(write_outputs(result, out))
+    for path in written:
         console.print(f"wrote {path}", highlight=False, markup=False)
+    nxt = [f"{p} (residual plots)" for p in written if Path(p).suffix == ".png"][:2]
+    if (out / "model.json").is_file():
+        nxt.append(f"designlab predict PART --model {out / 'model.json'} --out OUT (the learned "
+                   "effects on a design's prediction)")
+    if nxt:
+        _next("open next: " + ", ".join(nxt))
 
 
 def _short(v) -> str:
@@ -585,6 +681,7 @@ def verify(reference: Optional[str] = typer.Option(None, "--reference",
     path = write_report(results, out / "verify.json")
     failed = [c for c in results if not c["passed"]]
     console.print(f"{len(results) - len(failed)}/{len(results)} passed -> {path}", markup=False)
+    _next(f"open next: {path} (every case with its reference and tolerance)")
     if failed:
         raise SystemExit(1)  # (main() drops typer.Exit codes under standalone_mode=False)
 
@@ -600,8 +697,9 @@ def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure, 
              order: int = typer.Option(2, "--order", help="1 = TET4, 2 = TET10."),
              edge_length: Optional[float] = typer.Option(None, "--edge-length",
                                                          help="Ideal edge length, mm."),
-             quality: str = typer.Option("default", "--quality",
-                                         help="coarse | default | fine (edge length x2/x1/x0.7)."),
+             quality: str = typer.Option("default", "--mesh-quality", "--quality",
+                                         help="coarse | default | fine (edge length x2/x1/x0.7; "
+                                              "the mesh_quality setting of predict/sweeps)."),
              refine: bool = typer.Option(True, "--refine/--no-refine",
                                          help="Use the part's local refinement spheres."),
              mesher: str = typer.Option("auto", "--mesher",
@@ -651,6 +749,8 @@ def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure, 
     console.print("facet sets: " + ", ".join(f"{k} ({v})" for k, v in rep["facet_sets"].items()),
                   highlight=False)
     console.print(f"wrote {vtu}\nwrote {js}", highlight=False, markup=False)
+    _next(f"open next: {vtu} (regions as cell data, e.g. in ParaView), {js} (quality "
+          "and facet sets)")
 
 
 @app.command()
@@ -664,7 +764,8 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
             samples: Optional[int] = typer.Option(None, "--samples", help="Monte Carlo: N virtual builds with scattered inputs and readout noise (resumable in --out)."),
             uncertainty: Optional[Path] = typer.Option(None, "--uncertainty", help="TOML with an [uncertainty] table (default: the documented distributions)."),
             scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Monte Carlo on a Dask scheduler tcp://HOST:PORT."),
-            workers: Optional[int] = typer.Option(None, "--workers", help="Monte Carlo: local worker processes (default: all cores).")):
+            workers: Optional[int] = typer.Option(None, "--workers", help="Monte Carlo: local worker processes (default: all cores)."),
+            overwrite: bool = typer.Option(False, "--overwrite", help="Write into an --out that holds another command's run (same-named files are replaced).")):
     """Virtual test of a design before printing: hysteresis, calibration matrix, condition number, K_f."""
     from rich.table import Table
 
@@ -674,7 +775,7 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
     from designlab.sensors.registry import get_sensor
 
     get_sensor(part)
-    _check_out(out)
+    _check_out(out, f"predict {part}", overwrite=overwrite)
     overrides = {}
     if config is not None:
         data = _part_config(part, load_toml(config))
@@ -728,6 +829,9 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
 
         t.add_row("K_f diagonal (SI)", ", ".join(f"{v:.4g}" for v in np.diag(prediction.K_f)))
     crit = (pred.get("stress") or {}).get("critical")
+    if pred.get("stress") is None:
+        t.add_row("stress, safety factor", "not computed (this model gives stiffness, no "
+                  "stress field)")
     if crit:
         t.add_row("smallest safety factor", f"{crit['safety_factor']:.3g} ({crit['body']}, "
                   f"{crit['material']}, {crit['max_von_mises_MPa']:.3g} MPa von Mises, "
@@ -740,9 +844,9 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
     for w in prediction.warnings:
         err_console.print(_plain(("warning:", "yellow"), " ", w), highlight=False)
     console.print(f"wrote {len(files)} files to {out}", markup=False, highlight=False)
-    console.print(f"open next: {out / 'report.html'} (the report), {out / 'deformed.vtu'} "
-                  "(stress and displacement per load case, e.g. in ParaView)", markup=False,
-                  highlight=False)
+    vtu = (f", {out / 'deformed.vtu'} (stress and displacement per load case, e.g. in "
+           "ParaView)") if (out / "deformed.vtu").is_file() else ""
+    _next(f"open next: {out / 'report.html'} (the report){vtu}")
 
 
 @app.command("fit-strap")
@@ -790,6 +894,9 @@ def fit_strap(finger: Optional[str] = typer.Option(None, "--finger", metavar="WI
         console.print(f"[bold]note:[/] {note}", highlight=False)
     for f in res["files"]:
         console.print(f"wrote {f}", highlight=False)
+    threemf = [f for f in res["files"] if str(f).endswith(".3mf")]
+    _next("open next: " + ", ".join([f"{f} (into the slicer)" for f in threemf]
+                                    + [f"{out / 'fit.json'} (the fit and size table)"]))
 
 
 @app.command("params")
@@ -832,9 +939,97 @@ def _check_options(*specs) -> None:
             raise ParameterError(name, value, f"a finite number, {lo:g} <= value <= {hi:g}")
 
 
-def _check_out(out: Optional[Path]) -> None:
+#: commands that may share an output folder (optimize exports what sweep evaluated)
+_FAMILIES = {"sweep": "sweep", "optimize": "sweep"}
+
+
+def _family(what: str) -> str:
+    head = str(what).split(" ", 1)[0]
+    return _FAMILIES.get(head, str(what))
+
+
+def _read_run(out: Path) -> Optional[dict]:
+    """The folder's ``run.json`` (None: none or unreadable)."""
+    import json
+
+    try:
+        doc = json.loads((Path(out) / "run.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return doc if isinstance(doc, dict) and doc.get("format") == "designlab-run" else None
+
+
+def _config_identity(cfg) -> str:
+    """A sweep config's fingerprint (sha256 of the parsed config: part, swept and fixed
+    parameters, settings, protocol, objectives, constraints): a folder resumes only its own."""
+    import dataclasses
+    import hashlib
+    import json
+
+    text = json.dumps(dataclasses.asdict(cfg), sort_keys=True, default=repr)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+def _write_run(out: Path, what: str, settings: dict, identity: Optional[str] = None) -> Path:
+    """``run.json`` of a command's output folder (command, version, date, settings; the
+    identity ``--out`` compares before reusing the folder)."""
+    from designlab.atomic import atomic_write_json
+    from designlab.sensors.predict import run_manifest
+
+    doc = run_manifest(what, settings)
+    if identity is not None:
+        doc["identity"] = identity
+    atomic_write_json(Path(out) / "run.json", doc)
+    return Path(out) / "run.json"
+
+
+#: files and folders of a sweep/optimize run that ``--overwrite`` removes (the FEM and design
+#: caches stay: they are keyed by what they depend on, so another config can share them)
+_SWEEP_OUTPUTS = ("results", "results.parquet", "optimize.json", "report.html", "pareto.png",
+                  "sensitivity.png", "chosen", "run.json")
+
+
+def _check_reuse(out: Path, what: str, identity: Optional[str], overwrite: bool) -> None:
+    """A non-empty ``--out`` whose ``run.json`` names another command (or, for a sweep, another
+    config) is refused unless ``--overwrite``; with it, a sweep's previous rows are removed so
+    the two runs never mix. A folder without ``run.json`` is used as it is."""
+    import shutil
+
+    from designlab.errors import OutputError
+
+    out = Path(out)
+    if not out.is_dir() or not any(out.iterdir()):
+        return
+    prev = _read_run(out)
+    if prev is None:
+        return
+    same = _family(prev.get("what", "")) == _family(what) and (
+        identity is None or prev.get("identity") in (None, identity))
+    if same:
+        return
+    if not overwrite:
+        was = str(prev.get("command") or prev.get("what") or "another run")
+        raise OutputError(
+            f"--out={str(out)!r} holds another run ({_one_line(was, 200)}, "
+            f"{prev.get('date', 'date unknown')}): choose another folder, or add --overwrite "
+            f"to replace it")
+    if _family(prev.get("what", "")) == "sweep":
+        for name in _SWEEP_OUTPUTS:
+            p = out / name
+            if p.is_dir() and not p.is_symlink():
+                shutil.rmtree(p)
+            elif p.exists() or p.is_symlink():
+                p.unlink()
+    else:
+        (out / "run.json").unlink(missing_ok=True)
+
+
+def _check_out(out: Optional[Path], what: Optional[str] = None, identity: Optional[str] = None,
+               overwrite: bool = False) -> None:
     """``--out`` before any work: not a file, not under /proc, /sys or /dev, and the nearest
-    existing folder on its path writable (nothing is created yet)."""
+    existing folder on its path writable (nothing is created yet). With ``what`` (the command
+    writing ``run.json``): a folder holding another run is refused unless ``overwrite``
+    (:func:`_check_reuse`)."""
     import os
 
     from designlab.errors import OutputError
@@ -859,6 +1054,8 @@ def _check_out(out: Optional[Path]) -> None:
             ro = False
         raise OutputError(f"cannot write --out={str(out)!r}: {p} is "
                           + ("on a read-only file system" if ro else "not writable"))
+    if what is not None:
+        _check_reuse(Path(out), what, identity, overwrite)
 
 
 def _part_config(target: str, cfg: Optional[dict], where: str = "--config") -> Optional[dict]:
@@ -897,6 +1094,11 @@ def _plain(*parts):
     from rich.text import Text
 
     return Text.assemble(*parts)
+
+
+def _next(text: str) -> None:
+    """The last line of a command: what to open next (paths unbroken, printed literally)."""
+    console.print(text, markup=False, highlight=False, soft_wrap=True)
 
 
 def _one_line(text: object, limit: int = 2000) -> str:

@@ -1,0 +1,156 @@
+"""What the command line does with a run's folder and what it tells the user: ``--out`` that
+holds another run is refused (one line, exit 2) unless ``--overwrite``; every writing command
+leaves ``run.json``; a sweep resumes its own config; shell completion offers the sensors; the
+commands end with what to open next. Cheap: sweeps use the analytic evaluator."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from designlab.cli import main
+
+CFG_A = ('part = "fingertip"\nmethod = "grid"\n[parameters]\n'
+         'h = { range = [0.0, 2.0], levels = 2 }\nr = { range = [6.0, 8.0], levels = 2 }\n'
+         '[objectives]\ncondition_number = "min"\n')
+CFG_B = CFG_A.replace("levels = 2 }\nr", "levels = 3 }\nr").replace("[6.0, 8.0]", "[7.0, 9.0]")
+
+
+@pytest.fixture
+def cheap_sweeps(monkeypatch, tmp_path):
+    """Sweeps through the CLI with the analytic evaluator (no FEM); two configs on disk."""
+    from sweep_fixtures import quadratic
+
+    import designlab.optimize.sweep as sw
+
+    monkeypatch.setattr(sw, "default_evaluator", quadratic)
+    monkeypatch.setenv("DESIGNLAB_LOG_DIR", str(tmp_path / "logs"))
+    a, b = tmp_path / "a.toml", tmp_path / "b.toml"
+    a.write_text(CFG_A)
+    b.write_text(CFG_B)
+    return a, b
+
+
+def _run(args, capsys):
+    """(exit code, stdout, stderr) of ``designlab ARGS``."""
+    try:
+        main([str(x) for x in args])
+        rc = 0
+    except SystemExit as exc:
+        rc = exc.code
+    cap = capsys.readouterr()
+    return rc, cap.out, cap.err
+
+
+def _keys(out: Path) -> set[str]:
+    return set(pd.read_parquet(out / "results.parquet")["key"])
+
+
+def test_sweep_refuses_another_config_and_resumes_its_own(cheap_sweeps, tmp_path, capsys):
+    a, b = cheap_sweeps
+    out = tmp_path / "out"
+    rc, so, _ = _run(["sweep", a, "--out", out, "--workers", "1"], capsys)
+    assert rc == 0 and "open next:" in so
+    run = json.loads((out / "run.json").read_text())
+    assert run["what"] == "sweep" and run["identity"] and run["settings"]["config"] == str(a)
+    keys_a = _keys(out)
+    assert len(keys_a) == 4
+    # the same config again resumes (nothing new), and optimize of it may share the folder
+    rc, so, _ = _run(["sweep", a, "--out", out, "--workers", "1"], capsys)
+    assert rc == 0 and "0 evaluated, 4 from the store" in so
+    # another config: one line, exit 2, nothing of it written
+    before = sorted(p.name for p in (out / "results").iterdir())
+    rc, so, se = _run(["sweep", b, "--out", out, "--workers", "1"], capsys)
+    assert rc == 2
+    assert se.count("\n") == 1 and se.startswith("error: --out=")
+    assert "holds another run" in se and "--overwrite" in se
+    assert sorted(p.name for p in (out / "results").iterdir()) == before
+    assert _keys(out) == keys_a
+    # --overwrite replaces the rows: only config B's designs remain
+    rc, so, _ = _run(["sweep", b, "--out", out, "--workers", "1", "--overwrite"], capsys)
+    assert rc == 0
+    keys_b = _keys(out)
+    assert len(keys_b) == 6 and not keys_b & keys_a
+    assert json.loads((out / "run.json").read_text())["settings"]["config"] == str(b)
+
+
+def test_other_commands_refuse_a_sweep_folder(cheap_sweeps, tmp_path, capsys):
+    a, _ = cheap_sweeps
+    out = tmp_path / "out"
+    assert _run(["sweep", a, "--out", out, "--workers", "1"], capsys)[0] == 0
+    listing = sorted(p.name for p in out.iterdir())
+    for args in (["predict", "fingertip"], ["export", "fingertip", "--format", "stl"]):
+        rc, _, se = _run([*args, "--out", out], capsys)
+        assert rc == 2 and "holds another run" in se and se.count("\n") == 1, args
+    assert sorted(p.name for p in out.iterdir()) == listing
+
+
+def test_export_writes_run_json_and_says_what_to_open(tmp_path, capsys):
+    out = tmp_path / "e"
+    rc, so, _ = _run(["export", "flexure", "--format", "3mf", "--out", out], capsys)
+    assert rc == 0
+    run = json.loads((out / "run.json").read_text())
+    assert run["what"] == "export flexure" and run["settings"]["formats"] == "3mf"
+    assert "wire_diameter" in run["settings"]["parts"]["flexure"] or run["settings"]["parts"]["flexure"]
+    nxt = [ln for ln in so.splitlines() if ln.startswith("open next:")]
+    assert nxt and "flexure.3mf" in nxt[0] and "slicer" in nxt[0], so
+    # the same export again into its own folder is allowed; another part's is refused
+    assert _run(["export", "flexure", "--format", "3mf", "--out", out], capsys)[0] == 0
+    rc, _, se = _run(["export", "strap", "--format", "3mf", "--out", out], capsys)
+    assert rc == 2 and "holds another run" in se
+    assert not (out / "strap").exists()
+
+
+def test_a_folder_without_run_json_is_used_as_it_is(tmp_path, capsys):
+    out = tmp_path / "e"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    rc, _, _ = _run(["export", "flexure", "--format", "stl", "--no-png", "--out", out], capsys)
+    assert rc == 0 and (out / "notes.txt").read_text() == "mine"
+
+
+def test_shell_completion_offers_the_sensors(tmp_path):
+    """The real completion protocol (bash), as the shell calls it."""
+    from designlab.sensors.registry import SENSORS
+
+    exe = Path(sys.executable).with_name("designlab")
+    env = {**os.environ, "_DESIGNLAB_COMPLETE": "complete_bash", "COMP_WORDS": "designlab predict ",
+           "COMP_CWORD": "2"}
+    got = subprocess.run([str(exe)], env=env, capture_output=True, text=True, timeout=120,
+                         cwd=tmp_path).stdout.split()
+    assert sorted(got) == sorted(SENSORS)
+    env.update(COMP_WORDS="designlab export f")
+    got = subprocess.run([str(exe)], env=env, capture_output=True, text=True, timeout=120,
+                         cwd=tmp_path).stdout.split()
+    assert got and all(n.startswith("f") for n in got) and "fingertip" in got
+    env.update(COMP_WORDS="designlab export a")
+    got = subprocess.run([str(exe)], env=env, capture_output=True, text=True, timeout=120,
+                         cwd=tmp_path).stdout.split()
+    assert got == ["all"]
+
+
+def test_show_all_is_refused_with_the_sensor_names(tmp_path, capsys):
+    from designlab.sensors.registry import SENSORS
+
+    rc, _, se = _run(["show", "all", "--out", tmp_path / "x.png"], capsys)
+    assert rc == 2 and all(n in se for n in SENSORS)
+
+
+def test_mesh_quality_option_has_the_settings_name():
+    """``--mesh-quality`` (the FEMSettings name; ``--quality`` kept as an alias); the loop's
+    --base help names the load-arm form."""
+    import typer.main
+
+    from designlab.cli import app
+
+    cmds = typer.main.get_command(app).commands
+    opts = {o for p in cmds["mesh"].params for o in p.opts}
+    assert {"--mesh-quality", "--quality"} <= opts
+    base = next(p for p in cmds["loop"].params if "--base" in p.opts)
+    assert "load-arm[:LOAD,ARM[,ANGLE]]" in base.help
