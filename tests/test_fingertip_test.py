@@ -265,6 +265,37 @@ def test_contact_settings_are_model_settings_and_leave_the_fem_key():
         fem_key(part, prot, lin)
 
 
+def test_prediction_json_settings_are_the_model_settings_predict_used():
+    """``settings`` of prediction.json (``Prediction.to_json``) holds every model setting the
+    contact model ran with, the FEMSettings fields included; the contact model's own
+    settings are reported beside them as ``contact_settings`` and do not replace them."""
+    import dataclasses
+
+    from designlab.fem.settings import FEMSettings
+    from designlab.sensors.fingertip import ContactSettings
+    from designlab.sensors.predict import predict
+
+    pred = predict("fingertip", {}, protocol={"g1_locations": ["h4", "h5"],
+                                              "g2_locations": ["r1", "r4"]},
+                   settings={"edge_length": 4.0, "order": 1, "mesh_convergence": False,
+                             "friction_coefficient": 0.3})
+    doc = json.loads(json.dumps(pred.to_json()))
+    st = doc["settings"]
+    assert st["edge_length"] == 4.0 and st["order"] == 1 and st["contact"] is True
+    assert {f.name for f in dataclasses.fields(FEMSettings)} <= set(st)
+    assert (st["solver"], st["mesher"]) == ("auto", "auto")
+    assert st == json.loads(json.dumps(dataclasses.asdict(pred.settings)))
+    cs = doc["contact_settings"]
+    assert set(cs) == {f.name for f in dataclasses.fields(ContactSettings)}
+    assert cs["friction_coefficient"] == st["friction_coefficient"] == 0.3
+    # the typed fields a sweep reads
+    assert pred.geometric_condition_number == pytest.approx(2 ** 0.5, abs=1e-4)
+    assert pred.stress is not None and pred.min_safety_factor == \
+        doc["stress"]["min_safety_factor"] > 0
+    assert pred.mesh_convergence is None and pred.fem_key == doc["fem_key"]
+    assert pred.hysteresis == doc["hysteresis_percent"]
+
+
 @pytest.mark.slow
 def test_predict_twice_gives_identical_numbers_and_a_mesh_error_bar(tmp_path):
     """Deterministic meshing: two predicts of one design agree to the last bit, and the

@@ -38,23 +38,30 @@ def evaluate_design(task: dict[str, Any]) -> dict[str, Any]:
     part = make_part(part_name, params)
     out = geometry_metrics(part_name, part)
     pred = predict(part_name, params, protocol=task.get("protocol") or None,
-                   settings=settings.get("model"), fem_cache=task.get("fem_cache")).to_json()
-    keep = ("hysteresis_percent", "condition_number", "geometric_condition_number",
-            "sensitivity", "linearity_percent_span", "timings_s", "warnings",
-            "mesh_convergence", "fem_key", "electrical")
-    out.update({k: pred[k] for k in keep if k in pred})
-    if isinstance(pred.get("stress"), dict) and "min_safety_factor" in pred["stress"]:
-        out["min_safety_factor"] = pred["stress"]["min_safety_factor"]
-    if pred.get("K_f") is not None:
-        K = np.asarray(pred["K_f"])
+                   settings=settings.get("model"), fem_cache=task.get("fem_cache"))
+    # sections a sensor may not report are left out (None); predict sets the others always
+    sections = {"hysteresis_percent": pred.hysteresis, "condition_number": pred.condition_number,
+                "geometric_condition_number": pred.geometric_condition_number,
+                "sensitivity": pred.sensitivity,
+                "linearity_percent_span": pred.linearity_percent_span,
+                "timings_s": pred.timings_s, "warnings": list(pred.warnings),
+                "mesh_convergence": pred.mesh_convergence, "fem_key": pred.fem_key,
+                "electrical": pred.electrical}
+    always = ("condition_number", "geometric_condition_number", "timings_s", "warnings",
+              "mesh_convergence")
+    out.update({k: v for k, v in sections.items() if k in always or v is not None})
+    if pred.stress is not None:
+        out["min_safety_factor"] = pred.min_safety_factor
+    if pred.K_f is not None:
+        K = pred.K_f
         out["K_f"] = K.tolist()
         lin = np.diag(K)[3:]
         out["k_x_N_per_m"], out["k_y_N_per_m"], out["k_z_N_per_m"] = map(float, lin)
         target = settings.get("K_f_target_N_per_m")
         if target is not None:
             out["K_f_target_error"] = float(np.max(np.abs(lin - target) / target))
-    if pred.get("load_paths"):
-        out["axial_share_through_sensors"] = pred["load_paths"]["share_through_sensors"]["z"]
+    if pred.axial_share_through_sensors is not None:
+        out["axial_share_through_sensors"] = pred.axial_share_through_sensors
     return out
 
 

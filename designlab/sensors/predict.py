@@ -86,13 +86,70 @@ class Prediction:
     def timings_s(self) -> dict[str, float]:
         return self.metrics.get("timings_s", {})
 
+    # the sections of the report a sweep keeps (None: the sensor does not report it)
+    @property
+    def hysteresis(self) -> dict[str, Any] | None:
+        """The hysteresis section: ``overall``, ``by_location``/``by_group``... (% of span)."""
+        return self.metrics.get("hysteresis_percent")
+
+    @property
+    def geometric_condition_number(self) -> float | None:
+        """Condition number of the ideal rigid geometry's calibration matrix (None where the
+        sensor has none)."""
+        v = self.metrics.get("geometric_condition_number")
+        return None if v is None else float(v)
+
+    @property
+    def sensitivity(self) -> dict[str, Any] | None:
+        return self.metrics.get("sensitivity")
+
+    @property
+    def linearity_percent_span(self) -> float | dict[str, float] | None:
+        """Largest linearity error, % of span (per output where the sensor has several)."""
+        return self.metrics.get("linearity_percent_span")
+
+    @property
+    def mesh_convergence(self) -> dict[str, Any] | None:
+        """The discretisation error bar (:func:`_mesh_convergence`); None without a mesh."""
+        return self.metrics.get("mesh_convergence")
+
+    @property
+    def fem_key(self) -> str | None:
+        """Key of the cached FEM stage (designs with the same key share one FEM)."""
+        return self.metrics.get("fem_key")
+
+    @property
+    def electrical(self) -> dict[str, Any] | None:
+        return self.metrics.get("electrical")
+
+    @property
+    def stress(self) -> dict[str, Any] | None:
+        """The stress check's maxima, critical body and safety factors (None: no mesh)."""
+        return self.metrics.get("stress")
+
+    @property
+    def min_safety_factor(self) -> float | None:
+        """Smallest safety factor (strength / von Mises) over bodies and load cases."""
+        return (self.stress or {}).get("min_safety_factor")
+
+    @property
+    def axial_share_through_sensors(self) -> float | None:
+        """Share of the axial (z) load that goes through the sensors (load paths)."""
+        lp = self.metrics.get("load_paths")
+        return float(lp["share_through_sensors"]["z"]) if lp else None
+
     def to_json(self) -> dict[str, Any]:
-        """The ``prediction.json`` document."""
+        """The ``prediction.json`` document: the design, the protocol and model settings
+        ``predict`` ran (``FEMSettings`` fields included), the version, the warnings, then the
+        metrics. Those five keys are the Prediction's own: a metric of the same name does not
+        replace them (a sensor reports its sub-models' settings under another key, e.g. the
+        fingertip's ``contact_settings``)."""
         from designlab.params import as_dict
 
-        return {"design": self.design, "protocol": _plain(as_dict(self.protocol)),
+        head = {"design": self.design, "protocol": _plain(as_dict(self.protocol)),
                 "settings": _plain(as_dict(self.settings)), "designlab": __version__,
-                "warnings": list(self.warnings), **self.metrics}
+                "warnings": list(self.warnings)}
+        return {**head, **{k: v for k, v in self.metrics.items() if k not in head}}
 
     def sensor_model(self) -> "SensorModel":
         """The virtual test as a measured-data model (:func:`sensor_model`)."""
