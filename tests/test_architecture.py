@@ -91,17 +91,73 @@ def test_the_checker_sees_an_upward_import(tmp_path, monkeypatch):
 
 SENSOR_NAME = re.compile(r"""["'](fingertip|strap|flexure)["']""")
 
+#: everything outside geometry/ and sensors/: the layers' folders, the root modules, the API
+#: facade and the CLI (its help examples name sensors in running text, never as a quoted name)
+NO_SENSOR_NAMES = ["mesh", "fem", "calibration", "measured", "loop", "optimize", "errors.py",
+                   "params.py", "atomic.py", "frames.py", "__init__.py", "cli.py"]
 
-@pytest.mark.parametrize("layer", ["mesh", "fem", "calibration", "measured", "loop", "optimize"])
-def test_no_sensor_named_outside_geometry_and_sensors(layer):
+
+def sensor_names(where: str) -> list[str]:
+    """Lines of ``designlab/<where>`` (a folder or a root module) that name a sensor kind as a
+    string."""
+    root = PKG / where
     hits = []
-    for path in sorted((PKG / layer).rglob("*.py")):
+    for path in sorted(root.rglob("*.py") if root.is_dir() else [root]):
         for i, line in enumerate(path.read_text().splitlines(), 1):
             if SENSOR_NAME.search(line):
                 hits.append(f"{path.relative_to(PKG.parent)}:{i}: {line.strip()}")
-    assert hits == []
+    return hits
 
 
+@pytest.mark.parametrize("where", NO_SENSOR_NAMES)
+def test_no_sensor_named_outside_geometry_and_sensors(where):
+    assert (PKG / where).exists()
+    assert sensor_names(where) == []
+
+
+def test_every_module_outside_geometry_and_sensors_is_checked():
+    """A new root module or layer folder is in NO_SENSOR_NAMES (or in geometry/, sensors/)."""
+    tops = {p.name for p in PKG.iterdir() if (p.is_dir() and (p / "__init__.py").exists())
+            or p.suffix == ".py"}
+    assert tops - {"geometry", "sensors"} == set(NO_SENSOR_NAMES)
+
+
+def test_the_sensor_name_check_sees_a_lookup_by_name(tmp_path, monkeypatch):
+    fake = tmp_path / "designlab"
+    fake.mkdir()
+    (fake / "__init__.py").write_text('Fingertip = PARTS["fingertip"]\nx = "fingertips"\n')
+    monkeypatch.setattr(__import__(__name__), "PKG", fake)
+    assert sensor_names("__init__.py") == ['designlab/__init__.py:1: Fingertip = PARTS["fingertip"]']
+
+
+def test_solvers_are_one_table():
+    """``solver`` choices and ``factorize``'s dispatch come from ``fem.solvers.KINDS``: each
+    entry's class has that kind, and an unknown name is a one-line ParameterError."""
+    import numpy as np
+    import scipy.sparse as sp
+
+    from designlab.errors import ParameterError
+    from designlab.fem.settings import FEMSettings
+    from designlab.fem.solvers import KINDS, SOLVERS, LinearSolver, factorize, has_cholmod
+    from designlab.fem.solvers import has_pardiso
+    import dataclasses
+
+    assert SOLVERS == ("auto", *KINDS)
+    solver = next(f for f in dataclasses.fields(FEMSettings) if f.name == "solver")
+    assert tuple(solver.metadata["choices"]) == SOLVERS
+    n = 40
+    K = sp.diags([-np.ones(n - 1), 2.5 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1]).tocsr()
+    F = np.arange(1.0, n + 1)
+    available = {"pardiso": has_pardiso(), "cholmod": has_cholmod()}
+    for name, cls in KINDS.items():
+        assert issubclass(cls, LinearSolver) and cls.kind == name
+        if available.get(name, True):
+            s = factorize(K, name)
+            assert type(s) is cls
+            np.testing.assert_allclose(K @ s.solve(F), F, rtol=1e-8)
+    with pytest.raises(ParameterError, match="solver") as e:
+        factorize(K, "magic")
+    assert "\n" not in str(e.value) and "direct" in str(e.value)
 def test_no_product_module_looks_like_a_test():
     assert [p for p in PKG.rglob("*.py") if p.name.endswith("_test.py")
             or p.name.startswith("test_")] == []
