@@ -295,3 +295,29 @@ def test_designs_that_share_the_fem_solve_it_once(tmp_path):
     m = rb.report["mesh"]
     assert m["mesher"] == "gmsh" and m["solver"] == "direct" and m["attempts"]
     assert m == ra.report["mesh"]
+
+
+def test_a_mesher_fallback_is_recorded(monkeypatch):
+    """Whichever mesher made the mesh (fTetWild when gmsh failed: tests/test_meshing.py
+    ::test_gmsh_failure_falls_back_to_fTetWild) and its attempts reach the report; a given mesh
+    says so."""
+    from designlab.fem.cache import FEMCache, clear_memory
+    from designlab.mesh import meshing
+
+    clear_memory()                       # no FEM stage of an earlier test in this process
+    real = meshing.mesh_bodies_detailed
+
+    def fell_back(*a, **kw):
+        res = real(*a, **kw)
+        return dataclasses.replace(res, mesher="tetwild",
+                                   attempts=["gmsh: edge 2 mm, curvature 0: simulated failure",
+                                             *res.attempts])
+
+    monkeypatch.setattr(meshing, "mesh_bodies_detailed", fell_back)
+    el = _elastic()
+    r = st.run(PART, SHORT, CHEAP, materials=el, cache=FEMCache()).report["mesh"]
+    assert r["mesher"] == "tetwild" and "simulated failure" in r["attempts"][0]
+    assert r["solver"] == "direct"
+    given = st.run(PART, SHORT, CHEAP, materials=el,
+                   mesh=st.mesh_strap(PART, CHEAP)).report["mesh"]
+    assert given["mesher"] == "given" and given["attempts"] == []

@@ -25,8 +25,9 @@ import numpy as np
 
 from designlab.atomic import atomic_path, jsonable
 
-#: bump when the stored arrays of any sensor change meaning
-FORMAT = 1
+#: bump when the stored arrays of any sensor change (meaning, or a new array: an older file
+#: lacks it). 2: the mesher, its attempts and the solver that ran
+FORMAT = 2
 
 _MEMORY: "OrderedDict[str, dict[str, Any]]" = OrderedDict()
 _MEMORY_SIZE = 6

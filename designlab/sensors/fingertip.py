@@ -158,19 +158,22 @@ class FingertipModelSettings(ContactSettings, FEMSettings):
         validate(self)
 
 
-def mesh_fingertip(part, settings: FingertipModelSettings):
+def mesh_fingertip(part, settings: FingertipModelSettings, detailed: bool = False):
     """TET10 mesh of the bodies the readings depend on (base, cap; optionally the fingertip),
-    with the part's facet sets (and its local refinement when ``settings.refine``)."""
-    from designlab.mesh.meshing import mesh_bodies
+    with the part's facet sets (and its local refinement when ``settings.refine``);
+    ``detailed``: the :class:`~designlab.mesh.meshing.MeshResult` (which mesher made it, the
+    attempts)."""
+    from designlab.mesh.meshing import mesh_bodies_detailed
 
     built = part.build()
     names = [n for n in part.mesh_bodies() if settings.mesh_fingertip or n != "fingertip"]
     sets = {k: v for k, v in part.facet_sets().items()
             if settings.mesh_fingertip or not (k == "ball_seat" or k.startswith("load_"))}
-    return mesh_bodies([built[n] for n in names], sets, order=settings.order,
-                       edge_length=settings.edge_length, quality=settings.mesh_quality,
-                       mesher=settings.mesher,
-                       refinement=part.refinement() if settings.refine else ())
+    res = mesh_bodies_detailed([built[n] for n in names], sets, order=settings.order,
+                               edge_length=settings.edge_length, quality=settings.mesh_quality,
+                               mesher=settings.mesher,
+                               refinement=part.refinement() if settings.refine else ())
+    return res if detailed else res.mesh
 
 
 def wrench_at_ball(point: np.ndarray, direction: np.ndarray) -> np.ndarray:
@@ -235,16 +238,20 @@ class FingertipPrediction:
 
 
 def step_responses(model, sensors, tau_max: float, dt: float, t_end: float,
-                   solver: str = "direct", settle: float = 7.0) -> np.ndarray:
+                   solver: str = "direct", settle: float = 7.0, info: dict | None = None
+                   ) -> np.ndarray:
     """(n_h, 6, 3) sensor forces after a unit step of each unit wrench at t = 0, on a grid of
     ``dt`` up to ``settle * tau_max`` (after that the response is constant to exp(-settle),
-    0.1 %, of the relaxing part) or ``t_end``, whichever is shorter."""
+    0.1 %, of the relaxing part) or ``t_end``, whichever is shorter. ``info``: gets the
+    ``solver`` that ran."""
     from designlab.fem.viscoelastic import History, solve_history
 
     t_h = np.arange(0.0, min(t_end, settle * tau_max) + dt, dt)
     res = solve_history(model, History(t_h, {c: np.ones(len(t_h)) for c in WRENCH}),
                         batch=True, solver=solver)
     H = np.moveaxis(np.stack([res.spring_force(s) for s in sensors], axis=-1), 0, 1)
+    if info is not None:
+        info["solver"] = res.solvers[0].kind
     return H, res.displacement(-1)
 
 
@@ -311,15 +318,22 @@ def solve_fem(part, protocol: HangingWeightTest, settings: FingertipModelSetting
 
     Returns plain arrays: ``H`` (n_h, 6, 3) step responses on the grid ``dt_s`` (one row when
     no material relaxes), ``U_unit`` (6, n_points, 3) displacement per unit wrench (long time),
-    the mesh (``points``, ``cells``, ``region``), ``dofs``, ``viscoelastic`` and timings (s)."""
+    the mesh (``points``, ``cells``, ``region``), ``dofs``, ``viscoelastic``, timings (s),
+    ``mesher`` (gmsh, tetwild: the fallback, or given), ``mesh_attempts`` and ``solver`` (the
+    linear solver that ran)."""
     from designlab.fem import solve_static
+    from designlab.fem.solvers import choose_solver
 
     timings = {}
     t0 = time.perf_counter()
     if mesh is None:
         say("meshing")
-        mesh = mesh_fingertip(part, settings)
+        made = mesh_fingertip(part, settings, detailed=True)
+        mesh, mesher, attempts = made.mesh, made.mesher, list(made.attempts)
+    else:
+        mesher, attempts = "given", []
     timings["mesh"] = time.perf_counter() - t0
+    info: dict[str, str] = {}
     t0 = time.perf_counter()
     say("assembling")
     model, names = build_model(part, mesh, settings, materials)
@@ -340,13 +354,18 @@ def solve_fem(part, protocol: HangingWeightTest, settings: FingertipModelSetting
         H = H6[None]
         extra = cf.to_arrays()
         taus = []          # one static solve at the chosen moduli (no step responses)
+        # condense_fingertip keeps its solve to itself: the kind choose_solver gives its model
+        # (every DOF; the unit loads at the masters and the model's own cases)
+        info["solver"] = choose_solver(int(cf.n_dofs_fem), settings.solver,
+                                       n_rhs=len(cf.C) + len(WRENCH) + 1)
     elif taus:
         say("viscoelastic step responses")
         H, U_unit = step_responses(model, names["sensors"], max(taus), protocol.dt_s, t[-1],
-                                   settings.solver)
+                                   settings.solver, info=info)
     else:
         say("static solve")
         res = solve_static(model, solver=settings.solver)
+        info["solver"] = res.solver.kind
         H = np.array([[[res.spring_force(s, c) for s in names["sensors"]] for c in WRENCH]])
         U_unit = np.stack([res.displacement(c) for c in WRENCH])
     timings["solve"] = time.perf_counter() - t0
@@ -359,7 +378,8 @@ def solve_fem(part, protocol: HangingWeightTest, settings: FingertipModelSetting
             "material_relaxation": np.array(json.dumps(
                 {m.name: m.source for m in model.region_materials.values()})),
             "timings": np.array([timings["mesh"], timings["assemble"], timings["solve"]]),
-            **extra}
+            "mesher": np.array(mesher), "mesh_attempts": np.array(attempts, dtype=str),
+            "solver": np.array(info["solver"]), **extra}
 
 
 def run(part, protocol: HangingWeightTest | None = None,
@@ -421,7 +441,10 @@ def run(part, protocol: HangingWeightTest | None = None,
     mesh = TetMesh(fem["points"], fem["cells"], fem["region"], dict(enumerate(names)),
                    dict(zip(names, (str(m) for m in fem["region_materials"]))))
     report["mesh"] = {"points": int(mesh.n_points), "cells": int(mesh.n_cells),
-                      "order": int(mesh.order), "dofs": int(fem["dofs"])}
+                      "order": int(mesh.order), "dofs": int(fem["dofs"]),
+                      "mesher": str(fem["mesher"]),
+                      "attempts": [str(a) for a in fem["mesh_attempts"]],
+                      "solver": str(fem["solver"])}
     report["fem_reused"] = reused
     report["fem_key"] = key[:16] if key is not None else None
     report["viscoelastic"] = bool(fem["viscoelastic"])
