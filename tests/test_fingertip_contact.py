@@ -233,13 +233,13 @@ def test_meshed_zero_friction_reproduces_the_linear_fem(meshed):
 
 
 @pytest.mark.slow
-def test_meshed_table_ii_protocol_under_2_s_and_fine_step_check(meshed):
-    import time
-    t0 = time.perf_counter()
+def test_meshed_table_ii_protocol_and_fine_step_check(meshed):
+    """The full Table II protocol runs on the condensed structure (its < 2 s goal is timed in
+    benchmarks/bench_predict.py --contact, not here) and 4 increments per weight agree with
+    100."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         rep = run_contact_test(PART, HangingWeightTest(), ContactSettings(), meshed)
-    assert time.perf_counter() - t0 < 4.0          # 2 s target on an unloaded machine
     assert set(rep["hysteresis_percent"]["by_location"]) == {
         *(f"h{i}" for i in range(1, 10)), *(f"r{i}" for i in range(1, 6))}
     one = HangingWeightTest(g1_locations=("h1",), g2_locations=(), rotations=1)
@@ -309,3 +309,57 @@ def test_paper_designs_share_this_designs_fem_and_report_the_goals():
     assert list(t2["G1_by_location"]) == [f"h{i}" for i in range(1, 10)]
     assert pc["table_III_design"]["condition_number"] > 1.4
     assert g["Pz_error_over_xy"]["met"] == (g["Pz_error_over_xy"]["value"] >= 3)
+    pz = [m for m in pc["matches"] + pc["does_not_match"] if m.startswith("P_z relative error")]
+    assert len(pz) == 1 and (("not matched" in pz[0]) == (not g["Pz_error_over_xy"]["met"]))
+    assert (pz[0] in pc["matches"]) == g["Pz_error_over_xy"]["met"]
+    share = pc["compressed_change_r1_to_r5"]["axial_share_through_sensors"]
+    assert 0 < share < 1
+    r15 = [m for m in pc["matches"] + pc["does_not_match"] if m.startswith("compressed-sensor "
+                                                                          "change r1")]
+    assert len(r15) == 1
+    assert r15[0] in pc["matches"] or f"{100 * share:.3g} % of P_z" in r15[0]
+
+
+def test_paper_definition_records_its_zero_span_rotations():
+    """eq. 1 over all sensors is infinite where a sensor has no span but a loop: each location
+    says in how many rotations that happened (the robust variants carry no such count)."""
+    cf = lumped_condensed(PART)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rep = run_contact_test(PART, SHORT, ContactSettings(), cf)
+    hd = rep["hysteresis_definitions"]
+    for v, d in hd.items():
+        if not v.startswith("paper_"):
+            assert "zero_span_rotations" not in d
+            continue
+        assert "zero" in d["note"] and set(d["zero_span_rotations"]) == set(d["by_location"])
+        for name, n in d["zero_span_rotations"].items():
+            assert 0 <= n <= SHORT.rotations
+            assert (n > 0) == math.isinf(d["by_location"][name]), (v, name)
+    # with the readout, a tension-side sensor's change rounds to one DAQ code: zero span
+    assert sum(hd["paper_eq1_all_sensors"]["zero_span_rotations"].values()) > 0
+
+
+@pytest.mark.slow
+def test_sweep_goal_lowest_g1_friction_hysteresis_at_the_lowest_h():
+    """Issue 12's sweep goal on a coarse mesh: over h in {0, 8, 22} at r = 9 with the Table II
+    load points, the lowest noise-free G1 hysteresis is at h = 0 (the fingertip's height only
+    moves the load points: one condensed FEM serves the three designs)."""
+    from designlab.sensors.fingertip import FingertipModelSettings, fem_key, mesh_fingertip
+    from designlab.sensors.fingertip_contact import condense_fingertip
+
+    designs = [CantileverFingertip(h=h, r=9.0, load_table="II") for h in (0.0, 8.0, 22.0)]
+    fs = FingertipModelSettings(edge_length=5.0)
+    assert len({fem_key(d, HangingWeightTest(), fs) for d in designs}) == 1
+    cf = condense_fingertip(designs[0], mesh_fingertip(designs[0], fs), fs)
+    g1 = []
+    for d in designs:
+        proto = HangingWeightTest(g1_locations=tuple(n for n in HangingWeightTest().g1_locations
+                                                     if n in d.load_points(0.0)),
+                                  g2_locations=())
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            rep = run_contact_test(d, proto, ContactSettings(), cf)
+        g1.append(rep["hysteresis_percent"]["by_group_noise_free"]["G1"])
+    assert int(np.argmin(g1)) == 0, g1
+    assert g1[2] > 10 * g1[0], g1            # the tall design's arms reach the slip threshold

@@ -370,7 +370,6 @@ class ContactProblem:
             J = np.eye(3 * m)[None] - F[None] @ Dbd
             dx = np.linalg.solve(J, -R[..., None])[..., 0].reshape(Bn, m, 3)
             # backtracking on the residual norm, per load history (stick/slip and open/closed
-            # switches make the residual only piecewise smooth)
             # switches make the residual only piecewise smooth); when no step length reduces
             # it, the full step is taken (the next tangent is the one of the new stick/slip set)
             r0 = np.linalg.norm(R, axis=1)

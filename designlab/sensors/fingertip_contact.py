@@ -314,8 +314,9 @@ def run_rng(seed: int, location: str, rotation_deg: float) -> np.random.Generato
 
 
 def _eq1(seq, S):
-    """(paper, robust) eq. 1 of one loop: mean over all three sensors / over the sensors whose
-    span is >= 10 % of the largest."""
+    """(paper, robust, zero_span) eq. 1 of one loop: mean over all three sensors / over the
+    sensors whose span is >= 10 % of the largest; ``zero_span``: whether a sensor had no span
+    but a loop (eq. 1 divides by zero: the paper's definition is then infinite)."""
     lu, su, ld, sd = loop_from_steps(seq, S)
     h = hysteresis_percent(lu, su, ld, sd)
     span = np.abs(su[-1] - su[0])
@@ -323,7 +324,17 @@ def _eq1(seq, S):
     h = np.where((span == 0) & np.isnan(h), np.nan, h)   # no span, no loop: 0/0, left out
     with np.errstate(invalid="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        return float(np.nanmean(h)), float(np.nanmean(h[keep]))
+        return (float(np.nanmean(h)), float(np.nanmean(h[keep])),
+                bool(np.any((span == 0) & np.isinf(h))))
+
+
+#: why the paper's definition can be infinite (null in prediction.json)
+ZERO_SPAN_NOTE = (
+    "eq. 1 over all three sensors divides each sensor's loop width by its span; a sensor whose "
+    "span is zero (a tension-side sensor that stays at its tared zero, or whose change rounds "
+    "to the same DAQ code) while its loop midpoints differ gives an infinite value, so the "
+    "location's mean is infinite (null in JSON). zero_span_rotations: per location, how many "
+    "rotations had such a sensor; robust_eq1_span10 leaves those sensors out")
 
 
 def run_contact_test(part, protocol: HangingWeightTest | None = None,
@@ -437,10 +448,13 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
                 "robust_eq1_span10_noise_free": (1, S_true),
                 "robust_eq1_span10_noise_free_first_loop": (1, S_first)}
     hyst = {v: {} for v in variants}
+    zero_span = {v: {} for v in variants}       # rotations whose loop had a zero-span sensor
     for v, (which, S) in variants.items():
         per = {}
         for b, (group, name, rot, d, w) in enumerate(runs):
-            per.setdefault(name, []).append(_eq1(seq, S[b])[which])
+            e = _eq1(seq, S[b])
+            per.setdefault(name, []).append(e[which])
+            zero_span[v][name] = zero_span[v].get(name, 0) + int(which == 0 and e[2])
         hyst[v] = {n: float(np.nanmean(x)) for n, x in per.items()}
 
     def group_stats(h):
@@ -509,7 +523,9 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
             "by_location": by_loc,
             "by_location_noise_free": hyst["robust_eq1_span10_noise_free"]},
         "hysteresis_definitions": {
-            v: {"by_location": h, "by_group": group_stats(h)} for v, h in hyst.items()},
+            v: {"by_location": h, "by_group": group_stats(h),
+                **({"zero_span_rotations": zero_span[v], "note": ZERO_SPAN_NOTE}
+                   if variants[v][0] == 0 else {})} for v, h in hyst.items()},
         "calibration_matrix": A.tolist(),
         "calibration_units": "N per V (P = A S)",
         "condition_number": condition_number(A) if calibrated else float("nan"),
@@ -638,6 +654,18 @@ def paper_design(part, which: str):
     return dataclasses.replace(ref, **keep)
 
 
+def _axial_share(report: dict[str, Any], cf: CondensedFingertip) -> float | None:
+    """Share of an axial force P_z carried by the three sensors: the report's ``load_paths``
+    (linear load paths at the structure's moduli) when there, else the same from the condensed
+    structure's linear unit readings."""
+    lp = report.get("load_paths") or {}
+    if "share_through_sensors" in lp:
+        return float(lp["share_through_sensors"]["z"])
+    if cf.linear_unit is None or not np.all(np.isfinite(cf.linear_unit)):
+        return None
+    return float(abs(cf.axes[:, 2] @ (-cf.linear_unit[2])))
+
+
 def _rounded(x, n=4):
     if x is None or not np.isfinite(x):
         return x
@@ -753,7 +781,12 @@ def paper_comparison(part, protocol: HangingWeightTest, settings: ContactSetting
         gk = goals["compressed_change_h9_to_h1"]
         (matches if gk["met"] else mismatches).append(
             f"compressed-sensor change h9 -> h1 {ch1:.3g} % vs 33.9 %")
-        mismatches.append(f"compressed-sensor change r1 -> r5 {ch2:.3g} % vs 9.6 %") if (
+        share_z = _axial_share(report, cf)
+        why = (f" ({100 * share_z:.3g} % of P_z reaches the sensors, the rest goes through the "
+               "bolt and the cap, so the moment of an off-axis P_z dominates the small axial "
+               "reading)") if share_z is not None else ""
+        out["compressed_change_r1_to_r5"]["axial_share_through_sensors"] = share_z
+        mismatches.append(f"compressed-sensor change r1 -> r5 {ch2:.3g} % vs 9.6 %{why}") if (
             ch2 is None or abs(ch2 - 9.6) > 15) else matches.append(
             f"compressed-sensor change r1 -> r5 {ch2:.3g} % vs 9.6 %")
     if "III" in runs:
@@ -780,10 +813,11 @@ def paper_comparison(part, protocol: HangingWeightTest, settings: ContactSetting
                 f"{e['y']:.2g}; Fig. 9: 'quite well'): the readings depend on the load's moment "
                 "arm about the ball, which a 3 x 3 force calibration over several arms cannot "
                 "absorb")
-        (matches if ratio > 1 else mismatches).append(
-            f"P_z estimated {'worst' if ratio > 1 else 'not worst'} (relative error "
-            f"{e['z']:.3g} vs x {e['x']:.3g}, y {e['y']:.3g}: {ratio:.2g}x; the goal asks "
-            f">= {GOAL_PZ_OVER_XY:g}x)")
+        pz_met = bool(ratio >= GOAL_PZ_OVER_XY)
+        (matches if pz_met else mismatches).append(
+            f"P_z relative error / radial: {ratio:.3g}x (relative error z {e['z']:.3g}, x "
+            f"{e['x']:.3g}, y {e['y']:.3g}); Fig. 9's P_z sensed worst, the goal >= "
+            f"{GOAL_PZ_OVER_XY:g}x: {'matched' if pz_met else 'not matched'}")
     out["goals"] = goals
     out["matches"] = matches
     out["does_not_match"] = mismatches
