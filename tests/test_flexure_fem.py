@@ -130,6 +130,17 @@ def test_solid_fem_with_contact_condenses_exactly_and_contact_stiffens():
     loaded = np.diag(res.at(res.centre, "loaded"))
     assert loaded[5] > 1.1 * free[5] and loaded[3] > 1.05 * free[3]
     assert res.info["working_load"]["closed_contacts"] > 0
+    # the chain stiffens like the solid at 10 N (issue 18: the fast model checked against the
+    # reference): loaded / no contact, axial and lateral, chain against solid
+    from designlab.sensors.flexure.beam_chain import chain_stiffness, with_settings
+
+    ch = chain_stiffness(VISIFLEX_CATALOG)
+    ch0 = chain_stiffness(VISIFLEX_CATALOG, with_settings(contact=False, working_load_N=0.0))
+    gain_solid = loaded / free
+    gain_chain = np.diag(ch.at(ch.centre, loaded=True)) / np.diag(ch0.K_centre)
+    assert gain_chain[5] == pytest.approx(gain_solid[5], rel=0.05)             # axial, ~1.3
+    assert gain_chain[3:5].mean() == pytest.approx(gain_solid[3:5].mean(), rel=0.08)
+    assert np.all(gain_chain[:5] > 1.0) and np.all(gain_solid[[0, 1, 3, 4, 5]] > 1.0)
     kept = fem_contact_stiffness(VISIFLEX_CATALOG, gaps="meshed", mesh=res.mesh,
                                  settings=ChainSettings(working_load_N=0.0))
     assert kept.info["closed_during_perturbations"] == [0, 0]

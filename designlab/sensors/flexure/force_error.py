@@ -7,7 +7,8 @@ with the pose the camera estimated: F_est = K_c X_est, error F_c - F_est (Table 
 std 0.30 / 0.30 / 0.34 N).
 
 The virtual test does the same on the built flexure (``K_true`` of
-:func:`designlab.sensors.flexure.virtual.run`: the Timoshenko column or the FEM of the helix):
+:func:`designlab.sensors.flexure.virtual.run`, its ``truth`` setting: the beam chain as built at
+the working load by default, or the solid FEM of the helix, or the Timoshenko column):
 
 * **poses**: random wrenches, forces uniform in +-``max_force_N`` (10 N, the fingertip force of
   seed 002 Sec. III) and moments in +-``max_moment_Nmm`` per axis, visited in random order;
