@@ -416,3 +416,81 @@ def test_stl_soup_is_meshed_with_fTetWild_and_open_stl_refused(tmp_path):
     open_box.export(tmp_path / "open.stl")
     with pytest.raises(MeshingError, match="not closed: 3 open edges"):
         mesh_stl(tmp_path / "open.stl", edge_length=1.0)
+
+
+# ------------------------------------------------------------------ failures name the body, temp dirs
+
+def _tetwild_dirs() -> set:
+    import tempfile
+    from pathlib import Path
+
+    return set(Path(tempfile.gettempdir()).glob("designlab-tetwild-*"))
+
+
+@pytest.mark.parametrize("isolate", [True, False], ids=["child", "in-process"])
+def test_fTetWild_leaves_nothing_behind(tmp_path, monkeypatch, isolate):
+    """fTetWild writes __tracked_surface.stl into its working directory: in a child process or
+    in this one, that is a temporary directory that is gone afterwards, and the caller's working
+    directory is where it was, empty."""
+    import os
+
+    import trimesh
+
+    box = trimesh.creation.box((4.0, 3.0, 2.0))
+    monkeypatch.chdir(tmp_path)
+    before = _tetwild_dirs()
+    points, cells = meshing._tetwild(np.asarray(box.vertices, float), np.asarray(box.faces),
+                                     1.0, 0.004, 10.0, None, 1, isolate)
+    assert len(cells) > 0 and os.getcwd() == str(tmp_path)
+    assert list(tmp_path.iterdir()) == []
+    assert _tetwild_dirs() - before == set()
+
+
+def test_all_meshers_failing_name_the_body_in_one_line(monkeypatch):
+    """gmsh fails whenever body 'b' is in the call (a multi-line message), fTetWild fails too:
+    one line that names 'b' (found by meshing each body alone), counts the attempts, and does
+    not paste the whole logs."""
+    from designlab.mesh import brep
+
+    real = brep.tetrahedralize
+
+    def picky(shapes, names, *a, **kw):
+        if "b" in names:
+            raise MeshingError("gmsh failed on surface 7\n" + "Invalid boundary mesh\n" * 40)
+        return real(shapes, names, *a, **kw)
+
+    def crash(*a, **kw):
+        raise RuntimeError("simulated fTetWild crash\n" + "trace line\n" * 40)
+
+    monkeypatch.setattr(brep, "tetrahedralize", picky)
+    monkeypatch.setattr(meshing, "_tetwild", crash)
+    bodies = [Body(n, Pos(3.0 * k, 0, 0) * Box(1, 1, 1), "ABS") for k, n in enumerate("abc")]
+    with pytest.raises(MeshingError) as err:
+        mesh_bodies(bodies, edge_length=0.5, order=1)
+    msg = str(err.value)
+    assert "\n" not in msg and len(msg) < 600
+    assert "body 'b' fails on its own (gmsh failed on surface 7" in msg
+    assert "3 gmsh attempts, 3 fTetWild attempts" in msg and "simulated fTetWild crash" in msg
+    with pytest.raises(MeshingError) as err:
+        mesh_bodies(bodies, edge_length=0.5, order=1, mesher="gmsh")
+    assert "with gmsh failed: body 'b'" in str(err.value) and "fTetWild" not in str(err.value)
+    monkeypatch.setattr(brep, "tetrahedralize", lambda *a, **kw: (_ for _ in ()).throw(
+        MeshingError("interface trouble")) if len(a[1]) > 1 else real(*a, **kw))
+    with pytest.raises(MeshingError, match="each body meshes on its own, not together"):
+        mesh_bodies(bodies, edge_length=0.5, order=1, mesher="gmsh")
+
+
+def test_gmsh_in_threads_gives_the_serial_mesh():
+    """gmsh's state is global: threads (Dask's threaded workers) mesh one at a time and each
+    gets exactly the mesh a serial call gives."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from designlab.mesh import brep
+
+    shapes = [Box(2, 1, 1), Pos(0, 0, 1) * Box(2, 1, 1)]
+    serial = brep.tetrahedralize(shapes, ["lo", "hi"], 0.4)
+    with ThreadPoolExecutor(4) as pool:
+        results = list(pool.map(lambda _: brep.tetrahedralize(shapes, ["lo", "hi"], 0.4),
+                                range(4)))
+    for r in results:
+        assert all(np.array_equal(x, y) for x, y in zip(r, serial))

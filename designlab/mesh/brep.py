@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import threading
 from typing import Sequence
 
 import numpy as np
@@ -32,6 +33,11 @@ DETERMINISTIC = {
 }
 
 
+#: gmsh is one global state per process (its model, options, initialisation): threads that mesh
+#: at the same time (Dask's threaded workers) take turns
+_LOCK = threading.Lock()
+
+
 def available() -> bool:
     try:
         import gmsh  # noqa: F401
@@ -46,7 +52,14 @@ def tetrahedralize(shapes: Sequence, names: Sequence[str], edge_length: float,
     """(points (n, 3) mm, cells (m, 4), region (m,) = index of the body) of the solids
     ``shapes`` (build123d/OCP), conforming where they touch. ``curvature``: elements per
     2 pi of a curved face's radius (0 = size from ``edge_length`` alone). Overlapping bodies, a body that
-    gmsh cannot import or mesh -> :class:`MeshingError` naming it."""
+    gmsh cannot import or mesh -> :class:`MeshingError` naming it. One call at a time per
+    process (:data:`_LOCK`: gmsh's state is global)."""
+    with _LOCK:
+        return _tetrahedralize(shapes, names, edge_length, refinement, grading, min_edge,
+                               curvature)
+
+
+def _tetrahedralize(shapes, names, edge_length, refinement, grading, min_edge, curvature):
     import gmsh
     from build123d import export_brep
 

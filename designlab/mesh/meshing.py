@@ -26,8 +26,10 @@ the global size at ``grading`` mm per mm.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import tempfile
+import threading
 import time
 from pathlib import Path
 from dataclasses import dataclass, field
@@ -251,15 +253,33 @@ def _tetwild_call(vertices, faces, edge_length, epsilon, stop_energy, sizing, th
     return np.asarray(points, float), np.asarray(cells, np.int64)
 
 
+#: fTetWild writes ``__tracked_surface.stl`` into the working directory (no option to move it):
+#: it runs in a temporary one, removed afterwards. The working directory is the process's, so
+#: an in-process run (``isolate=False``) holds this lock while it is changed
+_CWD_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def _in_temp_dir():
+    """Run the body in a fresh temporary working directory, then go back and remove it."""
+    with _CWD_LOCK, tempfile.TemporaryDirectory(prefix="designlab-tetwild-") as tmp:
+        here = os.getcwd()
+        os.chdir(tmp)
+        try:
+            yield tmp
+        finally:
+            os.chdir(here)
+
+
 def _child(conn, args, parent_pid=None, call=None):
     from designlab.atomic import die_with_parent
 
     die_with_parent(parent_pid)            # a killed caller takes fTetWild with it
     call = call or _tetwild_call
     try:
-        # fTetWild writes __tracked_surface.stl into the working directory: give it a temp one
-        os.chdir(tempfile.mkdtemp(prefix="designlab-tetwild-"))
-        conn.send(("ok", call(*args)))
+        with _in_temp_dir():
+            result = call(*args)
+        conn.send(("ok", result))
     except BaseException as exc:  # reported to the parent, which decides
         conn.send(("error", f"{type(exc).__name__}: {exc}"))
     finally:
@@ -268,13 +288,16 @@ def _child(conn, args, parent_pid=None, call=None):
 
 def _tetwild(vertices, faces, edge_length, epsilon, stop_energy, sizing, threads,
              isolate: bool = True):
-    """fTetWild in a forked child process (``isolate``): a C++ abort inside fTetWild then
-    becomes a ``RuntimeError`` here instead of killing the caller."""
+    """fTetWild in a child process (``isolate``): a C++ abort inside fTetWild then becomes a
+    ``MeshingError`` here instead of killing the caller. Either way it runs in a temporary
+    working directory (``isolate=False``: this process's, changed while it runs; other threads
+    that use relative paths meanwhile would see it), nothing is left in the caller's."""
     import multiprocessing as mp
 
     args = (vertices, faces, edge_length, epsilon, stop_energy, sizing, threads)
     if not isolate:
-        return _tetwild_call(*args)
+        with _in_temp_dir():
+            return _tetwild_call(*args)
     # a fresh interpreter, not a fork: forking a process that runs solver/VTK threads can copy
     # a lock held by one of them into the child, which then waits for ever (seen in the tests)
     ctx = mp.get_context("spawn")
@@ -422,9 +445,12 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
                 points, cells, region = brep.tetrahedralize(
                     [b.shape for b in items], names, h, refinement, curvature=curvature)
             except MeshingError as exc:
-                log.append(f"{what}: {exc}")
+                log.append(f"{what}: {_one_line(exc, 300)}")
                 if "regions must not intersect" in str(exc):
                     raise
+                continue
+            except Exception as exc:  # gmsh reports its own failures as plain exceptions
+                log.append(f"{what}: gmsh error ({type(exc).__name__}: {_one_line(exc, 300)})")
                 continue
             points, cells = compact(points, cells)
             if volume_error(points, cells, region, what):
@@ -435,8 +461,9 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
             except MeshingError as exc:  # a small facet set no triangle of this mesh hits
                 log[-1] = f"{what}: {exc}"
         if mesher == "gmsh":
-            raise MeshingError(f"meshing bodies {', '.join(names)} with gmsh failed after "
-                               f"{len(log)} attempts: " + "; ".join(log))
+            raise MeshingError(_failure(f"meshing bodies {', '.join(names)} with gmsh failed",
+                                        log, items, volumes, float(edge_length), refinement,
+                                        volume_rtol))
     eps = float(epsilon) if epsilon is not None else float(
         np.clip(0.1 * t_body.min(), 1e-5 * diag, 1e-3 * diag))
     tol = float(tessellation_tolerance) if tessellation_tolerance else max(0.5 * eps, 0.01)
@@ -465,7 +492,7 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
         try:
             points, cells = _tetwild(verts, faces, h, e, se, sizing, threads, isolate)
         except Exception as exc:  # fTetWild reports failures as generic C++ exceptions
-            log.append(f"{what}: fTetWild failed ({type(exc).__name__}: {exc})")
+            log.append(f"{what}: fTetWild failed ({type(exc).__name__}: {_one_line(exc, 300)})")
             continue
         if len(cells) == 0:
             log.append(f"{what}: fTetWild returned no cells")
@@ -476,8 +503,58 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
             continue
         log.append(f"fTetWild: {what}: ok, {len(cells)} cells")
         return finish(points, cells, region, h, e, se, "tetwild")
-    raise MeshingError(f"meshing bodies {', '.join(names)} failed after {len(log)} attempts: "
-                       + "; ".join(log))
+    raise MeshingError(_failure(f"meshing bodies {', '.join(names)} failed", log, items, volumes,
+                                float(edge_length), refinement if mesher != "tetwild" else None,
+                                volume_rtol))
+
+
+def _one_line(text: str, limit: int = 200) -> str:
+    """``text`` on one line (whitespace runs -> one space), cut to ``limit`` characters."""
+    text = " ".join(str(text).split())
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _failure(head: str, log: list[str], items: list[Body], volumes: np.ndarray,
+             edge_length: float, refinement, volume_rtol: float) -> str:
+    """One line for a part no mesher could mesh: which body fails and why, how many attempts
+    of each mesher, the last one's reason. The body is the one an attempt named (a volume check,
+    an import); else, when gmsh was tried (``refinement`` not None), the first body gmsh cannot
+    mesh on its own; if each meshes alone, their interfaces are to blame."""
+    import re
+
+    named = [m.group(1) for line in log for m in [re.search(r"body '([^']+)'", line)] if m]
+    culprit = None
+    if named:
+        body = max(dict.fromkeys(named), key=named.count)       # the most blamed, first named
+        why = next(_one_line(line.split(f"body {body!r}", 1)[1].lstrip(": "), 120)
+                   for line in reversed(log) if f"body {body!r}" in line)
+        culprit = f"body {body!r}: {why}"
+    elif refinement is not None and len(items) > 1:
+        culprit = _gmsh_alone(items, volumes, edge_length, refinement, volume_rtol)
+    n_gmsh = sum(line.startswith("gmsh") for line in log)
+    tried = ", ".join(f"{n} {what} attempt{'s' * (n != 1)}" for n, what in
+                      ((n_gmsh, "gmsh"), (len(log) - n_gmsh, "fTetWild")) if n)
+    last = _one_line(log[-1]) if log else "no attempt"
+    return f"{head}: {culprit or 'no single body to blame'} ({tried}; last: {last})"
+
+
+def _gmsh_alone(items: list[Body], volumes: np.ndarray, edge_length: float, refinement,
+                volume_rtol: float) -> str:
+    """The first body gmsh cannot mesh on its own, with the reason (for the error message)."""
+    from designlab.mesh import brep
+
+    for k, b in enumerate(items):
+        try:
+            points, cells, _ = brep.tetrahedralize([b.shape], [b.name], edge_length, refinement)
+        except MeshingError as exc:
+            return f"body {b.name!r} fails on its own ({_one_line(exc, 120)})"
+        p = points[cells]
+        vol = abs(np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]),
+                            p[:, 3] - p[:, 0]).sum()) / 6.0
+        if abs(vol / volumes[k] - 1.0) > volume_rtol:
+            return (f"body {b.name!r} meshes on its own to {vol:.4g} mm^3 instead of "
+                    f"{volumes[k]:.4g} mm^3")
+    return "each body meshes on its own, not together (their interfaces)"
 
 
 def mesh_bodies(bodies: Mapping[str, Body] | Sequence[Body],
