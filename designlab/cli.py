@@ -856,6 +856,7 @@ def fit_strap(finger: Optional[str] = typer.Option(None, "--finger", metavar="WI
               target_strain: Optional[float] = typer.Option(None, "--target-strain",
                                                             help="Initial strain (default: the paper's medium slot on the reference finger)."),
               slots: int = typer.Option(1, "--slots", help="1 (no adjustment), 3 or 5 fine slots."),
+              measured: Optional[Path] = typer.Option(None, "--measured", help="Measured printed-material data (JSON, docs/strap.md): replaces the stand-ins it names."),
               out: Path = typer.Option(..., "--out", help="Output directory (fit.json, strap/strap.3mf).")):
     """A strap sized to one finger: parameters for a target initial strain, its predicted
     sensitivity and resolution, the size table vs the paper's three slots, the printable 3MF."""
@@ -867,11 +868,16 @@ def fit_strap(finger: Optional[str] = typer.Option(None, "--finger", metavar="WI
     if (finger is None) == (scan is None):
         raise ParameterError("--finger/--scan", finger or scan, "exactly one of the two")
     fg = sf.parse_finger(finger) if finger is not None else sf.finger_from_scan(scan)
+    records = None
+    if measured is not None:
+        from designlab.fem.materials import load_measured
+
+        records = load_measured(measured)
     with progress_bar("fit-strap") as bar:
-        res = sf.fit_strap(fg, out, target_strain=target_strain, slots=slots,
+        res = sf.fit_strap(fg, out, target_strain=target_strain, slots=slots, measured=records,
                            progress=lambda s: bar(f"fit-strap: {s}"))
     t = Table(title=f"strap for finger {fg.width:g} x {fg.depth:g} x {fg.length:g} mm "
-                    f"(perimeter {fg.perimeter:.1f} mm)")
+                    f"(perimeter {fg.perimeter:.1f} mm, {fg.perimeter_source})")
     t.add_column("quantity")
     t.add_column("value", justify="right")
     p, pre, el = res["strap_parameters"], res["prestrain"], res["electrical"]
@@ -884,10 +890,14 @@ def fit_strap(finger: Optional[str] = typer.Option(None, "--finger", metavar="WI
     t.add_row("resolution F_n / F_x (mN)", f"{res['resolution_mN']['F_n']:.3g} / {res['resolution_mN']['F_x']:.3g}")
     sl = res["paper_slots_on_this_finger"]
     t.add_row("paper slots: strains", ", ".join(f"{r['initial_strain']:.3g}" for r in sl["slots"]))
-    t.add_row("paper slots: sum sensitivity spread %", f"{sl['sum_sensitivity_spread_percent']:.3g}")
+    t.add_row("paper slots: sum sensitivity cv %", f"{sl['sum_sensitivity_cv_percent']:.3g}")
     st = res["size_table"]
-    t.add_row("size grid: strain spread % (slots / personalised)",
-              f"{st['slots_strain_spread_percent_of_mean']:.3g} / {st['personalised_strain_spread_percent_of_mean']:.3g}")
+    t.add_row("size grid: strain cv % (best paper slot / personalised, "
+              f"caliper sd {st['measurement_sd_mm']:g} mm assumed)",
+              f"{st['slots_strain_cv_percent']:.3g} / {st['personalised_strain_cv_percent']:.3g}")
+    t.add_row(f"personalised cv < {st['goal_cv_percent']:g} %: caliper sd needed (mm), goal met",
+              f"<= {st['required_measurement_sd_mm_for_goal']:.2g}, "
+              f"{'yes' if st['goal_met'] else 'no'}")
     t.add_row("time (s)", f"{res['timings_s']['total']:.1f}")
     console.print(t)
     for note in res["material_stand_ins"]:

@@ -112,14 +112,14 @@ MATERIALS: dict[str, Material] = {m.name: m for m in [
     # 2200 MPa (XZ); nu 0.35 typical for ABS; density 1.04 g/cm^3.
     Material("ABS", E=2200.0, nu=0.35, density=1.04e-9, prony=PRINTED_PRONY,
              source="ABSplus-P430 datasheet (E); nu, density: typical ABS; Prony: printed-part "
-                    "stand-in (seed 002 relaxation)",
+                    "stand-in (seed 002 relaxation)", stand_ins=("prony",),
              strength=26.0, strength_basis="tensile yield strength across the layers (ZX)",
              strength_source="Stratasys ABSplus-P430 data sheet: tensile strength, yield "
                              "31 MPa (XZ), 26 MPa (ZX, across layers; the weaker is used)"),
     # Printed PLA: E ~ 3500 MPa (NatureWorks 4043D datasheet, bulk); nu 0.36; 1.24 g/cm^3.
     Material("PLA", E=3500.0, nu=0.36, density=1.24e-9, prony=PRINTED_PRONY,
              source="NatureWorks Ingeo 4043D datasheet; nu typical; Prony: printed-part "
-                    "stand-in (seed 002 relaxation)",
+                    "stand-in (seed 002 relaxation)", stand_ins=("prony",),
              strength=60.0, strength_basis="tensile yield strength (bulk, not printed)",
              strength_source="NatureWorks Ingeo 4043D technical data sheet: tensile yield "
                              "strength 60 MPa (ASTM D882); printed parts are weaker across "
@@ -175,7 +175,12 @@ def stand_in_note(material: Material) -> str | None:
 #: quantities a measured record may give, with their unit
 MEASURED_QUANTITIES = {"E": "MPa", "nu": "-", "gauge_factor": "-", "gauge_quadratic": "-",
                        "tcr": "1/K", "resistivity": "ohm*mm", "prony": "g, tau (s)",
-                       "max_elongation": "-"}
+                       "max_elongation": "-",
+                       "resistance_relaxation": "t (s), R/R0 (-) after a strain step"}
+#: quantities that are stored with the material's source but change no field (no model reads
+#: them yet): resistance relaxation is a curve {"t_s": [...], "R_over_R0": [...], "strain":
+#: step} for the loop's drift effects to be fitted against
+STORED_ONLY = ("resistance_relaxation",)
 
 
 @dataclass(frozen=True)
@@ -235,7 +240,9 @@ def with_measured(material: Material, records) -> Material:
         return material
     kw: dict = {}
     for r in mine:
-        if r.quantity == "prony":
+        if r.quantity in STORED_ONLY:
+            _check_curve(material.name, r)
+        elif r.quantity == "prony":
             try:
                 kw["prony"] = Prony(g=tuple(r.value["g"]), tau=tuple(r.value["tau"]))
             except (TypeError, KeyError):
@@ -247,12 +254,27 @@ def with_measured(material: Material, records) -> Material:
             except (TypeError, ValueError):
                 raise ParameterError(f"{material.name}.{r.quantity}", r.value,
                                      "a number") from None
-    measured = {r.quantity for r in mine}
+    measured = {r.quantity for r in mine if r.quantity not in STORED_ONLY}
     src = "; ".join(f"{r.quantity}: {r.source} ({r.date})" for r in mine)
     return dataclasses.replace(material, **kw,
                                stand_ins=tuple(q for q in material.stand_ins
                                                if q not in measured),
                                source=f"{material.source}; measured: {src}")
+
+
+def _check_curve(material: str, r: MeasuredProperty) -> None:
+    """A stored-only relaxation curve: equal-length increasing ``t_s`` and positive
+    ``R_over_R0`` (at least two points)."""
+    allowed = ('{"t_s": [increasing times, s], "R_over_R0": [positive ratios], "strain": '
+               'step}, equal lengths >= 2')
+    try:
+        t = [float(x) for x in r.value["t_s"]]
+        y = [float(x) for x in r.value["R_over_R0"]]
+    except (TypeError, KeyError, ValueError):
+        raise ParameterError(f"{material}.{r.quantity}", r.value, allowed) from None
+    if (len(t) != len(y) or len(t) < 2 or any(b <= a for a, b in zip(t, t[1:]))
+            or any(not v > 0 for v in y)):
+        raise ParameterError(f"{material}.{r.quantity}", r.value, allowed)
 
 
 def get_material(name: str) -> Material:

@@ -47,6 +47,14 @@ LENGTH_RANGE = (15.0, 45.0)
 REFERENCE_RADIUS = 9.0
 #: the paper's medium slot (seed 000 Fig. 2: three slots; the middle one)
 MEDIUM_SLOT = 2
+#: a measured section perimeter must lie within these multiples of the width/depth ellipse's
+#: (a rounded rectangle of the same extents has up to 4/pi = 1.27 x)
+SECTION_PERIMETER_RATIO = (0.9, 1.3)
+#: the one spread measure of this module (slot table, size table): coefficient of variation
+SPREAD_DEFINITION = ("cv = population standard deviation / mean (ddof 0), in percent of the "
+                     "mean")
+#: the issue's goal for the personalised strap's initial-strain spread (cv, percent)
+GOAL_CV_PERCENT = 10.0
 #: nonlinear analysis is called for when the neo-Hookean stress at eps0 differs from the
 #: linear one by more than this (relative)
 NONLINEAR_THRESHOLD = 0.05
@@ -61,6 +69,9 @@ class Finger:
     depth: float = field(metadata=rng(*DEPTH_RANGE, unit="mm", doc="nail to pulp"))
     length: float = field(default=25.0, metadata=rng(*LENGTH_RANGE, unit="mm",
                                                      doc="distal phalanx, tip to DIP crease"))
+    #: the measured perimeter of the section at the strap (a scan's cut, convex hull: the band
+    #: bridges concavities), 0 = none (the ellipse of width and depth is used)
+    section_perimeter: float = 0.0
 
     def __post_init__(self):
         validate(self)
@@ -68,10 +79,28 @@ class Finger:
             raise ParameterError("depth", self.depth,
                                  f"{0.55 * self.width:.3g} <= value <= {1.25 * self.width:.3g} "
                                  "mm (0.55-1.25 x width: a fingertip-like section)")
+        if self.section_perimeter:
+            e = self.ellipse_perimeter
+            lo, hi = SECTION_PERIMETER_RATIO
+            if not lo * e <= self.section_perimeter <= hi * e:
+                raise ParameterError("section_perimeter", round(self.section_perimeter, 3),
+                                     f"{lo * e:.4g} <= value <= {hi * e:.4g} mm ({lo:g}-{hi:g} "
+                                     "x the ellipse of width and depth: a fingertip-like "
+                                     "section)")
+
+    @property
+    def ellipse_perimeter(self) -> float:
+        return ellipse_perimeter(self.width / 2, self.depth / 2)
 
     @property
     def perimeter(self) -> float:
-        return ellipse_perimeter(self.width / 2, self.depth / 2)
+        """The measured section perimeter when given, else the ellipse of width and depth."""
+        return self.section_perimeter or self.ellipse_perimeter
+
+    @property
+    def perimeter_source(self) -> str:
+        return ("scan: convex hull of the section at the strap" if self.section_perimeter
+                else "ellipse of width and depth (Ramanujan)")
 
     @property
     def equivalent_radius(self) -> float:
@@ -94,6 +123,13 @@ def ellipse_perimeter(a: float, b: float) -> float:
     """Perimeter of an ellipse with semi-axes a, b (Ramanujan's second approximation)."""
     h = ((a - b) / (a + b)) ** 2
     return math.pi * (a + b) * (1 + 3 * h / (10 + math.sqrt(4 - 3 * h)))
+
+
+def spread_percent(values) -> float | None:
+    """Coefficient of variation (:data:`SPREAD_DEFINITION`) of the values that are not None,
+    percent; None when there are none."""
+    v = np.array([x for x in values if x is not None], float)
+    return float(100 * np.std(v) / abs(np.mean(v))) if len(v) else None
 
 
 def wrap_path(part, perimeter: float) -> float:
@@ -160,11 +196,52 @@ def prestrain_state(part, perimeter: float, material, R0: float, R_fixed: float,
             "mechanical_factor": mech, "electrical_factor": op["electrical_factor"],
             "sensitivity_factor": mech * op["electrical_factor"],
             "R_rest_ohm": op["R_ohm"],
+            "stress_stiffening": stress_stiffening(part, perimeter, material, max(eps0, 0.0),
+                                                   mech),
             "notes": ["rigid finger: an upper bound on eps0 (the pulp compresses under the "
                       "tension; pulp-as-solid model not built)",
                       "mechanical_factor = E / tangent of an incompressible neo-Hookean law at "
                       "eps0: a stand-in for the printed TPU's unmeasured stress-strain curve",
                       "a slack strap (eps0 < 0) reads with the stress-free factors"]}
+
+
+def stress_stiffening(part, perimeter: float, material, eps0: float,
+                      mechanical_factor: float) -> dict[str, Any]:
+    """An estimate of the geometric (stress) stiffness of the worn band, not applied to the
+    sensitivity. The band (width b, thickness t) carries the membrane tension T = sigma0 b t
+    (sigma0: nominal neo-Hookean stress at eps0, the stand-in law) on the mid-plane radius R.
+    Ring mode: a radial displacement w of the band changes its line load on the finger by
+    T / R^2 per unit length from the tension alone (q = T / R at fixed T) against E_t b t / R^2
+    from stretching, a ratio sigma0 / E_t: the stiffness along the band rises by that fraction,
+    and the strain per newton falls by 1 / (1 + sigma0 / E_t). Pad mode: a dent over the pad
+    (length l, half-sine) has geometric stiffness T (pi / l)^2 against bending E_t t^3 / 12 x
+    (pi / l)^4 per unit width, a ratio 12 sigma0 l^2 / (pi^2 E_t t^2)."""
+    E = float(material.E)
+    nh = neo_hooke(eps0)
+    lam = 1.0 + eps0
+    sigma0 = E * (lam - lam ** -2) / 3.0                      # MPa, nominal
+    Et = E * nh["tangent_over_E"]
+    b, t, l = float(part.strap_width), float(part.thickness), float(part.contact_length)
+    R = perimeter / (2 * math.pi) + t / 2
+    T = sigma0 * b * t                                          # N
+    ring = sigma0 / Et
+    pad = 12 * sigma0 * l ** 2 / (math.pi ** 2 * Et * t ** 2)
+    return {"membrane_tension_N": T, "tension_per_width_N_per_mm": sigma0 * t,
+            "line_load_on_finger_N_per_mm": T / R, "pressure_on_finger_kPa": 1e3 * T / R / b,
+            "ring_geometric_stiffness_N_per_mm2": T / R ** 2,
+            "ring_material_stiffness_N_per_mm2": Et * b * t / R ** 2,
+            "ring_geometric_over_material": ring,
+            "pad_geometric_over_bending": pad,
+            "softening_factor_in_use": mechanical_factor,
+            "factor_with_ring_stiffening_estimate": mechanical_factor / (1.0 + ring),
+            "applied": False,
+            "assumptions": ["uniaxial incompressible neo-Hookean stand-in (E of the trace "
+                            "material) for sigma0 and E_t; rigid finger; friction-free wrap",
+                            "ring mode: uniform radial motion of the whole band; pad mode: a "
+                            "half-sine dent over the contact length with the band's own "
+                            "bending stiffness; neither is the FEM's load path",
+                            "an estimate of the size of the missing term, not a geometrically "
+                            "nonlinear solve: the sensitivity uses softening_factor_in_use"]}
 
 
 def slot_table(part, perimeter: float, material, R0: float, R_fixed: float,
@@ -178,11 +255,12 @@ def slot_table(part, perimeter: float, material, R0: float, R_fixed: float,
                      "sum_F_n_V_per_N": sens_sum_Fn * s["sensitivity_factor"],
                      "diff_F_x_V_per_N": sens_diff_Fx * s["sensitivity_factor"],
                      "geometrically_nonlinear_needed": s["geometrically_nonlinear_needed"]})
-    S = np.array([r["sum_F_n_V_per_N"] for r in rows])
     return {"finger_perimeter_mm": perimeter, "slots": rows,
-            "sum_sensitivity_spread_percent": float(100 * (S.max() - S.min()) / abs(S.mean())),
-            "definition": "spread = (max - min) / mean over the slots; the stress-free FEM's "
-                          "sensitivity times each slot's prestrain factor"}
+            "initial_strain_cv_percent": spread_percent(r["initial_strain"] for r in rows),
+            "sum_sensitivity_cv_percent": spread_percent(r["sum_F_n_V_per_N"] for r in rows),
+            "spread_definition": SPREAD_DEFINITION + " over the slots",
+            "definition": "the stress-free FEM's sensitivity times each slot's prestrain "
+                          "factor"}
 
 
 # ------------------------------------------------------------------------- personalised strap
@@ -231,8 +309,10 @@ def default_target(base=None) -> float:
 
 
 def check_target(target: float, material, base=None) -> None:
-    """Target strain within (0, elongation at break) and the paper slots' range of strains on
-    the accepted fingers."""
+    """Target strain within (0, elongation at break) and at most the largest strain the paper's
+    slots reach on the accepted fingers (the tightest slot on the largest section). There is
+    no lower bound but 0: the personalised strap's length is fitted to the finger, and a
+    target <= 0 would leave it slack (no prestrain to read from)."""
     from designlab.geometry.strap import ArchStrap
 
     base = base or ArchStrap()
@@ -240,14 +320,24 @@ def check_target(target: float, material, base=None) -> None:
     if not 0 < target < hi:
         raise ParameterError("--target-strain", target,
                              f"0 < value < {hi:g} ({material.name} elongation at break)")
-    p_lo = ellipse_perimeter(WIDTH_RANGE[0] / 2, max(DEPTH_RANGE[0], 0.55 * WIDTH_RANGE[0]) / 2)
     p_hi = ellipse_perimeter(WIDTH_RANGE[1] / 2, min(DEPTH_RANGE[1], 1.25 * WIDTH_RANGE[1]) / 2)
-    lo = max(0.0, initial_strain(base, p_lo, slot=1))
     top = initial_strain(base, p_hi, slot=base.slot_count)
     if target > top:
         raise ParameterError("--target-strain", target,
-                             f"{lo:.3g} < value <= {top:.3g} (the paper slots' strains over the "
+                             f"0 < value <= {top:.3g} (the paper slots' largest strain over the "
                              "accepted fingers)")
+
+
+def required_measurement_sd(target: float, perimeters, base=None,
+                            goal_cv_percent: float = GOAL_CV_PERCENT) -> float:
+    """The caliper sd (mm per reading of width and depth) at which the personalised strap's
+    initial-strain cv reaches ``goal_cv_percent`` on the smallest of ``perimeters`` (the
+    worst: the shortest strap): sd_eps = pi / sqrt(2) sd / L <= goal x target."""
+    from designlab.geometry.strap import ArchStrap
+
+    base = base or ArchStrap()
+    L = min(wrap_path(base, P) for P in perimeters) / (1 + target)
+    return goal_cv_percent / 100 * target * L * math.sqrt(2) / math.pi
 
 
 def size_table(perimeters, material, R0: float, R_fixed: float, sens_sum_Fn: float,
@@ -256,9 +346,11 @@ def size_table(perimeters, material, R0: float, R_fixed: float, sens_sum_Fn: flo
     best slot per finger, i.e. the one closest to the target) vs one personalised strap per
     finger. The personalised strap's strain error comes from the finger measurement:
     ``measurement_sd_mm`` per caliper reading of width and depth (our assumption for soft
-    tissue), propagated to the perimeter."""
+    tissue), propagated to the perimeter. Spreads: :data:`SPREAD_DEFINITION`."""
     from designlab.geometry.strap import ArchStrap
 
+    if not measurement_sd_mm > 0:
+        raise ParameterError("measurement_sd_mm", measurement_sd_mm, "> 0 mm")
     base = ArchStrap()
     rows = []
     for P in perimeters:
@@ -278,24 +370,28 @@ def size_table(perimeters, material, R0: float, R_fixed: float, sens_sum_Fn: flo
                      "personalised_strain": target, "personalised_strain_sd": sd_eps,
                      "personalised_sum_F_n_V_per_N": sens_sum_Fn * fp["sensitivity_factor"]})
 
-    def spread(v):
-        v = np.array([x for x in v if x is not None], float)
-        return float(100 * np.std(v) / abs(np.mean(v))) if len(v) else None
-
-    slot_eps = [r["best_slot_strain"] for r in rows]
+    pers_cv = float(100 * max(r["personalised_strain_sd"] for r in rows) / target)
+    need = required_measurement_sd(target, [r["perimeter_mm"] for r in rows], base)
     return {"rows": rows, "target_strain": target,
-            "slots_strain_spread_percent_of_mean": spread(slot_eps),
-            "personalised_strain_spread_percent_of_mean":
-                float(100 * max(r["personalised_strain_sd"] for r in rows) / target),
-            "slots_sum_sensitivity_spread_percent":
-                spread([r["best_slot_sum_F_n_V_per_N"] for r in rows]),
-            "personalised_sum_sensitivity_spread_percent":
-                spread([r["personalised_sum_F_n_V_per_N"] for r in rows]),
-            "definition": "spread = standard deviation / mean over the perimeters (slots: the "
-                          "slot closest to the target per finger; personalised: the strain sd "
-                          "from the finger measurement error)",
+            "slots_strain_cv_percent": spread_percent(r["best_slot_strain"] for r in rows),
+            "personalised_strain_cv_percent": pers_cv,
+            "slots_sum_sensitivity_cv_percent":
+                spread_percent(r["best_slot_sum_F_n_V_per_N"] for r in rows),
+            "personalised_sum_sensitivity_cv_percent":
+                spread_percent(r["personalised_sum_F_n_V_per_N"] for r in rows),
+            "measurement_sd_mm": float(measurement_sd_mm),
+            "measurement_sd_note": "per caliper reading of width and depth: our assumption for "
+                                   "soft tissue, not a measured repeatability",
+            "goal_cv_percent": GOAL_CV_PERCENT,
+            "required_measurement_sd_mm_for_goal": need,
+            "goal_met": bool(pers_cv < GOAL_CV_PERCENT),
+            "spread_definition": SPREAD_DEFINITION + " (slots: over the perimeters, the slot "
+                                 "closest to the target per finger; personalised strain: the "
+                                 "strain sd from the finger measurement error over the target, "
+                                 "the largest over the perimeters, i.e. the smallest finger)",
             "population": "a uniform grid of perimeters over the accepted finger range, NOT "
-                          "anthropometric percentiles (no checked source, docs/strap.md)"}
+                          "anthropometric percentiles (no fingertip-size survey could be "
+                          "checked: docs/strap.md)"}
 
 
 # ------------------------------------------------------------------------------ finger scans
@@ -304,7 +400,8 @@ def finger_from_scan(path, strap_position: float | None = None) -> Finger:
     """Width, depth and length of a fingertip from a closed surface (STL): its long axis by
     PCA, the tip as the end where the sections shrink, the section at ``strap_position`` mm
     from the tip (default: 40 % of the length, the pulp under the strap) fitted with its
-    principal extents (width = larger)."""
+    principal extents (width = larger) and its perimeter (convex hull of the cut, recorded
+    as ``Finger.section_perimeter`` and used for the wrap instead of the ellipse)."""
     import trimesh
 
     try:
@@ -337,34 +434,54 @@ def finger_from_scan(path, strap_position: float | None = None) -> Finger:
     pts = np.asarray(sec.vertices) - np.asarray(sec.vertices).mean(0)
     pts = pts - np.outer(pts @ axis, axis)
     _, sv, W = np.linalg.svd(pts, full_matrices=False)
-    ext = [float(np.ptp(pts @ W[i])) for i in range(2)]
+    xy = pts @ W[:2].T                                   # the section in its own plane
+    ext = [float(np.ptp(xy[:, i])) for i in range(2)]
     width, depth = max(ext), min(ext)
     if not 1.2 <= length / width <= 6:
         raise ParameterError("--scan", str(path),
                              f"a fingertip-like shape (length / width = {length / width:.2g}; "
                              "allowed 1.2-6)")
-    return Finger(round(width, 2), round(depth, 2), round(min(length, LENGTH_RANGE[1]), 2))
+    return Finger(round(width, 2), round(depth, 2), round(min(length, LENGTH_RANGE[1]), 2),
+                  section_perimeter=round(hull_perimeter(xy), 3))
+
+
+def hull_perimeter(xy: np.ndarray) -> float:
+    """Perimeter (mm) of the convex hull of planar points: the length of a taut band around
+    the section (it bridges concavities such as the nail fold)."""
+    from scipy.spatial import ConvexHull
+
+    h = ConvexHull(np.asarray(xy, float))
+    ring = h.points[h.vertices]                       # counter-clockwise in 2-D
+    return float(np.linalg.norm(np.diff(np.vstack([ring, ring[:1]]), axis=0), axis=1).sum())
 
 
 # ------------------------------------------------------------------------------- fit-strap
 
 def fit_strap(finger: Finger, out, *, target_strain: float | None = None, slots: int = 1,
-              edge_length: float = 1.5, perimeters=None, progress=None) -> dict[str, Any]:
+              edge_length: float = 1.5, perimeters=None, measured=None,
+              progress=None) -> dict[str, Any]:
     """Personalised strap for ``finger``: the part, its elastic virtual test on the finger
     (static FEM, TPUs without their Prony stand-ins: the instantaneous sensitivity), the
     electrical design, the size table, ``fit.json`` and the printable two-material 3MF
-    (``out/strap/strap.3mf``). Everything is checked before anything is written."""
+    (``out/strap/strap.3mf``). ``measured``: :class:`~designlab.fem.materials.MeasuredProperty`
+    records of the printed TPUs (``load_measured``), applied with ``with_measured`` before
+    anything runs. Everything is checked before anything is written."""
     import time
     from pathlib import Path
 
     from designlab.atomic import atomic_write_json
-    from designlab.fem.materials import get_material
+    from designlab.fem.materials import get_material, with_measured
     from designlab.geometry.export import export_parts, prepare_part, require_printable
     from designlab.sensors import strap as st
 
     say = progress or (lambda s: None)
     t0 = time.perf_counter()
-    trace = get_material("PI-ETPU")
+    records = list(measured or ())
+
+    def mat(name):
+        return with_measured(get_material(name), records)
+
+    trace = mat("PI-ETPU")
     target = default_target() if target_strain is None else float(target_strain)
     check_target(target, trace)
     part = fit_part(finger, target, slots)
@@ -374,7 +491,7 @@ def fit_strap(finger: Finger, out, *, target_strain: float | None = None, slots:
     r = finger.equivalent_radius
     settings = st.StrapModelSettings(edge_length=edge_length, finger_radius=round(r, 4),
                                      slot=(slots + 1) // 2)
-    mats = {b: dataclasses.replace(get_material(m), prony=None) for b, m in
+    mats = {b: dataclasses.replace(mat(m), prony=None) for b, m in
             (("strap", "NinjaFlex"), ("trace_left", "PI-ETPU"), ("trace_right", "PI-ETPU"))}
     say("virtual test (static FEM)")
     pred = st.run(part, settings=settings, materials=mats, progress=say)
@@ -394,6 +511,8 @@ def fit_strap(finger: Finger, out, *, target_strain: float | None = None, slots:
                        trace, R0, settings.divider_ohm, s0, target)
     result = {
         "finger_mm": dataclasses.asdict(finger) | {"perimeter": finger.perimeter,
+                                                   "perimeter_source": finger.perimeter_source,
+                                                   "ellipse_perimeter": finger.ellipse_perimeter,
                                                    "equivalent_radius": r},
         "target_initial_strain": target,
         "target_source": "default: the paper's medium slot on the reference finger (radius "
@@ -407,11 +526,8 @@ def fit_strap(finger: Finger, out, *, target_strain: float | None = None, slots:
         "paper_slots_on_this_finger": paper["slots"] | {
             "paper_strap_slots_sensitivity_from": "same FEM, the paper's strap"},
         "size_table": table,
-        "required_measurement_sd_mm_for_10_percent":
-            0.10 * target * min(wrap_path(ArchStrap(), P) / (1 + target)
-                                for P in [row["perimeter_mm"] for row in table["rows"]])
-            * math.sqrt(2) / math.pi,
         "material_stand_ins": rep["material_stand_ins"],
+        "measured_materials": [dataclasses.asdict(m) for m in records],
         "model": "elastic (no Prony stand-ins), static FEM of the worn strap on a rigid-finger "
                  "prestrain; see strap_fit module notes",
         "paper_medium_slot_sum_F_n_V_per_N_unstrained": s0,
