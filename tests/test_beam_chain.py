@@ -113,3 +113,25 @@ def test_bad_input_one_line_errors():
         bc.chain_stiffness(HelicalSpring(wire_radius=1.015, coils=4.0, inactive_coils=1.0))
     with pytest.raises(ParameterError, match="seat"):
         bc.ChainSettings(seat="glued")
+
+
+def test_coulomb_friction_bounds_at_the_working_load():
+    """Friction at the closed coil/seat contacts (10 N): gross slip leaves the tangent 6x6 the
+    frictionless one (the fixed-set condensation equals the perturbation 6x6), full stick only
+    stiffens (K_stick - K_slip positive semidefinite), and the stick range mu f_n / k_t is far
+    below the 0.02 mm perturbation: the paper's 4 mm poses slide."""
+    r = bc.friction_bounds(VISIFLEX_CATALOG, mu=0.3)
+    Kp, Ks, Kt = r["K_perturbation_centre"], r["K_slip_centre"], r["K_stick_centre"]
+    np.testing.assert_allclose(Ks, Kp, rtol=1e-6, atol=1e-6 * np.abs(Kp).max())
+    ev = np.linalg.eigvalsh(fr.to_frame(r["K_stick_centre_si"], "spring", 0.0)
+                            - fr.to_frame(r["K_slip_centre_si"], "spring", 0.0))
+    assert ev.min() > -1e-9 * np.abs(ev).max() and ev.max() > 0
+    assert np.diag(Kt)[3] > 1.1 * np.diag(Ks)[3]                 # lateral held by the contacts
+    assert sum(r["closed"].values()) > 0 and r["normal_force_N"]["coil"] > 0
+    assert 0 < r["max_stick_displacement_mm"] < 0.1 * bc.ChainSettings().perturbation_mm
+    assert r["friction_band_N"] == pytest.approx(0.3 * sum(r["normal_force_N"].values()))
+    with pytest.raises(ParameterError) as e:
+        bc.friction_bounds(VISIFLEX_CATALOG, mu=-0.1)
+    assert "mu" in str(e.value) and "\n" not in str(e.value)
+    with pytest.raises(ParameterError):
+        bc.friction_bounds(VISIFLEX_CATALOG, bc.with_settings(working_load_N=0.0))

@@ -29,8 +29,10 @@ contact at zero gap.
 Contact (``contact=True``): node-to-wire pairs one turn apart over the dead turn and the ramp at
 each end (the dead turn against the first active turn, gap ``z(u + 1) - z(u) - d``), and
 node-to-seat pairs over the dead turn (gap ``c - r``). A closed contact is a stiff normal penalty
-spring, frictionless (tangential contact forces are not modelled), solved by an active-set
-iteration. Penalty stiffness per contact node: a line contact of length ``h`` (the node spacing)
+spring, frictionless in the 6x6 (tangential contact forces are not modelled there), solved by
+an active-set iteration. :func:`friction_bounds` adds Coulomb friction at the closed contacts of
+the working-load state as its two limits: gross slip (the frictionless tangent, plus a force band
+``mu sum f_n``) and full stick (tangential penalty springs, Mindlin's ``k_t / k_n``). Penalty stiffness per contact node: a line contact of length ``h`` (the node spacing)
 between an elastic cylinder and a flat or a cylinder has a stiffness per unit length of the order
 of the contact modulus ``E*`` (Johnson, *Contact Mechanics*, 1985, sec. 5.6: the approach grows
 only logarithmically with the load), so ``k_n = E* h``.
@@ -168,6 +170,7 @@ class _Contact:
     g0: float               # initial gap, mm
     k_n: float              # penalty, N/mm
     kind: str               # "coil" or "seat"
+    rt: np.ndarray | None = None   # (2, n_q): tangential (x, y) slip of the contact points
 
 
 @dataclass
@@ -354,6 +357,12 @@ class Chain(ActiveSet):
         """(n_q,) axial displacement of node k per reduced dof."""
         return self.T[6 * k + 2]
 
+    def _ut(self, k, dz: float) -> np.ndarray:
+        """(2, n_q) x, y displacement of the wire surface point ``dz`` above node k's
+        centreline per reduced dof: u + th x (dz e_z)."""
+        T = self.T
+        return np.vstack([T[6 * k] + dz * T[6 * k + 4], T[6 * k + 1] - dz * T[6 * k + 3]])
+
     def _node_at(self, u):
         j = min(int(np.floor(u / self.h + 1e-9)), len(self.u) - 2)
         s = (u - self.u[j]) / self.h
@@ -371,8 +380,9 @@ class Chain(ActiveSet):
             j, s = self._node_at(ui + 1)
             # the z motion of a surface point is its node's u_z (a rotation moves it sideways)
             row = (1 - s) * self._uz(j) + s * self._uz(j + 1) - self._uz(i)   # upper - lower
+            rt = (1 - s) * self._ut(j, -r) + s * self._ut(j + 1, -r) - self._ut(i, r)
             if np.any(row):
-                self.contacts.append(_Contact(row, max(g0, 0.0), k_n, "coil"))
+                self.contacts.append(_Contact(row, max(g0, 0.0), k_n, "coil", rt))
 
     def _seat_contacts(self, k_n, c_base, c_tip):
         """The dead turn's wire surface against its seat plane (the tip seat moves with the
@@ -382,12 +392,14 @@ class Chain(ActiveSet):
         for i, ui in enumerate(self.u):
             if ui <= 1.0 and i not in self.base_bond:
                 row = self._uz(i)                                       # wire bottom - seat
-                self.contacts.append(_Contact(row, max(float(c_base[i]) - r, 0.0), k_n, "seat"))
+                self.contacts.append(_Contact(row, max(float(c_base[i]) - r, 0.0), k_n, "seat",
+                                              self._ut(i, -r)))
             if ui >= N - 1.0 and i not in self.tip_bond:
                 seat = np.zeros((3, self.nq))
                 seat[:, self.m] = self._rigid(self.X[i] + ez)[:3]
                 row = seat[2] - self._uz(i)                             # seat - wire top
-                self.contacts.append(_Contact(row, max(float(c_tip[i]) - r, 0.0), k_n, "seat"))
+                self.contacts.append(_Contact(row, max(float(c_tip[i]) - r, 0.0), k_n, "seat",
+                                              seat[:2] - self._ut(i, r)))
 
 def chain_stiffness(spring, settings: ChainSettings | None = None, *,
                     geometry: str = "as_built") -> ChainResult:
@@ -424,6 +436,80 @@ def chain_stiffness(spring, settings: ChainSettings | None = None, *,
             "seconds": time.perf_counter() - t0}
     return ChainResult(K, K_loaded, chain.master, np.array([0, 0, coil.length / 2]), coil,
                        settings, info)
+
+
+def condensed_6x6(chain: "Chain", closed: np.ndarray, kt: np.ndarray | None = None
+                  ) -> np.ndarray:
+    """Tangent 6x6 at the master (twist/wrench order) with the normal contacts ``closed`` held
+    (no active-set change) and, where ``kt`` (N/mm per contact) is > 0, the contact stuck
+    tangentially (x and y penalty springs between the contact points): the Schur complement of
+    the reduced stiffness on the master."""
+    w = chain.kn * closed
+    A = chain.Kq + chain.N.T @ sp.diags(w) @ chain.N
+    if kt is not None:
+        for c, k in zip(chain.contacts, kt):
+            if k > 0:
+                R = sp.csr_matrix(c.rt)
+                A = A + k * (R.T @ R)
+    A = A.tocsc()
+    m = chain.m
+    f = np.setdiff1d(np.arange(chain.nq), m)
+    Aff = A[f][:, f].tocsc()
+    Afm = A[f][:, m].toarray()
+    S = A[m][:, m].toarray() - Afm.T @ spla.splu(Aff).solve(Afm)
+    K = S[np.ix_(_PERM, _PERM)]
+    return (K + K.T) / 2
+
+
+def friction_bounds(spring: HelicalSpring, settings: ChainSettings | None = None, *,
+                    mu: float = 0.3) -> dict:
+    """What Coulomb friction at the closed coil and seat contacts can do to the chain's 6x6 at
+    the working load, as two bounds (the return map of :func:`designlab.fem.contact.
+    contact_forces` has only these two limits for a perturbation about a preloaded state):
+
+    * **slip** (gross sliding, any perturbation larger than ``mu f_n / k_t``): a sliding contact
+      carries a constant ``mu f_n`` whose tangent is zero, so the tangent 6x6 is the
+      frictionless one; friction shows as a force band (hysteresis), not as stiffness;
+    * **stick** (perturbations below that): every closed contact holds tangentially with the
+      Mindlin ratio ``k_t = k_n 2 (1 - nu) / (2 - nu)`` (Johnson 1985, sec. 7.2), a stiffness
+      independent of ``mu``.
+
+    Returns the two 6x6 at the spring centre (N mm/rad, N/mm; SI too), the normal forces, the
+    band ``mu sum f_n`` and the largest stick displacement ``mu f_n / k_t``. ``mu``: assumed
+    (no value is published for the spring; steel on steel runs from ~0.1 lubricated to ~0.6
+    dry)."""
+    if not (isinstance(mu, (int, float)) and 0 <= mu <= 2):
+        raise ParameterError("mu", mu, "a friction coefficient 0 <= mu <= 2")
+    settings = settings or ChainSettings()
+    if settings.working_load_N <= 0 or not settings.contact:
+        raise ParameterError("working_load_N", settings.working_load_N,
+                             "> 0 with contact=True (friction needs a preloaded contact)")
+    check_working_load(spring, settings.working_load_N)
+    chain = Chain(as_built(spring), settings)
+    pre = chain.solve(f_master=np.r_[0.0, 0.0, -settings.working_load_N, 0.0, 0.0, 0.0])
+    closed, fn = pre["closed"], pre["f_n"]
+    nu = chain.coil.E / (2 * chain.coil.G) - 1
+    kt = np.where(closed, chain.kn * 2 * (1 - nu) / (2 - nu), 0.0)
+    K_slip = condensed_6x6(chain, closed)
+    K_stick = condensed_6x6(chain, closed, kt)
+    K_pert, _ = chain.stiffness(ref=pre)
+    centre = np.array([0.0, 0.0, chain.coil.length / 2])
+    move = transform(translation=chain.master - centre)
+    at = {k: transform_stiffness(v, move) for k, v in
+          (("slip", K_slip), ("stick", K_stick), ("perturbation", K_pert))}
+    kinds = np.array([c.kind for c in chain.contacts])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        stick_disp = np.where(closed, mu * fn / np.where(kt > 0, kt, 1.0), 0.0)
+    return {"K_slip_centre": at["slip"], "K_stick_centre": at["stick"],
+            "K_perturbation_centre": at["perturbation"],
+            "K_slip_centre_si": to_si(at["slip"]), "K_stick_centre_si": to_si(at["stick"]),
+            "closed": {"coil": int(np.count_nonzero(closed & (kinds == "coil"))),
+                       "seat": int(np.count_nonzero(closed & (kinds == "seat")))},
+            "normal_force_N": {"coil": float(fn[kinds == "coil"].sum()),
+                               "seat": float(fn[kinds == "seat"].sum())},
+            "friction_band_N": float(mu * fn.sum()), "mu": float(mu),
+            "max_stick_displacement_mm": float(stick_disp.max()) if closed.any() else 0.0,
+            "k_t_over_k_n": float(2 * (1 - nu) / (2 - nu))}
 
 
 def with_settings(base: ChainSettings | None = None, **kw) -> ChainSettings:
