@@ -443,3 +443,49 @@ def test_flexure_prediction_carries_the_force_error_test_beside_table_I():
         assert 1 / 1.5 <= ft["std_over_paper"][a] <= 1.5
         assert set(ft["split_std"][a]) == {"pose_noise", "hysteresis", "model_error"}
     assert "model error only" in m["wrench_error"]["table_I_forces_N_note"]
+
+
+def _cli(*args):
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-c", "from designlab.cli import main; main()", *args],
+                          capture_output=True, text=True)
+
+
+_ROBUST_TOML = """part = "flexure"
+[parameters]
+wire_radius = {{ range = [0.9, 1.2], levels = 2 }}
+[uncertainty]
+samples = 3
+{extra}
+[objectives]
+"mc.force_error_std.z.p95" = "min"
+"""
+
+
+@pytest.mark.parametrize("cmd", ["sweep", "optimize"])
+def test_cli_sweep_and_optimize_refuse_a_bad_uncertainty_table(tmp_path, cmd):
+    f = tmp_path / "s.toml"
+    f.write_text(_ROBUST_TOML.format(extra="pulp = { dist = 'fixed', value = 1.0 }"))
+    r = _cli(cmd, str(f), "--out", str(tmp_path / "o"))
+    assert r.returncode == 2
+    lines = [x for x in r.stderr.splitlines() if x.strip()]
+    assert len(lines) == 1 and "uncertainty.pulp" in lines[0] and "hysteresis_percent" in lines[0]
+    assert not (tmp_path / "o" / "results.parquet").exists()
+
+
+@pytest.mark.slow
+def test_cli_robust_sweep_prints_the_bands(tmp_path):
+    import pyarrow.parquet as pq
+
+    f = tmp_path / "s.toml"
+    f.write_text(_ROBUST_TOML.format(extra=""))
+    r = _cli("sweep", str(f), "--out", str(tmp_path / "o"), "--workers", "1")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.count("Monte Carlo band") == 2 and "mc.force_error_std.z" in r.stdout
+    rows = pq.read_table(tmp_path / "o" / "results.parquet").to_pylist()
+    assert len(rows) == 2
+    for row in rows:
+        assert row["mc.force_error_std.z.p5"] <= row["mc.force_error_std.z.p95"]
+        assert row["mc.failed"] == 0
