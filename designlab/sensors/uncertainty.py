@@ -1,8 +1,12 @@
 """Monte Carlo of a design's prediction: N virtual builds with scattered inputs, the readout
 noise of each, and what drives the spread.
 
+Each sensor brings its own Monte Carlo model in its record (``Sensor.uncertainty``, a
+:class:`MonteCarloModel`: uncertain inputs with default distributions and sources, metrics, FEM
+stage, one virtual build, the paper's numbers); this module names no sensor.
+
 ``[uncertainty]`` in a predict (or robust sweep) TOML gives each uncertain input a distribution;
-inputs left out keep their default (table below); ``samples`` and ``seed`` may sit in the table::
+inputs left out keep their default; ``samples`` and ``seed`` may sit in the table::
 
     [uncertainty]
     samples = 1000
