@@ -187,6 +187,9 @@ rate = 50.0
 
 @pytest.mark.parametrize("mutate, message", [
     ("nan", "column 'F' has 1 NaN"),
+    ("inf", "column 'F' has 1 NaN/missing or infinite value(s), first (infinite) at data row 18"),
+    ("huge", "column 'F' has 1 value(s) beyond +-1e+100, first at data row 18"),
+    ("slash", "channel name 'a/b' is not allowed"),
     ("time", "time column 't' is not strictly increasing"),
     ("column", "column 'Q' not found"),
     ("unit", "column 'P' (displacement) has unit 'kg', not a length unit; allowed: mm, m"),
@@ -198,6 +201,10 @@ def test_bad_data_gives_one_line_error(tmp_path, mutate, message):
     t, P, F = signals(50)
     if mutate == "nan":
         F[17] = np.nan
+    if mutate == "inf":
+        F[17] = np.inf
+    if mutate == "huge":
+        F[17] = 1e300
     if mutate == "time":
         t[30] = t[28]
     write_csv(tmp_path / "run.csv", {"t": t, "P": P, "F": F})
@@ -210,6 +217,8 @@ def test_bad_data_gives_one_line_error(tmp_path, mutate, message):
         body = body.replace('unit = "N" }', 'unit = "N", sign = 2 }')
     if mutate == "missing":
         body = body.replace("run.csv", "nope.csv")
+    if mutate == "slash":  # a channel name ends up in plot file names: never a path
+        body = body.replace("force =", '"a/b" =')
     with pytest.raises(DataError) as exc:
         load_card(card(tmp_path, body))
     text = str(exc.value)

@@ -48,6 +48,9 @@ from scipy import ndimage, signal
 from designlab.errors import DataError
 from designlab.params import load_toml
 
+#: largest magnitude of a data value: beyond it, squares and sums overflow float64
+MAX_ABS_VALUE = 1e100
+
 # canonical unit first; factor to canonical (temperature: (scale, offset))
 UNITS: dict[str, dict[str, float | tuple[float, float]]] = {
     "length": {"mm": 1.0, "m": 1e3, "cm": 10.0, "um": 1e-3, "in": 25.4},
@@ -353,8 +356,14 @@ def _numeric(data: dict, col: str, path: Path) -> np.ndarray:
         raise DataError(f"{path}: column '{col}' is not numeric")
     bad = np.flatnonzero(~np.isfinite(arr))
     if bad.size:
-        raise DataError(f"{path}: column '{col}' has {bad.size} NaN/missing value(s), first at "
-                        f"data row {bad[0] + 1}")
+        what = "NaN/missing" if np.isnan(arr[bad[0]]) else "infinite"
+        raise DataError(f"{path}: column '{col}' has {bad.size} NaN/missing or infinite "
+                        f"value(s), first ({what}) at data row {bad[0] + 1}")
+    huge = np.flatnonzero(np.abs(arr) > MAX_ABS_VALUE)
+    if huge.size:  # squares and sums of such values overflow: inf/NaN results, not an error
+        raise DataError(f"{path}: column '{col}' has {huge.size} value(s) beyond "
+                        f"+-{MAX_ABS_VALUE:g}, first at data row {huge[0] + 1}; allowed: "
+                        f"|value| <= {MAX_ABS_VALUE:g} (a sensor reading in its card's unit)")
     return arr
 
 
@@ -557,6 +566,12 @@ def load_card(path: str | Path, allow_outside: bool = False) -> Dataset:
         for name, spec in (card.get(group) or {}).items():
             if name in channels:
                 raise DataError(f"{where}: channel '{name}' is declared twice")
+            if not name or name in (".", "..") or any(c in name for c in "/\\") or any(
+                    ord(c) < 32 or ord(c) == 127 for c in name):
+                # the name becomes part of output file names (plots): never a path
+                raise DataError(f"{where}: channel name {name!r} is not allowed: a name "
+                                "without '/', '\\' or control characters (it names output "
+                                "files)")
             channels[name] = (group, make_channel(name, spec, where, tspec))
     if not any(g == "outputs" for g, _ in channels.values()):
         raise DataError(f"{where}: [outputs] declares no channel")
