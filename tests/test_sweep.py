@@ -150,30 +150,63 @@ def test_report_writes_plots_and_html(tmp_path):
 
 def test_error_bars_and_indistinguishable_designs():
     """Bars: |value - coarse|; a shared FEM compares the difference at both mesh levels, two
-    FEMs add their bars; designs within the bar of their difference are ties."""
-    from designlab.optimize.sweep import difference_error, error_bar, indistinguishable
+    FEMs add their bars; designs within the bar of their difference are ties; an unknown bar
+    (NaN) is unknown, not 0."""
+    from designlab.optimize.sweep import (compare_to_best, difference_error, error_bar,
+                                          indistinguishable)
 
-    cfg = sweep_config(CFG)
+    cfg = sweep_config({**CFG, "objectives": {"condition_number": "min"}})
 
-    def row(key, v, c, fem):
+    def row(key, v, c, fem, volume=100.0):
         return {"key": key, "status": "ok", "feasible": True, "condition_number": v,
-                "mesh_convergence.condition_number.coarse": c, "fem_key": fem}
+                "mesh_convergence.condition_number.coarse": c, "fem_key": fem,
+                "printed_volume_mm3": volume}
 
     best = row("a", 10.0, 10.5, "F")
     same_fem_close = row("b", 10.1, 10.7, "F")     # d = 0.1, d_coarse = 0.2 -> bar 0.1: tie
     same_fem_far = row("c", 10.3, 10.8, "F")       # d = 0.3, d_coarse = 0.3 -> bar 0: distinct
     other_fem = row("d", 10.8, 10.0, "G")           # d = 0.8, bars 0.5 + 0.8: tie
     exact = {"key": "e", "status": "ok", "feasible": True, "condition_number": 12.0,
-             "mesh_convergence": None}
+             "mesh_convergence": None, "printed_volume_mm3": 100.0}
+    no_bar = {"key": "f", "status": "ok", "feasible": True, "condition_number": 10.05,
+              "printed_volume_mm3": 100.0}            # no coarse value: its bar is unknown
     assert error_bar(best, "condition_number") == pytest.approx(0.5)
     assert error_bar(exact, "condition_number") == 0.0
-    assert error_bar({"condition_number": 1.0}, "condition_number") != error_bar(
-        {"condition_number": 1.0}, "condition_number")     # unknown -> NaN
+    assert np.isnan(error_bar(no_bar, "condition_number"))
+    assert error_bar(no_bar, "printed_volume_mm3") == 0.0         # the CAD's: exact
     assert difference_error(same_fem_close, best, "condition_number") == pytest.approx(0.1)
     assert difference_error(same_fem_far, best, "condition_number") == pytest.approx(0.0)
     assert difference_error(other_fem, best, "condition_number") == pytest.approx(1.3)
-    rows = [best, same_fem_close, same_fem_far, other_fem, exact]
+    assert np.isnan(difference_error(no_bar, best, "condition_number"))
+    rows = [best, same_fem_close, same_fem_far, other_fem, exact, no_bar]
+    assert compare_to_best(rows, cfg, "a") == (["b", "d"], ["f"])
     assert indistinguishable(rows, cfg, "a") == ["b", "d"]
+    # several objectives (Pareto): a tie must be within the bars on all of them; beyond the bar
+    # on one (here the exact printed volume) tells the designs apart, even where another's bar
+    # is unknown
+    pareto = sweep_config(CFG)
+    assert list(pareto.objectives) == ["condition_number", "printed_volume_mm3"]
+    bigger = row("g", 10.1, 10.7, "F", volume=101.0)          # tie on cond., apart on volume
+    unknown_bigger = {**no_bar, "key": "h", "printed_volume_mm3": 120.0}
+    rows2 = rows + [bigger, unknown_bigger]
+    assert compare_to_best(rows2, pareto, "a") == (["b", "d"], ["f"])
+    # a config that turned the error bar off: unknown everywhere, nothing is a tie
+    off = sweep_config({**CFG, "objectives": {"condition_number": "min"},
+                        "settings": {"model": {"mesh_convergence": False}}})
+    assert np.isnan(error_bar(exact, "condition_number", off))
+    assert compare_to_best([best, exact, no_bar], off, "a") == ([], ["e", "f"])
+
+
+def test_unknown_error_bars_are_a_warning_not_a_tie(tmp_path):
+    """The analytic evaluator has no mesh error bars: no design is called a tie of the best,
+    and the sweep says that the comparison is unknown."""
+    c = sweep_config({**CFG, "objectives": {"condition_number": "min"}})
+    r = run_sweep(c, tmp_path, evaluator=quadratic, executor=LocalExecutor(1))
+    ok = [x for x in r.rows if x["status"] == "ok"]
+    assert len(ok) == 4 and r.best_key is not None
+    assert r.tie_keys == [] and sorted(r.unknown_keys) == sorted(
+        x["key"] for x in ok if x["key"] != r.best_key)
+    assert any("unknown, not zero" in w for w in r.warnings)
 
 
 @pytest.mark.slow

@@ -53,9 +53,12 @@ class SweepResult:
     best_key: str | None
     table_path: Path
     warnings: list[str] = dataclasses.field(default_factory=list)
-    #: designs whose first objective differs from the best design's by less than the
-    #: discretisation error of that difference (see :func:`indistinguishable`)
+    #: designs whose difference from the best design is within the discretisation error of
+    #: that difference on every objective (see :func:`compare_to_best`)
     tie_keys: list[str] = dataclasses.field(default_factory=list)
+    #: designs within the bars on every objective whose bar is known, but with an unknown bar
+    #: (no mesh error estimate) on another: whether they differ from the best is unknown
+    unknown_keys: list[str] = dataclasses.field(default_factory=list)
 
 
 def materials_fingerprint() -> str:
@@ -167,14 +170,29 @@ def _run_sweep(config: SweepConfig, out: Path, *, evaluator, executor, progress,
         if ok and all(r.get(name) is None for r in ok):
             warnings.append(f"no design has the metric {name!r} (objective or constraint): it "
                             "cannot rank or admit any design")
-    ties = indistinguishable(rows, config, best) if best is not None else []
+    ties, unknown = compare_to_best(rows, config, best) if best is not None else ([], [])
+    if unknown:
+        warnings.append(f"{len(unknown)} design(s) have no discretisation error bar on an "
+                        "objective (no mesh_convergence): whether they differ from the best "
+                        "design by more than the mesh error is unknown, not zero")
     return SweepResult(rows, len(remaining), reused, sum(r.get("status") != "ok" for r in rows),
-                       pareto, best, table_path, warnings, ties)
+                       pareto, best, table_path, warnings, ties, unknown)
 
 
-def error_bar(row: dict[str, Any], name: str) -> float:
+#: metrics of the CAD (optimize.evaluate.geometry_metrics), not of a mesh: no discretisation error
+CAD_METRICS = ("printed_volume_mm3", "printable", "min_wall_mm")
+
+
+def error_bar(row: dict[str, Any], name: str, config: SweepConfig | None = None) -> float:
     """Discretisation error bar of metric ``name`` of a design: |value - value on the coarser
-    mesh| (0 when the prediction rests on no mesh, NaN when unknown)."""
+    mesh| (0 for a metric of the CAD or when the prediction rests on no mesh, NaN when unknown:
+    a metric without a coarse value, or, given the ``config``, its model settings turned
+    ``mesh_convergence`` off)."""
+    if name in CAD_METRICS:
+        return 0.0
+    model = ((config.settings or {}).get("model") or {}) if config is not None else {}
+    if model.get("mesh_convergence") is False:
+        return float("nan")
     v, c = row.get(name), row.get(f"mesh_convergence.{name}.coarse")
     if row.get("mesh_convergence") is None and c is None:
         return 0.0 if "mesh_convergence" in row else float("nan")
@@ -183,39 +201,57 @@ def error_bar(row: dict[str, Any], name: str) -> float:
     return abs(float(v) - float(c))
 
 
-def difference_error(a: dict[str, Any], b: dict[str, Any], name: str) -> float:
-    """Error bar of the difference ``a - b`` of metric ``name``. Designs that share one FEM
-    (same ``fem_key``) share its discretisation error: their difference is compared at both
-    mesh levels, |(a - b) - (a_c - b_c)|; otherwise the bars add."""
+def difference_error(a: dict[str, Any], b: dict[str, Any], name: str,
+                     config: SweepConfig | None = None) -> float:
+    """Error bar of the difference ``a - b`` of metric ``name`` (NaN: unknown). Designs that
+    share one FEM (same ``fem_key``) share its discretisation error: their difference is
+    compared at both mesh levels, |(a - b) - (a_c - b_c)|; otherwise the bars add."""
+    if name in CAD_METRICS:
+        return 0.0
     fa, fb = a.get("fem_key"), b.get("fem_key")
     if fa is not None and fa == fb:
         ca, cb = a.get(f"mesh_convergence.{name}.coarse"), b.get(f"mesh_convergence.{name}.coarse")
         if None not in (ca, cb, a.get(name), b.get(name)):
             return abs((float(a[name]) - float(b[name])) - (float(ca) - float(cb)))
-    return error_bar(a, name) + error_bar(b, name)
+    return error_bar(a, name, config) + error_bar(b, name, config)
+
+
+def compare_to_best(rows: list[dict[str, Any]], config: SweepConfig, best_key: str
+                    ) -> tuple[list[str], list[str]]:
+    """(ties, unknown) among the feasible designs other than the best. On each objective a
+    design's difference from the best is *within* the error bar of that difference, *apart*
+    (beyond it) or *unknown* (no bar: NaN, never read as 0). Ties: within on every objective
+    (one objective: on it; a Pareto config: on all of them), so the prediction cannot tell the
+    design from the best and no choice between them rests on it. Unknown: apart on none, but
+    unknown on one or more: whether it differs is not known. A design apart on any objective
+    is distinguishable."""
+    names = list(config.objectives)
+    if not names:
+        return [], []
+    best = next(r for r in rows if r["key"] == best_key)
+    ties, unknown = [], []
+    for r in rows:
+        if r["key"] == best_key or r.get("status") != "ok" or not r.get("feasible", False):
+            continue
+        if any(r.get(n) is None or best.get(n) is None for n in names):
+            continue
+        states = set()
+        for n in names:
+            err = difference_error(r, best, n, config)
+            d = abs(float(r[n]) - float(best[n]))
+            states.add("unknown" if not np.isfinite(err) else "within" if d <= err else "apart")
+        if states == {"within"}:
+            ties.append(r["key"])
+        elif "apart" not in states:
+            unknown.append(r["key"])
+    return ties, unknown
 
 
 def indistinguishable(rows: list[dict[str, Any]], config: SweepConfig, best_key: str
                       ) -> list[str]:
-    """Keys of the feasible designs (other than the best) whose first objective differs from
-    the best design's by no more than the error bar of that difference: the prediction
-    cannot tell them apart, so no choice between them rests on it."""
-    if not config.objectives:
-        return []
-    name = next(iter(config.objectives))
-    best = next(r for r in rows if r["key"] == best_key)
-    out = []
-    for r in rows:
-        if r["key"] == best_key or r.get("status") != "ok" or not r.get("feasible", False):
-            continue
-        if r.get(name) is None or best.get(name) is None:
-            continue
-        d = abs(float(r[name]) - float(best[name]))
-        err = difference_error(r, best, name)
-        r_err = err if np.isfinite(err) else 0.0
-        if d <= r_err:
-            out.append(r["key"])
-    return out
+    """The ties of :func:`compare_to_best`: designs within the error bars of their difference
+    from the best on every objective."""
+    return compare_to_best(rows, config, best_key)[0]
 
 
 def _row(task: dict[str, Any], metrics: dict[str, Any], error: str | None, elapsed: float,
