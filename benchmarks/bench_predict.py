@@ -35,6 +35,7 @@ def _one(part: str, settings: dict, conn) -> None:
     m = pred.metrics
     conn.send({"wall": wall, "cpu": cpu, "peak_MB": peak, "timings": m["timings_s"],
                "dofs": m.get("mesh", {}).get("dofs") or m.get("mesh", {}).get("dof"),
+               "mesher": m.get("mesh", {}).get("mesher"), "solver": m.get("mesh", {}).get("solver"),
                "marks": [(s, t - t0, r) for s, t, r in marks],
                "cond": m.get("condition_number"),
                "hyst": m.get("hysteresis_percent", {}).get("overall"),
@@ -63,6 +64,7 @@ def main(parts, peer: bool) -> None:
             ts = r["timings"]
             print(f"{part:9s} {label:26s} wall {r['wall']:6.1f} s  cpu {r['cpu']:6.1f} s  "
                   f"peak RSS {r['peak_MB']:6.0f} MB  dofs {r['dofs']}  "
+                  f"mesher {r['mesher']}  solver {r['solver']}  "
                   + "  ".join(f"{k} {v:.2f}" for k, v in ts.items() if isinstance(v, float)),
                   flush=True)
             print("    stages (s, peak MB): " + ", ".join(f"{s} @ {t:.1f} s {m:.0f} MB"
