@@ -125,10 +125,12 @@ def _summary_table(rows, config, pareto_keys, best_key, limit: int = 20, tie_key
                     f"({sum(r.get('status') == 'ok' for r in rows)} ok)")
     dims = [d.name for d in config.dimensions]
     objs = list(config.objectives)
+    from rich.markup import escape
+
     for c in ["", *dims, *(x for o in objs for x in (o, "+-")), "feasible", "s"]:
-        t.add_column(c, justify="right")
-    def fmt(v):
-        return f"{v:.4g}" if isinstance(v, float) else ("" if v is None else str(v))
+        t.add_column(escape(c), justify="right")
+    def fmt(v):  # user text (choice values) printed literally
+        return f"{v:.4g}" if isinstance(v, float) else ("" if v is None else escape(str(v)))
     for r in rows[:limit]:
         mark = ("*" if r["key"] == best_key else "~" if r["key"] in tie_keys
                 else "P" if r["key"] in pareto_keys else "")
@@ -227,16 +229,21 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
 
     rows = list({r["key"]: r for r in [*res.sweep.rows, res.chosen]}.values())
     ties = indistinguishable(rows, cfg, res.chosen["key"]) if cfg.objectives else []
-    chosen, chosen_params, choice = res.chosen, res.chosen_params, (
-        f"{res.method}: best {next(iter(cfg.objectives), '')} beyond the mesh error bars")
+    from designlab.optimize.report import choice_text
+
+    chosen, chosen_params = res.chosen, res.chosen_params
+    choice = choice_text(res.method, rows, cfg, res.sweep.pareto_keys, res.chosen)
     if ties:
         # the prediction cannot rank these: none is chosen on the objective; the exported one
         # is the tied design that needs the least material
         group = [res.chosen] + [r for r in rows if r["key"] in ties]
         chosen = min(group, key=lambda r: (r.get("printed_volume_mm3") or float("inf"), r["key"]))
         chosen_params = {d.name: chosen[f"param.{d.name}"] for d in cfg.dimensions}
-        choice = (f"{len(group)} designs are not distinguishable by "
-                  f"{next(iter(cfg.objectives))} (differences within the mesh error bars): none "
+        from designlab.sensors.labels import metric_label
+
+        choice = (f"{choice} But {len(group)} designs are not distinguishable by "
+                  f"{metric_label(next(iter(cfg.objectives)))} (differences within the mesh "
+                  "error bars): none "
                   "is chosen on it; exported the one with the least printed volume "
                   f"({chosen.get('printed_volume_mm3', float('nan')):.4g} mm^3)")
     _summary_table(res.sweep.rows, cfg, res.sweep.pareto_keys, chosen["key"], tie_keys=ties)
@@ -280,7 +287,7 @@ def _export_chosen(cfg, params: dict, design_dir: Path, formats: str, fem_cache:
         if files and all(f.is_file() for f in files):
             console.print(f"the chosen design in {design_dir} is up to date (same design, "
                           "settings and formats): not exported again", markup=False,
-                          highlight=False)
+                          highlight=False, soft_wrap=True)
             return files
     (design_dir / "run.json").unlink(missing_ok=True)
     with progress_bar(f"exporting the chosen design to {design_dir}"):
@@ -367,13 +374,13 @@ def flexure(preset: str = typer.Option("visiflex-catalog", "--preset",
                       f"asymmetry {fem_info['asymmetry']:.2e}, {fem_info['timings_s']['total']:.0f} s",
                       highlight=False)
     for note in report["notes"]:
-        console.print(f"[bold]note:[/] {note}", highlight=False)
+        console.print(_plain(("note:", "bold"), " ", note), highlight=False)
     console.print("stress: not computed (the closed form and the beam chain give stiffness, "
                   "no stress field; check the wire's strength separately)", highlight=False,
                   markup=False)
     if json_out is not None:
         fr.write_json(json_out, report)
-        console.print(f"wrote {json_out}")
+        console.print(f"wrote {json_out}", highlight=False, markup=False)
         _next(f"open next: {json_out} (every matrix, SI units); designlab predict "
               "flexure --out OUT (its virtual test and report)")
     else:
@@ -551,17 +558,19 @@ def compensate(model: Optional[List[str]] = typer.Option(
     table = Table(title="compensation (RMSE in the reference unit)")
     for col in ("model", "task", "role", "output", "RMSE", "NCC"):
         table.add_column(col, justify="right" if col in ("RMSE", "NCC") else "left")
-    for m, t, role, o, r, c in result.table():
-        table.add_row(m, t, role, o, f"{r:.4g}", f"{c:.4f}")
+    from rich.markup import escape
+
+    for m, t, role, o, r, c in result.table():  # task and channel names: user text
+        table.add_row(escape(m), escape(t), escape(role), escape(o), f"{r:.4g}", f"{c:.4f}")
     console.print(table)
     for m, f in result.fits.items():
-        console.print(f"{m}: fitted in {f['time_s']:.2f} s", highlight=False)
+        console.print(f"{m}: fitted in {f['time_s']:.2f} s", highlight=False, markup=False)
     val_names = {r.name for r in val_recs}
     for w in result.between_models:
         if w["task"] in val_names:
             console.print(f"Wilcoxon {w['task']} {w['output']}: {w['a']} vs {w['b']}: p(RMSE) = "
                           f"{w['rmse']['p_value']:.3g}, p(NCC) = {w['ncc']['p_value']:.3g} "
-                          f"({segments} segments)", highlight=False)
+                          f"({segments} segments)", highlight=False, markup=False)
     written = list(comp.write_outputs(result, train_recs + val_recs, out))
     for path in written:
         console.print(f"wrote {path}", markup=False, highlight=False)
@@ -610,14 +619,15 @@ def loop_cmd(
     for col in ("output", "effect", "parameters", "before", "after"):
         table.add_column(col, justify="right" if col in ("before", "after") else "left")
     for o, rep in result.report["outputs"].items():
-        table.add_row(o, "(base)", "", f"{rep['error_before']:.4g}", "", end_section=False)
+        table.add_row(escape(o), "(base)", "", f"{rep['error_before']:.4g}", "",
+                      end_section=False)
         for e in rep["effects"]:
             par = ", ".join(f"{k}={_short(v)}" for k, v in e["parameters"].items()
                             if k not in ("base_adjust", "form", "g_unit"))
             table.add_row("", escape(e["key"]), escape(par), f"{e['error_before']:.4g}",
                           f"{e['error_after']:.4g}")
         table.add_row("", "[bold]total", f"unexplained {100 * rep['unexplained_fraction']:.1f} %",
-                      f"{rep['error_before']:.4g}", f"{rep['error_after']:.4g} {rep['unit']}",
+                      f"{rep['error_before']:.4g}", escape(f"{rep['error_after']:.4g} {rep['unit']}"),
                       end_section=True)
     console.print(table)
     for o, rep in result.report["outputs"].items():
@@ -901,9 +911,9 @@ def fit_strap(finger: Optional[str] = typer.Option(None, "--finger", metavar="WI
     t.add_row("time (s)", f"{res['timings_s']['total']:.1f}")
     console.print(t)
     for note in res["material_stand_ins"]:
-        console.print(f"[bold]note:[/] {note}", highlight=False)
+        console.print(_plain(("note:", "bold"), " ", note), highlight=False)
     for f in res["files"]:
-        console.print(f"wrote {f}", highlight=False)
+        console.print(f"wrote {f}", highlight=False, markup=False)
     threemf = [f for f in res["files"] if str(f).endswith(".3mf")]
     _next("open next: " + ", ".join([f"{f} (into the slicer)" for f in threemf]
                                     + [f"{out / 'fit.json'} (the fit and size table)"]))

@@ -99,6 +99,78 @@ def sensitivity_plot(rows: list[dict], config: SweepConfig) -> bytes | None:
     return data
 
 
+def _value_text(row: dict, name: str) -> str:
+    from designlab.sensors.labels import metric_name_unit
+
+    v, e = row.get(name), error_bar(row, name)
+    unit = metric_name_unit(name)[1]
+    if not isinstance(v, (int, float)) or isinstance(v, bool):
+        return f"{metric_name_unit(name)[0]} unknown"
+    bar = f" ± {e:.2g}" if np.isfinite(e) else ""
+    return f"{metric_name_unit(name)[0]} = {v:.4g}{bar}" + (f" {unit}" if unit else "")
+
+
+def choice_text(method: str, rows: list[dict], config: SweepConfig, pareto_keys: list[str],
+                chosen: dict) -> str:
+    """Why the design was chosen, in words: the objective(s) with readable names, units and
+    the chosen design's values and mesh error bars; for the Pareto method the rule (closest to
+    the ideal point of the front after scaling each objective to 0..1)."""
+    from designlab.sensors.labels import metric_label
+
+    names = list(config.objectives)
+    if not names:
+        return f"{method}: no objective"
+    if method == "pareto" and len(names) >= 2:
+        front = [r for r in rows if r["key"] in pareto_keys and r.get("status") == "ok"]
+        ideal = []
+        for n in names:
+            spec = config.objectives[n]
+            vals = [(objective_of(r, n, spec), r.get(n)) for r in front]
+            vals = [(o, v) for o, v in vals if o is not None]
+            if vals:
+                ideal.append(f"{metric_label(n)} {min(vals, key=lambda t: t[0])[1]:.4g}")
+        ideal = ", ".join(ideal)
+        return (f"Pareto method: of the {len(front)} designs no other design beats in every "
+                f"objective (the Pareto set: {', '.join(metric_label(n, config.objectives[n]) for n in names)}), "
+                "the chosen one is closest to the ideal point after each objective is scaled "
+                f"to 0..1 over the set (ideal point: {ideal}). Chosen design: "
+                + "; ".join(_value_text(chosen, n) for n in names) + ".")
+    n = names[0]
+    how = {"surrogate": "a surrogate model fitted to the sweep, then evaluated at its optimum",
+           "de": "differential evolution over the parameter ranges",
+           "pareto": "the sweep's best design"}.get(method, method)
+    return (f"{method} method ({how}): the best {metric_label(n, config.objectives[n])}: "
+            f"{_value_text(chosen, n)}, beyond the mesh error bars of the other designs.")
+
+
+def objective_of(row: dict, name: str, spec) -> float | None:
+    """The objective as minimised (:func:`objective_value`); None when unknown."""
+    from designlab.optimize.space import objective_value
+
+    v = row.get(name)
+    if not isinstance(v, (int, float)) or isinstance(v, bool) or not np.isfinite(v):
+        return None
+    return objective_value(v, spec)
+
+
+def chosen_renders(chosen_dir: Path) -> list[tuple[Path, str]]:
+    """Renders of the exported chosen design: the prediction's ``design.png`` (bodies with
+    their materials) and ``deformed.png``, else the export's ``PART/PART.png``."""
+    chosen_dir = Path(chosen_dir)
+    pdir = chosen_dir / "prediction"
+    out = []
+    if (pdir / "design.png").is_file():
+        out.append((pdir / "design.png", "the chosen design (printed bodies opaque, bought "
+                    "parts see-through)"))
+    else:
+        out += [(p, f"the chosen design: {p.parent.name}") for p in
+                sorted(chosen_dir.glob("*/*.png")) if p.parent.name != "prediction"]
+    if (pdir / "deformed.png").is_file():
+        out.append((pdir / "deformed.png", "the chosen design deformed under its first load "
+                    "case (warped, coloured by displacement)"))
+    return out
+
+
 def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: list[str],
                  best_key: str | None, title: str = "designlab sweep",
                  tie_keys: list[str] = (), *, choice: str | None = None,
@@ -109,8 +181,8 @@ def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: 
     (renders, plots, stress, paper comparison, files)."""
     from designlab.sensors.labels import fmt_value, metric_label, metric_name_unit, param_label
     from designlab.sensors.registry import SENSORS
-    from designlab.sensors.report_html import (file_links, png_uri, prediction_sections,
-                                               render_report)
+    from designlab.sensors.report_html import (file_links, param_table, png_uri,
+                                               prediction_sections, render_report)
 
     out = Path(out)
     written: dict[str, Path] = {}
@@ -176,12 +248,15 @@ def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: 
                                 "(metric on the chosen mesh minus the same on one coarser "
                                 "mesh). Design: the first 8 characters of its key in "
                                 "results.parquet."}
+    from designlab.geometry.api import field_rows
+
+    meta = {r["name"]: r for r in field_rows(part_cls)} if part_cls is not None else {}
     sweep_rows = [[d.name, f"{d.lo:g} .. {d.hi:g}" if not d.values else fmt_value(d.values),
                    str(d.levels) if config.method == "grid" and not d.values else "",
-                   (param_label(part_cls, d.name).split(": ", 1) + [""])[1]]
+                   meta.get(d.name, {}).get("unit", ""), meta.get(d.name, {}).get("meaning", "")]
                   for d in config.dimensions]
     ctx["tables"].append({"title": "Swept parameters", "columns": ["name", "range / values",
-                                                                  "levels", "meaning"],
+                                                                  "levels", "unit", "meaning"],
                           "rows": sweep_rows})
     setting_rows = ([["method", config.method]]
                     + [[f"objective {k}", str(v)] for k, v in config.objectives.items()]
@@ -200,14 +275,17 @@ def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: 
         chosen_dir = Path(chosen_dir)
         pdir = chosen_dir / "prediction"
         pred = json.loads((pdir / "prediction.json").read_text())
-        renders = [(p, f"chosen design: {p.name}") for p in sorted(chosen_dir.glob("*.png"))]
-        if (pdir / "deformed.png").is_file():
-            renders.append((pdir / "deformed.png", "chosen design deformed under its first "
-                            "load case"))
+        renders = chosen_renders(chosen_dir)
         sec = prediction_sections(pred, pdir, part_cls=part_cls,
                                   settings_cls=sensor.settings if sensor else None,
                                   protocol_cls=sensor.protocol if sensor else None,
                                   render_pngs=renders)
+        if sensor is not None and sensor.settings is not None:
+            # the settings the run used: the prediction's own, over them the sweep's [settings]
+            # model table (what the config asked for; defaults only where neither says)
+            used = {**(pred.get("settings") or {}), **(config.settings.get("model") or {})}
+            sec["tables"] = [param_table("Model settings", sensor.settings, used)
+                             if t["title"] == "Model settings" else t for t in sec["tables"]]
         ctx["renders"] = sec["renders"]
         ctx["stress"], ctx["paper"] = sec["stress"], sec["paper"]
         ctx["plots"] = images + [f for f in sec["plots"]
