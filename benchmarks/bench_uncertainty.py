@@ -31,7 +31,9 @@ def main(n: int, sensor: str, dask: bool) -> int:
         print(f"{sensor}: {n} builds on 2 local processes: {wall:.1f} s wall "
               f"(FEM stage in the parent {local['fem']['parent_s']:.1f} s), "
               f"FEM solves {local['fem']['solves_this_run']}, {local['ok']} ok, "
-              f"{local['failed']} failed; goal < 120 s: {'met' if wall < 120 else 'not met'}",
+              f"{local['failed']} failed; "
+              + (f"goal 1000 builds < 120 s: {'met' if wall < 120 else 'not met'}"
+                 if n >= 1000 else "goal (1000 builds < 120 s) not assessed at this size"),
               flush=True)
         if not dask:
             return 0
