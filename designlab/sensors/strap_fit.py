@@ -17,7 +17,8 @@ per newton do not depend on eps0. It enters through (1) the tangent stiffness of
 eps0 (no measured curve of the printed TPU: an incompressible neo-Hookean law with E = 12 MPa
 is the labelled stand-in) and (2) the gauge's operating point: R(eps0) moves the divider's gain
 and dR/R = GF eps + c2 eps^2 has slope GF + 2 c2 eps0. Stress stiffening (geometric stiffness of
-the tension) is not included.
+the tension) is not in the sensitivity: :func:`stress_stiffening` estimates its size (ring and
+pad modes) and the report carries it beside the softening factor in use.
 
 **Finger.** Width (across the nail) and depth (nail to pulp) of the distal phalanx at the strap,
 its length; the section is an ellipse (Ramanujan's perimeter). The accepted ranges are the
