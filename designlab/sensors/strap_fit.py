@@ -251,14 +251,24 @@ def slot_table(part, perimeter: float, material, R0: float, R_fixed: float,
     rows = []
     for k in range(1, part.slot_count + 1):
         s = prestrain_state(part, perimeter, material, R0, R_fixed, slot=k)
+        ss = s["stress_stiffening"]
+        stiff = ss["factor_with_ring_stiffening_estimate"] * s["electrical_factor"]
         rows.append({"slot": k, "initial_strain": s["initial_strain"],
                      "sensitivity_factor": s["sensitivity_factor"],
                      "sum_F_n_V_per_N": sens_sum_Fn * s["sensitivity_factor"],
                      "diff_F_x_V_per_N": sens_diff_Fx * s["sensitivity_factor"],
-                     "geometrically_nonlinear_needed": s["geometrically_nonlinear_needed"]})
+                     "geometrically_nonlinear_needed": s["geometrically_nonlinear_needed"],
+                     "membrane_tension_N": ss["membrane_tension_N"],
+                     "ring_geometric_over_material": ss["ring_geometric_over_material"],
+                     "sum_F_n_V_per_N_with_ring_stiffening_estimate": sens_sum_Fn * stiff})
     return {"finger_perimeter_mm": perimeter, "slots": rows,
             "initial_strain_cv_percent": spread_percent(r["initial_strain"] for r in rows),
             "sum_sensitivity_cv_percent": spread_percent(r["sum_F_n_V_per_N"] for r in rows),
+            "sum_sensitivity_cv_percent_with_ring_stiffening_estimate": spread_percent(
+                r["sum_F_n_V_per_N_with_ring_stiffening_estimate"] for r in rows),
+            "stress_stiffening_note": "estimate only (strap_fit.stress_stiffening: ring mode, "
+                                     "neo-Hookean stand-in, rigid finger); the sensitivities "
+                                     "above do not include it",
             "spread_definition": SPREAD_DEFINITION + " over the slots",
             "definition": "the stress-free FEM's sensitivity times each slot's prestrain "
                           "factor"}
