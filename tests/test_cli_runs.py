@@ -154,3 +154,20 @@ def test_mesh_quality_option_has_the_settings_name():
     assert {"--mesh-quality", "--quality"} <= opts
     base = next(p for p in cmds["loop"].params if "--base" in p.opts)
     assert "load-arm[:LOAD,ARM[,ANGLE]]" in base.help
+
+
+def test_every_part_parameter_has_a_meaning(capsys):
+    """``designlab params PART`` explains every field: a non-empty meaning for each, and a unit
+    or the allowed choices."""
+    from designlab.geometry.api import field_rows
+    from designlab.geometry.parts import PARTS
+
+    for name, cls in PARTS.items():
+        rows = field_rows(cls)
+        assert rows
+        empty = [r["name"] for r in rows if not r["meaning"].strip()]
+        assert not empty, f"{name}: no meaning for {empty}"
+        for r in rows:
+            assert r["unit"] or r["allowed"], (name, r["name"])
+        rc, so, _ = _run(["params", name], capsys)
+        assert rc == 0 and rows[0]["name"] in so

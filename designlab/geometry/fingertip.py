@@ -72,22 +72,31 @@ class CantileverFingertip:
                                                            doc="seed 001: 9.4; takes the bolt"))
     gap: float = field(default=0.5, metadata=rng(0.2, 3, unit="mm",
                                                  doc="fingertip-to-base clearance"))
-    base_height: float = field(default=8.0, metadata=rng(4, 30, unit="mm"))
-    base_radius: float = field(default=9.0, metadata=rng(6, 20, unit="mm"))
-    cap_thickness: float = field(default=2.5, metadata=rng(1.5, 8, unit="mm"))
+    base_height: float = field(default=8.0, metadata=rng(
+        4, 30, unit="mm", doc="height of the printed base holding the three sensor wells"))
+    base_radius: float = field(default=9.0, metadata=rng(
+        6, 20, unit="mm", doc="radius of the printed base (sensor wells plus a wall)"))
+    cap_thickness: float = field(default=2.5, metadata=rng(
+        1.5, 8, unit="mm", doc="bottom cap under the base; carries the cantilever bolt head"))
     sensor_size: float = field(default=5.0, metadata=rng(2, 10, unit="mm",
                                                          doc="FSS015 body, approx."))
-    sensor_thickness: float = field(default=2.3, metadata=rng(1, 6, unit="mm"))
-    button_radius: float = field(default=0.8, metadata=rng(0.3, 2, unit="mm"))
-    well_clearance: float = field(default=0.1, metadata=rng(0.02, 0.5, unit="mm"))
+    sensor_thickness: float = field(default=2.3, metadata=rng(
+        1, 6, unit="mm", doc="FSS015 body thickness behind its button, approx."))
+    button_radius: float = field(default=0.8, metadata=rng(
+        0.3, 2, unit="mm", doc="radius of the FSS015 steel ball button that the ball presses"))
+    well_clearance: float = field(default=0.1, metadata=rng(
+        0.02, 0.5, unit="mm", doc="play around each sensor in its well"))
     bolt_diameter: float = field(default=2.5, metadata=rng(1.6, 4, unit="mm", doc="M2.5"))
     bolt_length: float = field(default=10.0, metadata=rng(3, 40, unit="mm",
                                                           doc="under-head length (M2.5x10)"))
-    head_diameter: float = field(default=4.5, metadata=rng(2, 8, unit="mm"))
-    head_height: float = field(default=1.75, metadata=rng(0.8, 4, unit="mm"))
+    head_diameter: float = field(default=4.5, metadata=rng(
+        2, 8, unit="mm", doc="diameter of the cantilever bolt's head under the cap"))
+    head_height: float = field(default=1.75, metadata=rng(
+        0.8, 4, unit="mm", doc="height of the cantilever bolt's head under the cap"))
     load_table: str = field(default="III", metadata=rng(choices=("II", "III"),
                                                         doc="seed 001 table of load points"))
-    load_patch_radius: float = field(default=1.0, metadata=rng(0.2, 3, unit="mm"))
+    load_patch_radius: float = field(default=1.0, metadata=rng(
+        0.2, 3, unit="mm", doc="radius of the surface patch that carries each load point's force"))
     skin_thickness: float = field(default=0.0, metadata=rng(0, 3, unit="mm",
                                                             doc="silicone coating, 0 = none"))
 

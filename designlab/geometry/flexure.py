@@ -52,13 +52,22 @@ class SpringFlexure:
 
     wire_radius: float = field(default=1.015, metadata=rng(0.2, 5, lo_open=False, unit="mm",
                                                            doc="seed 002: d = 2.03 mm"))
-    mean_diameter: float = field(default=27.73, metadata=rng(3, 80, unit="mm"))
-    pitch_angle: float = field(default=0.1029, metadata=rng(0.005, 0.5, unit="rad"))
+    mean_diameter: float = field(default=27.73, metadata=rng(
+        3, 80, unit="mm", doc="mean coil diameter D (seed 002: 27.73)"))
+    pitch_angle: float = field(default=0.1029, metadata=rng(
+        0.005, 0.5, unit="rad", doc="helix pitch angle of the active coils (seed 002: 0.1029)"))
     active_coils: float = field(default=1.75, metadata=rng(0.5, 20, doc="3.75 total - 2 dead"))
-    ends: str = field(default="closed_ground", metadata=rng(choices=("plain", "closed_ground")))
-    material: str = field(default="SS302", metadata=rng(choices=("SS302", "steel")))
-    disc_thickness: float = field(default=3.0, metadata=rng(0.8, 20, unit="mm"))
-    disc_radius: float = field(default=17.0, metadata=rng(3, 60, unit="mm"))
+    ends: str = field(default="closed_ground", metadata=rng(
+        choices=("plain", "closed_ground"),
+        doc=("closed_ground: one dead coil per end, ground flat (seed 002 as we read it); "
+             "plain: the coil ends embedded in the discs")))
+    material: str = field(default="SS302", metadata=rng(
+        choices=("SS302", "steel"),
+        doc="spring wire: SS302 stainless (seed 002; E 193 GPa, G 69 GPa) or steel"))
+    disc_thickness: float = field(default=3.0, metadata=rng(
+        0.8, 20, unit="mm", doc="thickness of each printed disc the spring is bonded to"))
+    disc_radius: float = field(default=17.0, metadata=rng(
+        3, 60, unit="mm", doc="outer radius of the printed discs"))
     disc_bore: float = field(default=8.0, metadata=rng(0, 50, unit="mm",
                                                        doc="radius of the camera opening"))
     disc_material: str = field(default="PLA", metadata=rng(choices=("PLA", "ABS"),

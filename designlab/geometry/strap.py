@@ -62,32 +62,45 @@ class ArchStrap:
                                                          doc="chord between the arch feet"))
     arch_height: float = field(default=8.0, metadata=rng(1, 50, unit="mm",
                                                          doc="rise of the arch centreline"))
-    tab_length: float = field(default=14.0, metadata=rng(4, 40, unit="mm"))
+    tab_length: float = field(default=14.0, metadata=rng(
+        4, 40, unit="mm", doc="straight end tab beyond each arch foot, holding the slots (ours)"))
     slot_count: int = field(default=3, metadata=rng(1, 6, doc="seed 000: 3 per end"))
     slot_length: float = field(default=9.0, metadata=rng(1, 25, unit="mm", doc="across strap"))
     slot_width: float = field(default=1.6, metadata=rng(0.8, 5, unit="mm",
                                                         doc="along strap; the lug is 0.3 narrower"))
-    slot_pitch: float = field(default=3.5, metadata=rng(1, 10, unit="mm"))
+    slot_pitch: float = field(default=3.5, metadata=rng(
+        1, 10, unit="mm", doc="centre-to-centre spacing of the length-adjustment slots (ours)"))
     slot_end_margin: float = field(default=2.0, metadata=rng(0.8, 10, unit="mm",
                                                              doc="strap end to last slot"))
     legs: int = field(default=4, metadata=rng(2, 16, doc="meander legs (even)"))
     trace_width: float = field(default=0.8, metadata=rng(MIN_TRACE, 4, unit="mm",
                                                          doc=">= two 0.4 mm nozzle lines"))
-    trace_gap: float = field(default=0.8, metadata=rng(NOZZLE, 4, unit="mm"))
+    trace_gap: float = field(default=0.8, metadata=rng(
+        NOZZLE, 4, unit="mm", doc=("gap between neighbouring meander legs, at least one 0.4 mm "
+                                   "nozzle line")))
     gauge_length: float = field(default=8.0, metadata=rng(1, 40, unit="mm",
                                                           doc="leg length along the strap"))
     gauge_offset: float = field(default=7.0, metadata=rng(0.5, 60, unit="mm",
                                                           doc="apex to gauge centre, arc length"))
-    lead_length: float = field(default=1.6, metadata=rng(0, 15, unit="mm"))
-    pad_width: float = field(default=2.0, metadata=rng(0.8, 8, unit="mm"))
-    pad_length: float = field(default=3.0, metadata=rng(0.8, 10, unit="mm"))
+    lead_length: float = field(default=1.6, metadata=rng(
+        0, 15, unit="mm", doc=("trace from the meander to its connection pads, along the arch (0: "
+                               "none)")))
+    pad_width: float = field(default=2.0, metadata=rng(
+        0.8, 8, unit="mm", doc=("connection pad width across the strap (wires are melted into the "
+                                "pads)")))
+    pad_length: float = field(default=3.0, metadata=rng(
+        0.8, 10, unit="mm", doc="connection pad length along the strap"))
     edge_margin: float = field(default=1.0, metadata=rng(0.4, 6, unit="mm",
                                                          doc="TPU beside the traces"))
     contact_length: float = field(default=16.0, metadata=rng(1, 100, unit="mm",
                                                              doc="finger pad contact, arc length"))
-    nail_plate_length: float = field(default=16.0, metadata=rng(6, 40, unit="mm"))
-    nail_plate_width: float = field(default=12.0, metadata=rng(6, 40, unit="mm"))
-    nail_plate_thickness: float = field(default=1.2, metadata=rng(0.4, 5, unit="mm"))
+    nail_plate_length: float = field(default=16.0, metadata=rng(
+        6, 40, unit="mm", doc=("nail plate along the finger; printed beside the strap, its two "
+                               "lugs fit the slots")))
+    nail_plate_width: float = field(default=12.0, metadata=rng(
+        6, 40, unit="mm", doc="nail plate across the finger (at least slot_length)"))
+    nail_plate_thickness: float = field(default=1.2, metadata=rng(
+        0.4, 5, unit="mm", doc="nail plate thickness"))
 
     def __post_init__(self):
         for name in ("legs", "slot_count"):  # counts: accept 4.0 from TOML/JSON, not 4.5
