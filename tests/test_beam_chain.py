@@ -130,6 +130,11 @@ def test_coulomb_friction_bounds_at_the_working_load():
     assert sum(r["closed"].values()) > 0 and r["normal_force_N"]["coil"] > 0
     assert 0 < r["max_stick_displacement_mm"] < 0.1 * bc.ChainSettings().perturbation_mm
     assert r["friction_band_N"] == pytest.approx(0.3 * sum(r["normal_force_N"].values()))
+    # sliding resists the motion (a positive band on every axis), linear in mu
+    band = r["tip_friction_band"]
+    assert all(v > 0 for v in band.values())
+    half = bc.friction_bounds(VISIFLEX_CATALOG, mu=0.15)["tip_friction_band"]
+    assert half["u_x"] == pytest.approx(band["u_x"] / 2, rel=1e-9)
     with pytest.raises(ParameterError) as e:
         bc.friction_bounds(VISIFLEX_CATALOG, mu=-0.1)
     assert "mu" in str(e.value) and "\n" not in str(e.value)

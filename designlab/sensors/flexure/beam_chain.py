@@ -461,6 +461,32 @@ def condensed_6x6(chain: "Chain", closed: np.ndarray, kt: np.ndarray | None = No
     return (K + K.T) / 2
 
 
+def _tip_friction_band(chain: "Chain", closed: np.ndarray, fn: np.ndarray, mu: float) -> dict:
+    """Half-width of the friction band at the tip master, per master axis: the tip moved along
+    the axis (frictionless motion, normal forces of the reference state), every closed contact
+    sliding against its relative tangential motion with ``mu f_n``; the master's reaction to
+    those forces along the same axis (N for u_x, u_y, u_z; N mm for th_x, th_y, th_z). A loop
+    along that axis deviates from its median by this much."""
+    A = (chain.Kq + chain.N.T @ sp.diags(chain.kn * closed) @ chain.N).tocsc()
+    m = chain.m
+    f = np.setdiff1d(np.arange(chain.nq), m)
+    lu = spla.splu(A[f][:, f].tocsc())
+    Afm = A[f][:, m].toarray()
+    out = {}
+    for j, name in enumerate(("u_x", "u_y", "u_z", "th_x", "th_y", "th_z")):
+        q = np.zeros(chain.nq)
+        q[m[j]] = 1.0
+        q[f] = lu.solve(-Afm[:, j])
+        g = np.zeros(chain.nq)
+        for c, cl, F in zip(chain.contacts, closed, fn):
+            v = c.rt @ q if cl else None
+            if v is not None and np.linalg.norm(v) > 0:
+                g += c.rt.T @ (-mu * F * v / np.linalg.norm(v))
+        reaction = Afm.T @ lu.solve(g[f]) - g[m]         # what holds the master against them
+        out[name] = float(reaction[j])
+    return out
+
+
 def friction_bounds(spring: HelicalSpring, settings: ChainSettings | None = None, *,
                     mu: float = 0.3) -> dict:
     """What Coulomb friction at the closed coil and seat contacts can do to the chain's 6x6 at
@@ -475,7 +501,9 @@ def friction_bounds(spring: HelicalSpring, settings: ChainSettings | None = None
       independent of ``mu``.
 
     Returns the two 6x6 at the spring centre (N mm/rad, N/mm; SI too), the normal forces, the
-    band ``mu sum f_n`` and the largest stick displacement ``mu f_n / k_t``. ``mu``: assumed
+    band ``mu sum f_n`` at the contacts, its half-width at the tip per master axis
+    (``tip_friction_band``: the hysteresis a loop along that axis shows) and the largest stick
+    displacement ``mu f_n / k_t``. ``mu``: assumed
     (no value is published for the spring; steel on steel runs from ~0.1 lubricated to ~0.6
     dry)."""
     if not (isinstance(mu, (int, float)) and 0 <= mu <= 2):
@@ -493,6 +521,7 @@ def friction_bounds(spring: HelicalSpring, settings: ChainSettings | None = None
     K_slip = condensed_6x6(chain, closed)
     K_stick = condensed_6x6(chain, closed, kt)
     K_pert, _ = chain.stiffness(ref=pre)
+    band = _tip_friction_band(chain, closed, fn, mu)
     centre = np.array([0.0, 0.0, chain.coil.length / 2])
     move = transform(translation=chain.master - centre)
     at = {k: transform_stiffness(v, move) for k, v in
@@ -509,6 +538,7 @@ def friction_bounds(spring: HelicalSpring, settings: ChainSettings | None = None
                                "seat": float(fn[kinds == "seat"].sum())},
             "friction_band_N": float(mu * fn.sum()), "mu": float(mu),
             "max_stick_displacement_mm": float(stick_disp.max()) if closed.any() else 0.0,
+            "tip_friction_band": band,
             "k_t_over_k_n": float(2 * (1 - nu) / (2 - nu))}
 
 
