@@ -117,3 +117,46 @@ def test_deformed_png_has_arrow_and_case(tmp_path):
     assert "base (ABS)" in seen["label"] and "cap (PLA)" in seen["label"]
     (start, d, L, text), = seen["arrows"]
     assert np.allclose(start + L * d, (0, 0, 1)) and text == "F = 2 N"
+
+
+def test_fingertip_paper_comparison_figure_has_the_shared_look():
+    """Seed 001 beside the contact model: constrained layout (no tight_layout), every panel with
+    both axis names, the model series in distinct colours and markers, legends right of the
+    data with black text."""
+    import matplotlib.pyplot as plt
+    from matplotlib.layout_engine import ConstrainedLayoutEngine
+
+    from designlab.sensors.fingertip import paper_comparison_figure
+
+    loc = {f"h{i}": 0.5 / i for i in range(1, 4)}
+    rad = {f"r{i}": 0.1 * i for i in range(1, 4)}
+    hp = {k: {"G1_by_location": {a: v * (j + 1) for a, v in loc.items()},
+              "G2_by_location": {a: v * (j + 1) for a, v in rad.items()}}
+          for j, k in enumerate(("robust_eq1_span10", "paper_eq1_all_sensors",
+                                 "robust_eq1_span10_noise_free"))}
+    contact = {"paper": {"lowest_mean_G1_pct": 1.2, "lowest_mean_G2_pct": 0.6,
+                         "compressed_change_h9_to_h1_pct": 40.0,
+                         "compressed_change_r1_to_r5_pct": 20.0},
+               "table_II_design": {"heights_mm": [30.0, 20.0, 10.0], "radii_mm": [1.0, 2.0, 3.0],
+                                   "hysteresis_percent": hp},
+               "goals": {"compressed_change_h9_to_h1": {"value_pct": 35.0}},
+               "compressed_change_r1_to_r5": {"value_pct": 15.0},
+               "table_III_design": {"condition_number": 30.0, "relative_error_per_axis_all_weights":
+                                    {"x": 0.05, "y": 0.06, "z": 0.2}}}
+    fig = paper_comparison_figure(contact, plt)
+    try:
+        fig.canvas.draw()
+        assert isinstance(fig.get_layout_engine(), ConstrainedLayoutEngine)
+        r = fig.canvas.get_renderer()
+        for ax in fig.axes:
+            assert ax.get_xlabel() and ax.get_ylabel()
+        for ax in fig.axes[:3]:
+            leg = ax.get_legend()
+            assert leg is not None
+            assert all(to_rgba(t.get_color()) == to_rgba("black") for t in leg.get_texts())
+            assert leg.get_window_extent(r).x0 >= ax.get_window_extent(r).x1 - 1
+        lines = [ln for ln in fig.axes[0].get_lines() if ln.get_marker() not in ("None", "")]
+        assert len(lines) == 3
+        assert len({(ln.get_color(), ln.get_marker()) for ln in lines}) == 3
+    finally:
+        plt.close(fig)

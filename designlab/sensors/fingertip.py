@@ -730,30 +730,35 @@ def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path) ->
 
 def paper_comparison_figure(contact: dict[str, Any], plt):
     """Seed 001 beside the contact model: G1/G2 hysteresis by location (Fig. 6's trend and
-    lowest means), the compressed-sensor changes (Sec. III), Fig. 9's errors per axis."""
-    fig, axes = plt.subplots(2, 2, figsize=(12, 8.5))
+    lowest means), the compressed-sensor changes (Sec. III), Fig. 9's errors per axis. The
+    shared look (:mod:`designlab.sensors.plotstyle`): constrained layout, a colour and marker
+    per series, legends beside the data with black text. (``plt`` is unused, kept for the
+    caller.)"""
+    from designlab.sensors.plotstyle import figure, legend_outside, series_style
+
+    fig, axes = figure(2, 2, width=14.0, height=9.0)
     t2 = contact.get("table_II_design", {})
     paper = contact["paper"]
-    labels = {"robust_eq1_span10": "model, robust eq. 1, with readout",
-              "paper_eq1_all_sensors": "model, paper's eq. 1 (all sensors), with readout",
-              "robust_eq1_span10_noise_free": "model, robust eq. 1, friction alone"}
+    labels = {"robust_eq1_span10": "model, robust eq. 1,\nwith readout",
+              "paper_eq1_all_sensors": "model, paper's eq. 1\n(all sensors), with readout",
+              "robust_eq1_span10_noise_free": "model, robust eq. 1,\nfriction alone"}
     for ax, grp, xs, xlabel, lo in (
             (axes[0, 0], "G1", t2.get("heights_mm"), "load height above the ball centre "
              "(h9 ... h1), mm", paper["lowest_mean_G1_pct"]),
             (axes[0, 1], "G2", t2.get("radii_mm"), "load radius (r1 ... r5), mm",
              paper["lowest_mean_G2_pct"])):
         hp = t2.get("hysteresis_percent", {})
-        for key, lab in labels.items():
+        for i, (key, lab) in enumerate(labels.items()):
             if key not in hp:
                 continue
             vals = np.array(list(hp[key][f"{grp}_by_location"].values()), float)
-            ax.semilogy(xs, np.maximum(vals, 1e-6), "o-", ms=4, label=lab)
-        ax.axhline(lo, color="k", ls="--", lw=1, label=f"paper: lowest mean {grp} {lo} %")
+            ax.semilogy(xs, np.maximum(vals, 1e-6), ls="-", ms=5, label=lab, **series_style(i))
+        ax.axhline(lo, color="k", ls="--", lw=1, label=f"paper: lowest mean\n{grp} {lo} %")
         ax.set_xlabel(xlabel)
         ax.set_ylabel(f"{grp} hysteresis, % of span (eq. 1)")
         ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=7)
-    axes[0, 0].set_title("G1 (Table II design); paper, Fig. 6: falls exponentially toward "
+        legend_outside(ax, fontsize=7)
+    axes[0, 0].set_title("G1 (Table II design); paper, Fig. 6: falls exponentially\ntoward "
                          "the base", fontsize=9)
     axes[0, 1].set_title("G2 (Table II design)", fontsize=9)
     ax = axes[1, 0]
@@ -763,25 +768,27 @@ def paper_comparison_figure(contact: dict[str, Any], plt):
           ("r1 -> r5", contact.get("compressed_change_r1_to_r5", {}).get("value_pct"),
            paper["compressed_change_r1_to_r5_pct"])]
     x = np.arange(len(ch))
-    ax.bar(x - 0.18, [c[1] if c[1] is not None else np.nan for c in ch], 0.36, label="model")
-    ax.bar(x + 0.18, [c[2] for c in ch], 0.36, label="paper (Sec. III)")
+    ax.bar(x - 0.18, [c[1] if c[1] is not None else np.nan for c in ch], 0.36, label="model",
+           color=series_style(0)["color"])
+    ax.bar(x + 0.18, [c[2] for c in ch], 0.36, label="paper (Sec. III)", color="0.35",
+           hatch="//", edgecolor="white")
     ax.set_xticks(x, [c[0] for c in ch])
     ax.set_xlabel("load moved (Table II design)")
     ax.set_ylabel("change of the compressed sensor's reading, %")
-    ax.legend(fontsize=8)
+    legend_outside(ax)
     ax.grid(alpha=0.3, axis="y")
     ax = axes[1, 1]
     t3 = contact.get("table_III_design", {})
     e = t3.get("relative_error_per_axis_all_weights")
     if e:
-        ax.bar(["P_x", "P_y", "P_z"], [e["x"], e["y"], e["z"]])
+        ax.bar(["P_x", "P_y", "P_z"], [e["x"], e["y"], e["z"]],
+               color=[series_style(i)["color"] for i in range(3)])
         ax.set_title(f"Table III design: cond(A) {t3['condition_number']:.1f} (paper 34.92); "
                      "Fig. 9: P_z worst", fontsize=9)
     ax.set_xlabel("force component (calibration over every weight and location)")
     ax.set_ylabel("relative RMS error, applied vs estimated (-)")
     ax.grid(alpha=0.3, axis="y")
     fig.suptitle("seed 001 beside the contact model (friction, Hertz, preload at the ball)")
-    fig.tight_layout()
     return fig
 
 
