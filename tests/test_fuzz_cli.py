@@ -437,3 +437,76 @@ def test_full_disk_leaves_nothing_half_written(tmp_path, capsys, monkeypatch):
     finally:
         if mounted:
             subprocess.run(["umount", str(tiny)], capture_output=True)
+
+
+# ------------------------------------------------ user text in tables and absurd model numbers
+MARKUP_CARD = """
+[[files]]
+path = "run.csv"
+[time]
+column = "t"
+[inputs]
+displacement = { column = "P", unit = "mm" }
+[outputs]
+"a[red]b" = { column = "[/bold]", unit = "N" }
+"""
+
+
+def _markup_inputs(tmp: Path) -> Path:
+    """A valid card whose output channel is ``a[red]b`` read from the column ``[/bold]``."""
+    import numpy as np
+
+    t = np.arange(1500) * 0.01
+    noise = np.random.default_rng(0).standard_normal(t.size)
+    (tmp / "run.csv").write_text("t,P,[/bold]\n" + "".join(
+        f"{a:.3f},{1 + np.sin(a):.6f},{2 + 3 * np.sin(a) + 0.05 * e:.6f}\n"
+        for a, e in zip(t, noise)))
+    (tmp / "card.toml").write_text(MARKUP_CARD)
+    return tmp / "card.toml"
+
+
+@pytest.mark.parametrize("cmd", ["loop", "compensate"])
+def test_markup_in_a_valid_column_and_channel_is_printed_literally(cmd, tmp_path, capsys,
+                                                                   monkeypatch):
+    """A column named ``[/bold]`` and a channel ``a[red]b`` are data, not markup: the run
+    completes (it crashed with a MarkupError, exit 1) and the tables print the name as it is."""
+    monkeypatch.setenv("DESIGNLAB_LOG_DIR", str(tmp_path / "logs"))
+    card = _markup_inputs(tmp_path)
+    argv = ["loop", "--data", card, "--max-effects", "1"] if cmd == "loop" else [
+        "compensate", "--data", card, "--input", "displacement", "--output", "a[red]b",
+        "--model", "linear"]
+    code = 0
+    try:
+        main([str(a) for a in argv + ["--out", tmp_path / "out"]])
+    except SystemExit as exc:
+        code = exc.code or 0
+    cap = capsys.readouterr()
+    assert code == 0, cap.err
+    assert "a[red]b" in cap.out and "Traceback" not in cap.err + cap.out
+    assert not (tmp_path / "logs").exists()
+
+
+@pytest.mark.parametrize("where, value", [
+    ("gains", "1e308"), ("gains", "-1e101"), ("intercept", "1e308"), ("intercept", "1" + "0" * 120),
+])
+def test_model_json_with_an_absurd_parameter_is_exit_2(where, value, tmp_path, capsys,
+                                                       monkeypatch):
+    """A model.json gain of 1e308 is finite JSON but gives inf predictions: refused, one line."""
+    monkeypatch.setenv("DESIGNLAB_LOG_DIR", str(tmp_path / "logs"))
+    monkeypatch.chdir(tmp_path)
+    files = _write_inputs(tmp_path)
+    gain, icpt = (value, "0.5") if where == "gains" else ("2.0", value)
+    (tmp_path / "model.json").write_text(
+        '{"format": "designlab-model", "version": 1, "model": {"base": {"kind": "linear", '
+        '"inputs": {"force": ["displacement"]}, "parameters": {"force": {"intercept": '
+        f'{icpt}, "gains": {{"displacement": {gain}}}}}}}}}, "outputs": {{"force": '
+        '{"unit": "N", "effects": []}}, "inputs": {"displacement": {"unit": "mm", '
+        '"quantity": "length", "kind": "drive"}}}}')
+    out = tmp_path / "out"
+    code, err = _run(["loop", "--data", files["card"], "--base", tmp_path / "model.json",
+                      "--out", out], capsys)
+    assert code == 2, err
+    lines = [l for l in err.splitlines() if l.strip()]
+    assert len(lines) == 1 and "is not allowed: a finite number" in err, err
+    assert f"model.base.parameters.force.{where}" in err, err
+    assert not out.exists() or not any(out.iterdir())

@@ -118,6 +118,16 @@ def load_model(path: str | Path, what: str = "--base") -> SensorModel:
     m = doc.get("model")
     if not isinstance(m, dict) or not isinstance(m.get("base"), dict):
         raise ModelError(f"{p}: no 'model' section with a 'base' table; expected a {FORMAT} file")
+    stack = [("model", m)]  # every parameter finite and sane: a 1e308 gain gives inf results
+    while stack:
+        where, v = stack.pop()
+        if isinstance(v, dict):
+            stack.extend((f"{where}.{k}", x) for k, x in v.items())
+        elif isinstance(v, list):
+            stack.extend((f"{where}[{i}]", x) for i, x in enumerate(v))
+        elif isinstance(v, (int, float)) and not isinstance(v, bool) and not abs(v) <= 1e100:
+            raise ModelError(f"{p}: {where[:120]}={str(v)[:30]} is not allowed: a finite "
+                             "number with |value| <= 1e+100")
     outs, inputs, prov = m.get("outputs", {}), m.get("inputs", {}), doc.get("provenance", {})
     for name, v in (("model.outputs", outs), ("model.inputs", inputs), ("provenance", prov)):
         if not isinstance(v, dict):
