@@ -66,3 +66,32 @@ def test_strap_and_flexure_histories():
     assert fn[0] == 0 and fn[-1] == 0
     w = FlexureWrenchTest(steps=2).wrenches()
     assert w.shape == (24, 6) and np.abs(w[:, 3:]).max() == 10
+
+
+@pytest.mark.parametrize("cls, kw", [
+    (HangingWeightTest, {}),
+    (StrapLoadTest, {}),
+    (StrapLoadTest, {"cycles": 1000, "cycle_period_s": 600.0, "n_steps": 100,
+                     "step_hold_s": 600.0}),                  # the longest test: dt_s >= 3.6 s
+    (HangingWeightTest, {"hold_s": 3600.0}),
+])
+def test_time_steps_are_capped_and_the_printed_dt_works(cls, kw):
+    """dt_s = 1e-6 s would be 1.5e8 samples (over 2 GB): a one-line error naming dt_s with the
+    smallest allowed step; that step typed back is accepted and stays under the cap."""
+    import re
+
+    from designlab.sensors.protocols import MAX_TIME_STEPS
+
+    with pytest.raises(ParameterError) as exc:
+        cls(dt_s=1e-6, **kw)
+    msg = str(exc.value)
+    assert exc.value.name == "dt_s" and "\n" not in msg and f"{MAX_TIME_STEPS} time steps" in msg
+    bound = float(re.search(r">= ([0-9.e+-]+) s", msg).group(1))
+    n = len(cls(dt_s=bound, **kw).time_history()[0])
+    assert MAX_TIME_STEPS * 0.99 < n <= MAX_TIME_STEPS
+
+
+def test_too_many_weights_is_named():
+    with pytest.raises(ParameterError) as exc:
+        HangingWeightTest(weights_g=tuple(float(i) for i in range(20_000)))
+    assert exc.value.name == "weights_g" and "at most 10000 masses" in str(exc.value)

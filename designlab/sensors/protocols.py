@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from designlab.errors import ParameterError
-from designlab.params import load_toml, rng, validate
+from designlab.params import at_least, load_toml, rng, validate
 
 G_ACC = 9.81  #: m/s^2, grams -> newtons: F = m_g * 1e-3 * G_ACC
 
@@ -29,6 +29,16 @@ TABLE_II_WEIGHTS_G = (0.0, 5.0, 15.0, 35.0, 55.0, 105.0, 132.0, 232.0)
 TABLE_III_WEIGHTS_G = (0.0, 5.0, 15.0, 35.0, 55.0, 82.0, 109.0, 136.0, 163.0, 213.0)
 FSS015_RANGE_N = 15.0       #: Honeywell FSS015WNSX force sensing range (seed 001 Table I)
 FSS015_OVERFORCE_N = 45.0   #: safety overforce (seed 001 Table I)
+#: most samples in one load history (a 1e-6 s step over a 150 s test would be 1.5e8 samples,
+#: over 2 GB once the FEM responses are stacked)
+MAX_TIME_STEPS = 200_000
+
+
+def _check_steps(steps: int, dt_s: float, dt_min: float, duration_s: float) -> None:
+    """At most :data:`MAX_TIME_STEPS` samples: else name ``dt_s`` with the smallest allowed."""
+    if steps > MAX_TIME_STEPS:
+        at_least("dt_s", dt_s, dt_min, f"at most {MAX_TIME_STEPS} time steps over the "
+                 f"{duration_s:.6g} s test", unit="s")
 
 
 @dataclass(frozen=True)
@@ -60,6 +70,14 @@ class HangingWeightTest:
             locs = getattr(self, name)
             if len(set(locs)) != len(locs):
                 raise ParameterError(name, list(locs), "distinct load-point names")
+        n_loads = 2 * len(w) - 1
+        if n_loads + 1 > MAX_TIME_STEPS // 10:
+            raise ParameterError("weights_g", f"{len(w)} masses",
+                                 f"at most {(MAX_TIME_STEPS // 10 - 2) // 2 + 1} masses")
+        n_per = max(1, int(round(self.hold_s / self.dt_s)))
+        _check_steps(n_loads * n_per + 1, self.dt_s,
+                     n_loads * self.hold_s / (MAX_TIME_STEPS - 1 - n_loads),
+                     n_loads * self.hold_s)
 
     @classmethod
     def preset(cls, name: str) -> "HangingWeightTest":
@@ -135,6 +153,12 @@ class StrapLoadTest:
 
     def __post_init__(self):
         validate(self)
+        n_stair = 2 * self.n_steps + 1
+        n_hold = max(1, int(round(self.step_hold_s / self.dt_s)))
+        n_cyc = int(round(self.cycles * self.cycle_period_s / self.dt_s))
+        duration = n_stair * self.step_hold_s + self.cycles * self.cycle_period_s
+        _check_steps(n_stair * n_hold + n_cyc + 1, self.dt_s,
+                     duration / (MAX_TIME_STEPS - 2 - n_stair), duration)
 
     def time_history(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(t, F_n(t), F_x(t)): staircase up and down in normal force (shear at its ratio), then
