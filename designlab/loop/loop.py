@@ -41,6 +41,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
+from threadpoolctl import threadpool_limits   # installed with scikit-learn
 
 from designlab.atomic import atomic_write_bytes, atomic_write_json
 from designlab.calibration.metrics import rmse
@@ -184,26 +185,83 @@ def acceptable(cv: dict, n_se: float, min_relative: float) -> bool:
                 and (cv["relative"] > n_se * cv["standard_error"] or every))
 
 
+#: what a failing fit raises (a singular or non-finite system, NNLS out of iterations)
+FIT_ERRORS = (ModelError, np.linalg.LinAlgError, FloatingPointError, ValueError, RuntimeError)
+
+
+class _Affine(fx.Effect):
+    """No regressors: the refit of the base's affine part alone (per-run intercepts with
+    several training runs). The baseline of every cross-validated comparison."""
+
+    def grid(self, ctx):
+        return [{}]
+
+    def features(self, ctx, theta):
+        return np.zeros((len(ctx.data), 0))
+
+
+def joint(effect: fx.Effect) -> bool:
+    """Whether a candidate is fitted jointly with the refittable effects already accepted
+    (regressors of the data alone, free or constrained coefficients, nothing beyond them)."""
+    t = type(effect)
+    return (not t.uses_prediction and not t.fixed_coefficients and t.intercept
+            and t.extra is fx.Effect.extra)
+
+
+def _members(effect: fx.Effect, tail: list[fx.Fitted]) -> tuple[list[fx.Effect], list]:
+    """The members and settings of a joint fit of ``effect`` (its grid) with ``tail`` (their
+    settings kept); an effect with its own solver (a constrained density) goes first."""
+    own = type(effect).solve is not fx.Effect.solve
+    te, tt = [f.effect for f in tail], [[f.theta] for f in tail]
+    return ([effect] + te, [None] + tt) if own else (te + [effect], tt + [None])
+
+
+def _chain(fitted: list[fx.Fitted], ctx: fx.Context) -> np.ndarray:
+    """Prediction of ``ctx.yhat`` plus ``fitted`` applied in order."""
+    y = ctx.yhat
+    for f in fitted:
+        c = fx.Context(ctx.data, ctx.output, y, ctx.base_inputs, ctx.measured, ctx.cache,
+                       per_run=ctx.per_run)
+        y = y + fx.contribution(f, c)
+    return y
+
+
 def cross_validate(effect: fx.Effect, ctx: fx.Context, y: np.ndarray,
-                   blocks: list[tuple[np.ndarray, np.ndarray]]) -> dict:
-    """Held-out RMSE of the current prediction without and with ``effect`` (fitted on the other
-    blocks), per block. The improvement is taken relative to each block's error (blocks of a
-    real record differ a lot in how hard they are): its mean, standard error (block-to-block
-    spread / sqrt(blocks)) and the mean absolute improvement in output units."""
+                   blocks: list[tuple[np.ndarray, np.ndarray]],
+                   tail: list[fx.Fitted] | None = None,
+                   baselines: list[np.ndarray] | None = None) -> dict:
+    """Held-out RMSE of the current model without and with ``effect``, both fitted on the
+    other blocks, per block. ``ctx.yhat`` is the prediction of the frozen part of the model;
+    ``tail`` the accepted effects refitted jointly with a candidate (one least squares over the
+    union of their regressors and the base's affine part); ``baselines[k]`` the model without
+    the candidate fitted on block k's rows (default: ``ctx.yhat``). A candidate whose
+    regressors depend on the prediction is fitted on top of the baseline. The improvement is
+    taken relative to each block's error (blocks of a real record differ a lot in how hard they
+    are): its mean, standard error (block-to-block spread / sqrt(blocks)) and the mean absolute
+    improvement in output units."""
+    tail = tail or []
     e0, e1 = [], []
-    for rows, held in blocks:
+    for k, (rows, held) in enumerate(blocks):
+        base = baselines[k] if baselines is not None else ctx.yhat
         try:
             with np.errstate(all="raise"):
-                f = fx.fit(effect, ctx, y - ctx.yhat, rows)
-                c = fx.contribution(f, ctx)
-        except (ModelError, np.linalg.LinAlgError, FloatingPointError, ValueError) as exc:
+                if joint(effect):
+                    members, thetas = _members(effect, tail)
+                    fitted = fx.fit_group(members, ctx, y - ctx.yhat, rows, thetas)
+                    pred = _chain(fitted, ctx)
+                else:
+                    c0 = fx.Context(ctx.data, ctx.output, base, ctx.base_inputs, ctx.measured,
+                                    ctx.cache, per_run=ctx.per_run)
+                    f = fx.fit(effect, c0, y - base, rows)
+                    pred = base + fx.contribution(f, c0)
+        except FIT_ERRORS as exc:
             return {"skipped": f"fit failed ({type(exc).__name__}: {exc})".splitlines()[0],
                     "relative": None, "accepted_rule": False}
-        if not np.all(np.isfinite(c)):
+        if not np.all(np.isfinite(pred)):
             return {"skipped": "non-finite contribution", "relative": None,
                     "accepted_rule": False}
-        e0.append(rmse(y[held], ctx.yhat[held]))
-        e1.append(rmse(y[held], (ctx.yhat + c)[held]))
+        e0.append(rmse(y[held], base[held]))
+        e1.append(rmse(y[held], pred[held]))
     e0, e1 = np.array(e0), np.array(e1)
     rel = (e0 - e1) / np.maximum(e0, 1e-300)
     se = float(np.std(rel, ddof=1) / math.sqrt(rel.size)) if rel.size > 1 else float("inf")
@@ -213,6 +271,19 @@ def cross_validate(effect: fx.Effect, ctx: fx.Context, y: np.ndarray,
             "improvement": float((e0 - e1).mean()),
             "error_without": float(e0.mean()), "error_with": float(e1.mean()),
             "per_block_relative": rel.tolist(), "per_block_without": e0.tolist()}
+
+
+def baselines(ctx: fx.Context, y: np.ndarray, blocks, tail: list[fx.Fitted]
+              ) -> list[np.ndarray]:
+    """Per CV block: the current model without a new candidate, its refittable ``tail`` and
+    the base's affine part (per-run intercepts with several runs) fitted on the block's rows."""
+    out = []
+    for rows, _ in blocks:
+        members = [f.effect for f in tail] + [_Affine()]
+        fitted = fx.fit_group(members, ctx, y - ctx.yhat, rows,
+                              [[f.theta] for f in tail] + [None])
+        out.append(_chain(fitted, ctx))
+    return out
 
 
 def residual_correlations(data: Dataset, residual: np.ndarray, yhat: np.ndarray,
@@ -304,9 +375,12 @@ def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[st
     series: dict[str, Any] = {}
     cache_tr: dict = {}
     for o in outs:
-        rep, ser = _loop_output(model, o, data, train, val, blocks, max_effects, n_se,
-                                min_relative, cache_tr, progress,
-                                fitted_base=not isinstance(base, SensorModel))
+        # thousands of small least squares: BLAS threads only cost time (and on a loaded
+        # machine much more: 48 ms instead of 3 ms per fit measured on 2 shared cores)
+        with threadpool_limits(1, user_api="blas"):
+            rep, ser = _loop_output(model, o, data, train, val, blocks, max_effects, n_se,
+                                    min_relative, cache_tr, progress,
+                                    fitted_base=not isinstance(base, SensorModel))
         if peer:
             if progress:
                 progress(o, 0, 1, "NARX peer")
@@ -345,21 +419,36 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
     start_tr = model.predict(train, o, y, upto=0)
     cands, skipped = fx.library(train, o, base_inputs)
     if fitted_base:
-        for c in [c for c in cands if c.name == "gain_offset"]:
+        for c in [c for c in cands if type(c).first]:
             skipped[c.key] = "the base is fitted on this data (least-squares offset and gains)"
-        cands = [c for c in cands if c.name != "gain_offset"]
+        cands = [c for c in cands if not type(c).first]
     have = {f.effect.key for f in model.effects[o]}
     cands = [c for c in cands if c.key not in have]
+    per_run = np.unique(train.segment).size >= 2
     err_before = rmse(yv, yhat_v)
     accepted, rounds, stages = [], [], []
+    tail_start = len(model.effects[o])   # effects from here on are refitted with each candidate
     while len(accepted) < max_effects and cands:
-        ctx = fx.Context(train, o, yhat, base_inputs, y, cache_tr)
+        tail = model.effects[o][tail_start:]
+        frozen = model.predict(train, o, y, upto=tail_start) if tail else yhat
+        ctx = fx.Context(train, o, frozen, base_inputs, y, cache_tr, per_run=per_run)
+        refit = fitted_base or bool(tail) or per_run
+        try:
+            base_k = baselines(ctx, y, blocks, tail) if refit else None
+        except FIT_ERRORS as exc:
+            rounds.append({"candidates": {}, "best": None, "accepted": None,
+                           "failed": f"the current model cannot be refitted "
+                                     f"({type(exc).__name__}: {exc})".splitlines()[0]})
+            break
         results = {}
         for i, c in enumerate(cands):
             if progress:
                 progress(o, i, len(cands), f"round {len(rounds) + 1}: {c.key}")
-            cv = cross_validate(c, ctx, y, blocks)
+            cv = cross_validate(c, ctx, y, blocks, tail, base_k)
             cv["accepted_rule"] = acceptable(cv, n_se, min_relative)
+            cv["fit"] = ("jointly with " + ", ".join(f.effect.key for f in tail)
+                         if joint(c) and tail else "alone" if joint(c)
+                         else "on top of the model")
             results[c.key] = cv
         if progress:
             progress(o, len(cands), len(cands), f"round {len(rounds) + 1} done")
@@ -372,39 +461,91 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
         chosen = max(passing, key=lambda c: results[c.key]["relative"]) if passing else None
         # a loaded model's own zero and gain error go first: any other effect would absorb
         # them in its refit of the base's affine part and be credited with them
-        chosen = next((c for c in passing if c.name == "gain_offset"), chosen)
+        chosen = next((c for c in passing if type(c).first), chosen)
         rounds.append({"candidates": results, "best": best.key,
                        "accepted": chosen.key if chosen else None})
         if chosen is None:
             break
         rows = np.ones(len(train), bool)
-        f = fx.fit(chosen, ctx, y - yhat, rows)
-        c_tr = fx.contribution(f, ctx)
-        c_all = fx.contribution(f, fx.Context(data, o, yhat_all, base_inputs, y_all))
+        try:
+            with np.errstate(all="raise"):
+                if joint(chosen):
+                    members, thetas = _members(chosen, tail)
+                    group = fx.fit_group(members, ctx, y - frozen, rows, thetas)
+                    group = _retune(group, ctx, y - frozen, rows)
+                    new_effects = model.effects[o][:tail_start] + group
+                else:
+                    c0 = fx.Context(train, o, yhat, base_inputs, y, cache_tr, per_run=per_run)
+                    new_effects = model.effects[o] + [fx.fit(chosen, c0, y - yhat, rows)]
+                trial = SensorModel(model.base, {**model.effects, o: new_effects})
+                yhat_new = trial.predict(train, o, y)
+                yhat_all_new = trial.predict(data, o, y_all)
+            if not (np.all(np.isfinite(yhat_new)) and np.all(np.isfinite(yhat_all_new))):
+                raise ValueError("non-finite prediction")
+        except FIT_ERRORS as exc:
+            rounds[-1]["accepted"] = None
+            rounds[-1]["failed"] = (f"{chosen.key}: the fit on all training data failed "
+                                    f"({type(exc).__name__}: {exc})").splitlines()[0]
+            cands = [c for c in cands if c.key != chosen.key]
+            continue
+        c_tr, c_all = yhat_new - yhat, yhat_all_new - yhat_all
         c_v = c_all[vmask]
         r_before = y - yhat
         corr = float(np.corrcoef(r_before, c_tr)[0, 1]) if np.std(c_tr) > 0 else 0.0
         e_b, e_a = rmse(yv, yhat_v), rmse(yv, yhat_v + c_v)
-        reg, reg_name = fx.regressor(f, ctx)
+        f = new_effects[-1] if not joint(chosen) else next(
+            g for g in new_effects[tail_start:] if g.effect.key == chosen.key)
+        ctx_f = fx.Context(train, o, yhat, base_inputs, y, cache_tr, per_run=per_run)
+        reg, reg_name = fx.regressor(f, ctx_f)
         stages.append({"key": chosen.key, "residual": r_before, "contribution": c_tr,
                        "regressor": reg, "regressor_name": reg_name})
+        refitted = [g.effect.key for g in new_effects[tail_start:] if g.effect.key != chosen.key]
         accepted.append({
             "name": chosen.name, "channel": chosen.channel, "key": chosen.key,
             "parameters": fx.describe(f), "doc": chosen.summary,
             "evidence": {"cv": results[chosen.key], "correlation_with_residual": corr,
                          "train_error_before": rmse(y, yhat),
-                         "train_error_after": rmse(y, yhat + c_tr)},
+                         "train_error_after": rmse(y, yhat_new)},
+            **({"refitted_with_it": refitted} if joint(chosen) and refitted else {}),
             "error_before": e_b, "error_after": e_a})
-        model.effects[o].append(f)
-        yhat, yhat_all = yhat + c_tr, yhat_all + c_all
+        model.effects[o] = new_effects
+        if joint(chosen) and fx.group_member(chosen):
+            for g in accepted:   # the refitted effects' parameters as they are now
+                h = next((e for e in new_effects[tail_start:] if e.effect.key == g["key"]),
+                         None)
+                if h is not None:
+                    g["parameters"] = fx.describe(h)
+        else:
+            tail_start = len(new_effects)
+        yhat, yhat_all = yhat_new, yhat_all_new
         yhat_v = yhat_all[vmask]
         cands = [c for c in cands if c.key != chosen.key]
+    tare = None
+    if per_run and not (model.effects[o] and model.effects[o][-1].runs):
+        # the runs' own zeros: one offset per training run, a new run tared on its start
+        c0 = fx.Context(train, o, yhat, base_inputs, y, cache_tr)
+        f = fx.fit(fx.EFFECTS["run_offset"](), c0, y - yhat, np.ones(len(train), bool))
+        model.effects[o].append(f)
+        yhat = model.predict(train, o, y)
+        yhat_all = model.predict(data, o, y_all)
+        yhat_v = yhat_all[vmask]
+        tare = {"effect": "run_offset", "parameters": fx.describe(f)}
+    if per_run:
+        b0 = SensorModel(model.base, {o: []})
+        c0 = fx.Context(train, o, b0.predict(train, o), base_inputs, y, {})
+        f0 = fx.fit(fx.EFFECTS["run_offset"](), c0, y - c0.yhat, np.ones(len(train), bool))
+        b0.effects[o] = [f0]
+        tare = {**(tare or {}), "error_base_tared": rmse(yv, b0.predict(data, o, y_all)[vmask]),
+                "rule": "one intercept per training run in every fit; a run not seen in "
+                        f"training is tared on its first {fx.TARE_S:g} s"}
     r_v = yv - yhat_v
     var_y = float(np.var(yv))
     unexplained = float(np.var(r_v) / var_y) if var_y > 0 else float("nan")
     corrs = residual_correlations(val, r_v, yhat_v)
     last = rounds[-1] if rounds else None
-    if last is not None and last["accepted"] is None and last["best"] is None:
+    if last is not None and last.get("failed") and not cands:
+        stop = last["failed"]
+    elif last is not None and last["accepted"] is None and last["best"] is None:
         stop = "every candidate's fit failed (see rounds)"
     elif last is not None and last["accepted"] is None:
         b = last["candidates"][last["best"]]
@@ -430,6 +571,7 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
                        "nrmse_after_percent": 100 * rmse(yv, yhat_v) / max(np.ptp(yv), 1e-300)},
         "unexplained_fraction": unexplained, "residual_correlations": corrs[:8],
         "stopped": stop, "verdict": verdict, "rounds": rounds, "not_applicable": skipped,
+        **({"run_offsets": tare} if tare is not None else {}),
         "base": model.base.parameters.get(o, {}),
     }
     ser = {"t_val": val.t, "seg_val": val.segment, "y_val": yv, "base_val": y0_val,
@@ -438,6 +580,20 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
            "top_var": corrs[0]["variable"] if corrs else None,
            "top_values": _variable(val, corrs[0]["variable"], yhat_v) if corrs else None}
     return rep, ser
+
+
+def _retune(group: list[fx.Fitted], ctx: fx.Context, target: np.ndarray,
+            rows: np.ndarray) -> list[fx.Fitted]:
+    """One pass of coordinate descent over a jointly fitted group: each member's settings are
+    chosen again from its grid (AIC) with the others' kept, so earlier effects' time constants
+    and widths can follow the new one. Groups with a constrained member are kept as fitted."""
+    if len(group) < 2 or not all(fx.group_member(f.effect) for f in group):
+        return group
+    for i in range(len(group)):
+        thetas = [[f.theta] for f in group]
+        thetas[i] = None
+        group = fx.fit_group([f.effect for f in group], ctx, target, rows, thetas)
+    return group
 
 
 def _convert_units(model: SensorModel, data: Dataset, outs: list[str]) -> None:
@@ -470,14 +626,16 @@ def _check_runs(data: Dataset, peer: bool) -> None:
     delays, the ``lag`` effect's 2 s): one-line DataError naming the run."""
     from designlab.measured.narx import NARXParams
 
-    need = NARXParams().input_delays + 2 if peer else 3
+    delays = NARXParams().input_delays
+    need = delays + 2 if peer else 3
+    why = (f"the NARX peer's {delays} input delays" if peer
+           else "the rate and lag regressors need 3 samples")
     for s in np.unique(data.segment):
         n = int(np.sum(data.segment == s))
         if n < need:
             path = data.segments[s]["path"] if s < len(data.segments) else f"run {s}"
             raise DataError(f"run {path!r} has {n} samples; the loop needs at least {need} per "
-                            f"run (the longest lag: the NARX peer's "
-                            f"{NARXParams().input_delays} input delays)")
+                            f"run (the longest lag: {why})")
 
 
 def fit_peer(data: Dataset, output: str) -> tuple[np.ndarray, dict]:

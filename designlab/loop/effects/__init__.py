@@ -25,6 +25,7 @@ import numpy as np
 
 from designlab.loop.effects.base import (
     EFFECTS,
+    TARE_S,
     Context,
     Effect,
     Fitted,
@@ -33,6 +34,8 @@ from designlab.loop.effects.base import (
     describe,
     drive_inputs,
     fit,
+    fit_group,
+    group_member,
     highpass,
     nuisance_columns,
     ordered,
@@ -49,8 +52,8 @@ for _m in pkgutil.iter_modules(__path__):
     if not _m.name.startswith("_") and _m.name != "base":
         importlib.import_module(f"{__name__}.{_m.name}")
 
-__all__ = ["EFFECTS", "Context", "Effect", "Fitted", "contribution", "dahl", "describe",
-           "drive_inputs", "effects_table", "fit", "highpass", "library", "nuisance_columns",
+__all__ = ["EFFECTS", "TARE_S", "Context", "Effect", "Fitted", "contribution", "dahl", "describe",
+           "drive_inputs", "effects_table", "fit", "fit_group", "group_member", "highpass", "library", "nuisance_columns",
            "ordered", "play", "rate", "regressor", "robust_range", "shift", "varying_drives"]
 
 

@@ -11,6 +11,7 @@ and the base are fitted jointly. Settings are chosen by AIC on the rows being fi
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
@@ -126,6 +127,7 @@ class Context:
     base_inputs: tuple[str, ...]
     measured: np.ndarray | None = None
     cache: dict = field(default_factory=dict)       # regressors of the data alone
+    per_run: bool = False   # one intercept per training run in every fit (>= 2 runs)
     pred_cache: dict = field(default_factory=dict)  # regressors of this yhat
 
 
@@ -156,6 +158,8 @@ class Effect:
     #                                      by input before the other effects
     rank: ClassVar[int] = 1000           # position in the candidate order (ties: registration
     #                                      order); the order changes the greedy selection
+    first: ClassVar[bool] = False        # taken before any other passing candidate (a loaded
+    #                                      model's own error, which others would absorb)
 
     def __init_subclass__(cls, **kw):
         super().__init_subclass__(**kw)
@@ -247,11 +251,13 @@ class Fitted:
     alpha: tuple[float, ...]
     nuisance: tuple[str, ...]
     sse: float = float("nan")
+    runs: tuple[str, ...] = ()   # per-run intercepts (alpha starts with one per run)
 
     def to_json(self) -> dict:
         return {"name": self.effect.name, "channel": self.effect.channel,
                 "theta": jsonable(self.theta), "beta": list(self.beta),
                 "alpha": list(self.alpha), "nuisance": list(self.nuisance),
+                **({"runs": list(self.runs)} if self.runs else {}),
                 "parameters": describe(self)}
 
     @staticmethod
@@ -262,69 +268,169 @@ class Fitted:
                              f"{', '.join(c.name for c in ordered())}")
         eff = EFFECTS[name](d.get("channel"))
         th = {k: tuple(v) if isinstance(v, list) else v for k, v in d["theta"].items()}
-        return Fitted(eff, th, tuple(d["beta"]), tuple(d["alpha"]), tuple(d["nuisance"]))
+        return Fitted(eff, th, tuple(d["beta"]), tuple(d["alpha"]), tuple(d["nuisance"]),
+                      runs=tuple(str(r) for r in d.get("runs", [])))
 
 
-def nuisance_columns(data: Dataset, base_inputs: tuple[str, ...], intercept: bool) -> np.ndarray:
-    """The base's affine part refitted with an effect: [1,] base inputs, (n, k)."""
-    cols = ([np.ones(len(data))] if intercept else []) + [data.inputs[n] for n in base_inputs]
+#: seconds at the start of a run not seen in training over which its offset is tared (5 s: over
+#: 1 s the tare's noise let a start-of-run settling term pass as an effect in runs of noise)
+TARE_S = 5.0
+
+
+def run_paths(data: Dataset, rows: np.ndarray | None = None) -> tuple[str, ...]:
+    """The paths of the runs with samples in ``rows`` (all rows by default), in run order."""
+    seg = data.segment if rows is None else data.segment[rows]
+    return tuple(data.segments[s]["path"] if s < len(data.segments) else f"segment {s}"
+                 for s in np.unique(seg))
+
+
+def _run_of_sample(data: Dataset) -> np.ndarray:
+    names = np.array([s["path"] for s in data.segments] + [""], dtype=object)
+    seg = np.minimum(data.segment, len(data.segments))
+    out = names[seg]
+    missing = data.segment >= len(data.segments)
+    if np.any(missing):
+        out = out.copy()
+        out[missing] = [f"segment {s}" for s in data.segment[missing]]
+    return out
+
+
+def nuisance_columns(data: Dataset, base_inputs: tuple[str, ...], intercept: bool,
+                     runs: tuple[str, ...] = ()) -> np.ndarray:
+    """The base's affine part refitted with an effect: [1 or one indicator per run in
+    ``runs``,] base inputs, (n, k)."""
+    if intercept and runs:
+        which = _run_of_sample(data)
+        cols = [(which == r).astype(float) for r in runs]
+    else:
+        cols = [np.ones(len(data))] if intercept else []
+    cols += [data.inputs[n] for n in base_inputs]
     return np.column_stack(cols) if cols else np.zeros((len(data), 0))
 
 
 def fit(effect: Effect, ctx: Context, residual: np.ndarray, rows: np.ndarray,
         thetas: list[dict] | None = None) -> Fitted:
     """Best settings (AIC over the grid) and least-squares coefficients on ``rows``."""
-    N = nuisance_columns(ctx.data, ctx.base_inputs, effect.intercept)
+    return fit_group([effect], ctx, residual, rows,
+                     [thetas] if thetas is not None else None)[-1]
+
+
+def group_member(e: Effect) -> bool:
+    """Whether an effect's coefficients can be refitted jointly with others in one least
+    squares: regressors of the data alone, free coefficients, nothing added beyond them."""
+    t = type(e)
+    return (not t.uses_prediction and not t.fixed_coefficients and t.intercept
+            and t.solve is Effect.solve and t.extra is Effect.extra)
+
+
+def fit_group(members: list[Effect], ctx: Context, residual: np.ndarray, rows: np.ndarray,
+              thetas: list[list[dict] | None] | None = None) -> list[Fitted]:
+    """Joint fit of several effects and the base's affine part: one least squares over the
+    union of their regressors and the nuisance columns on ``rows``; settings by AIC over the
+    product of the members' grids (``thetas[i]`` None: member i's own grid). Returns one
+    :class:`Fitted` per member, in order; the nuisance refit (``alpha``, per-run intercepts when
+    ``ctx.per_run``) is carried by the last member, the others get zeros. A member with its own
+    ``solve`` (a constrained density) must come first or alone."""
+    members = list(members)
+    last = members[-1]
+    intercept = all(type(m).intercept for m in members)
+    runs = run_paths(ctx.data, rows) if (ctx.per_run and intercept) else ()
+    N = nuisance_columns(ctx.data, ctx.base_inputs, intercept, runs)
     r = residual[rows]
     n = int(rows.sum())
-    best = None
     ctx.cache["rows"] = rows
+    grids = [(thetas[i] if thetas is not None and thetas[i] is not None else m.grid(ctx))
+             for i, m in enumerate(members)]
+    fixed = len(members) == 1 and last.fixed_coefficients
+    best = None
     why = "an empty grid"
-    for th in (thetas if thetas is not None else effect.grid(ctx)):
-        F = effect.columns(ctx, th)
-        if not np.all(np.isfinite(F)):
-            why = f"non-finite regressors at {th}"
-            continue
-        if effect.fixed_coefficients:
-            X, target = N[rows], r - F[rows].sum(1)
-        else:
-            X, target = np.column_stack([F[rows], N[rows]]), r
-        if X.shape[1]:
-            coef = (np.linalg.lstsq(X, target, rcond=None)[0] if effect.fixed_coefficients
-                    else effect.solve(X, target, F.shape[1]))
-            sse = float(np.sum((target - X @ coef) ** 2))
-        else:
-            coef, sse = np.zeros(0), float(np.sum(target ** 2))
-        p = X.shape[1] + (0 if not effect.fixed_coefficients else len(th))
-        aic = n * math.log(max(sse, 1e-300) / n) + 2 * p
-        if best is None or aic < best[0]:
-            nb = 0 if effect.fixed_coefficients else F.shape[1]
-            beta = (1.0,) * F.shape[1] if effect.fixed_coefficients else tuple(coef[:nb])
-            best = (aic, th, beta, tuple(coef[nb:]), sse)
-    ctx.cache.pop("rows", None)
+    try:
+        for combo in itertools.product(*grids):
+            Fs = [m.columns(ctx, th) for m, th in zip(members, combo)]
+            bad = next((th for F, th in zip(Fs, combo) if not np.all(np.isfinite(F))), None)
+            if bad is not None:
+                why = f"non-finite regressors at {bad}"
+                continue
+            widths = [F.shape[1] for F in Fs]
+            if fixed:
+                X, target = N[rows], r - Fs[0][rows].sum(1)
+            else:
+                X, target = np.column_stack([F[rows] for F in Fs] + [N[rows]]), r
+            if X.shape[1]:
+                coef = (np.linalg.lstsq(X, target, rcond=None)[0] if fixed
+                        else members[0].solve(X, target, widths[0]))
+                sse = float(np.sum((target - X @ coef) ** 2))
+            else:
+                coef, sse = np.zeros(0), float(np.sum(target ** 2))
+            p = X.shape[1] + (len(combo[0]) if fixed else 0)
+            aic = n * math.log(max(sse, 1e-300) / n) + 2 * p
+            if best is None or aic < best[0]:
+                best = (aic, combo, widths, coef, sse)
+    finally:
+        ctx.cache.pop("rows", None)
     if best is None:
-        raise ModelError(f"effect {effect.key}: no setting could be fitted ({why})")
-    _, th, beta, alpha, sse = best
-    return Fitted(effect, th, tuple(map(float, beta)), tuple(map(float, alpha)),
-                  tuple(ctx.base_inputs), sse)
+        raise ModelError(f"effect {'+'.join(m.key for m in members)}: no setting could be "
+                         f"fitted ({why})")
+    _, combo, widths, coef, sse = best
+    out, at = [], 0
+    for i, (m, th) in enumerate(zip(members, combo)):
+        if fixed:
+            beta = (1.0,) * widths[i]
+        else:
+            beta = tuple(map(float, coef[at:at + widths[i]]))
+            at += widths[i]
+        if i == len(members) - 1:
+            alpha = tuple(map(float, coef[0 if fixed else at:]))
+            out.append(Fitted(m, th, beta, alpha, tuple(ctx.base_inputs), sse, runs))
+        else:
+            k = (1 if type(m).intercept else 0) + len(ctx.base_inputs)
+            out.append(Fitted(m, th, beta, (0.0,) * k, tuple(ctx.base_inputs), sse))
+    return out
 
 
 def contribution(f: Fitted, ctx: Context) -> np.ndarray:
-    """What the fitted effect adds to the prediction ``ctx.yhat`` on ``ctx.data``."""
+    """What the fitted effect adds to the prediction ``ctx.yhat`` on ``ctx.data``. With
+    per-run intercepts, a run not seen in training is tared: its offset is the mean of the
+    remaining residual over its first :data:`TARE_S` seconds when the measured output is known
+    (as a rig re-zeros at the start of a run), else the mean of the trained runs' offsets."""
     F = f.effect.columns(ctx, f.theta)
-    N = nuisance_columns(ctx.data, f.nuisance, f.effect.intercept)
+    N = nuisance_columns(ctx.data, f.nuisance, f.effect.intercept, f.runs)
     out = F @ np.asarray(f.beta) + (N @ np.asarray(f.alpha) if N.shape[1] else 0.0)
+    if f.runs and f.effect.intercept:
+        out = out + _tare(f, ctx, out)
     extra = f.effect.extra(f, ctx, out)
     return out if extra is None else out + extra
+
+
+def _tare(f: Fitted, ctx: Context, partial: np.ndarray) -> np.ndarray:
+    d = ctx.data
+    off = np.zeros(len(d))
+    which = _run_of_sample(d)
+    tin = None
+    for s in np.unique(d.segment):
+        m = d.segment == s
+        if which[m][0] in f.runs:
+            continue
+        if ctx.measured is not None:
+            tin = d.time_in_run() if tin is None else tin
+            w = m & (tin <= TARE_S)
+            off[m] = float(np.mean((ctx.measured - ctx.yhat - partial)[w]))
+        else:
+            off[m] = float(np.mean(f.alpha[:len(f.runs)]))
+    return off
 
 
 def describe(f: Fitted) -> dict:
     """Parameters of a fitted effect under their physical names, with the refit of the base's
     affine part (``base_adjust``)."""
     out: dict[str, Any] = f.effect.describe(f)
-    if f.alpha:
-        names = (["intercept"] if f.effect.intercept else []) + [f"gain[{n}]" for n in f.nuisance]
+    if f.alpha and any(a != 0.0 for a in f.alpha):
+        head = ([f"offset[{r}]" for r in f.runs] if f.runs else ["intercept"]) \
+            if f.effect.intercept else []
+        names = head + [f"gain[{n}]" for n in f.nuisance]
         out["base_adjust"] = dict(zip(names, f.alpha))
+    elif f.alpha:
+        out["base_adjust"] = "refitted jointly: carried by the last effect of its group"
     return out
 
 

@@ -22,6 +22,7 @@ class GainOffset(Effect):
     uses_prediction = True
     intercept = False
     rank = 5
+    first = True
 
     @classmethod
     def applies(cls, train, output, base_inputs):

@@ -57,6 +57,10 @@ class Hysteresis(Effect):
         th, b = f.theta, list(f.beta)
         out = {"variant": th["variant"], **{k: v for k, v in th.items() if k != "variant"}}
         out["amplitude" if len(b) == 1 else "stiffness"] = b[0] if len(b) == 1 else b
+        out["unit"] = ("v0 in input unit per s, amplitude in output unit" if th["variant"] ==
+                       "coulomb" else "x_c in input unit, amplitude in output unit" if
+                       th["variant"] == "dahl" else
+                       "widths in input unit, stiffness in output unit per input unit")
         return out
 
     def regressor(self, f: Fitted, ctx: Context):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from designlab.loop.effects.base import Context, Effect, Fitted
+from designlab.loop.effects.base import TARE_S, Context, Effect, Fitted
 
 
 class RunOffset(Effect):
@@ -14,21 +14,23 @@ class RunOffset(Effect):
 
     name = "run_offset"
     summary = "one offset per run (re-donning, preload)"
-    regressors_doc = "one offset per run; unseen runs tared on their first 1 s of residual"
-    applies_doc = ">= 2 training runs"
+    regressors_doc = "one offset per run; unseen runs tared on their first 5 s of residual"
+    applies_doc = ("not a candidate: with >= 2 training runs every fit has one intercept per "
+                   "run, and the model ends with these offsets unless its last effect has them")
     intercept = False
     rank = 100
 
     @classmethod
     def applies(cls, train, output, base_inputs):
         if np.unique(train.segment).size >= 2:
-            return [cls()]
+            return ("per-run offsets are part of every fit with >= 2 training runs (one "
+                    "intercept per run; a new run is tared on its first 5 s)")
         return "one training run: per-run offsets cannot be tested"
 
     def grid(self, ctx: Context) -> list[dict]:
         rows = ctx.cache.get("rows", np.ones(len(ctx.data), bool))
         paths = [ctx.data.segments[s]["path"] for s in np.unique(ctx.data.segment[rows])]
-        return [{"runs": tuple(paths), "tare_s": 1.0}]
+        return [{"runs": tuple(paths), "tare_s": TARE_S}]
 
     def features(self, ctx: Context, theta: dict) -> np.ndarray:
         d = ctx.data
