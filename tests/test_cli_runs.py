@@ -171,3 +171,22 @@ def test_every_part_parameter_has_a_meaning(capsys):
             assert r["unit"] or r["allowed"], (name, r["name"])
         rc, so, _ = _run(["params", name], capsys)
         assert rc == 0 and rows[0]["name"] in so
+
+
+@pytest.mark.slow
+def test_flexure_says_stress_is_not_computed_and_what_next(tmp_path, capsys):
+    """The flexure's models give stiffness only: predict and flexure say so (CLI and report),
+    and predict names deformed.vtu only when it wrote one."""
+    out = tmp_path / "p"
+    rc, so, _ = _run(["predict", "flexure", "--out", out], capsys)
+    assert rc == 0
+    text = " ".join(so.split())
+    assert "not computed" in text
+    nxt = [ln for ln in so.splitlines() if ln.startswith("open next:")]
+    assert nxt and "report.html" in nxt[0]
+    assert ("deformed.vtu" in nxt[0]) == (out / "deformed.vtu").is_file()
+    assert "Not computed for this design" in (out / "report.html").read_text()
+    rc, so, _ = _run(["flexure", "--json", tmp_path / "k.json"], capsys)
+    assert rc == 0
+    text = " ".join(so.split())
+    assert "stress: not computed" in text and "open next:" in text
