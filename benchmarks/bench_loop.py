@@ -1,4 +1,5 @@
-"""Loop benchmark: `designlab loop` on the 600 s stretch log (goal: under 60 s).
+"""Loop benchmark: `designlab loop` on the 600 s stretch log (goal: well under 30 s, the NARX
+peer included).
 
 Times the stages of one loop on multisine_600s_1 (training, ~6,300 samples at 10 Hz after
 resampling) validated on multisine_300s_2: reading the card (repair + resampling), the
@@ -79,8 +80,10 @@ def main() -> None:
     print(f"{'stage':<{w}}  {'time (s)':>8}  result")
     for name, t, res_text, eff in rows:
         print(f"{name:<{w}}  {t:8.2f}  {res_text}" + (f"  [{eff}]" if eff else ""))
-    print(f"{'card -> loop -> outputs (goal < 60 s)':<{w}}  {total:8.2f}  "
-          f"{'OK' if total < 60 else 'SLOW'}")
+    loop_t = next(r[1] for r in rows if r[0] == "loop, base stretch-fem")
+    print(f"{'loop of the 600 s log, peer included (goal well under 30 s)':<{w}}  "
+          f"{loop_t:8.2f}  {'OK' if loop_t < 30 else 'SLOW'}")
+    print(f"{'card -> loop -> outputs':<{w}}  {total:8.2f}")
 
 
 if __name__ == "__main__":

@@ -445,14 +445,56 @@ def test_a_singular_fit_is_skipped_not_fatal(broken_effect):
     assert out["effects"][0]["name"] == "drift"
 
 
+@pytest.fixture
+def nnls_failure():
+    """An effect whose constrained solve raises RuntimeError, as scipy's NNLS does when it runs
+    out of iterations."""
+
+    class Stuck(fx.Effect):
+        """Never converges (test only)."""
+
+        name = "stuck"
+        summary = regressors_doc = applies_doc = "test only"
+
+        @classmethod
+        def applies(cls, train, output, base_inputs):
+            return [cls()]
+
+        def grid(self, ctx):
+            return [{}]
+
+        def features(self, ctx, theta):
+            return ctx.data.time_in_run()
+
+        def solve(self, X, target, k):
+            raise RuntimeError("Maximum number of iterations reached.")
+
+    yield Stuck
+    del fx.EFFECTS["stuck"]
+
+
+def test_an_nnls_failure_is_a_skipped_candidate(nnls_failure):
+    ds, base = case("drift")
+    out = run_loop(ds, base, max_effects=1, peer=False).report["outputs"]["force"]
+    rec = out["rounds"][0]["candidates"]["stuck"]
+    assert rec["skipped"].startswith("fit failed (RuntimeError: Maximum number of iterations")
+    assert out["effects"][0]["name"] == "drift"
+
+
 def test_a_run_shorter_than_the_longest_lag_is_one_line():
     from designlab.errors import DataError
     ds, base = case("noise")
     seg = ds.segment.copy()
     seg[-30:] = 1
     short = from_arrays(ds.t, ds.inputs, ds.outputs, segment=seg, role=ds.role)
-    with pytest.raises(DataError, match=r"run 'segment 1' has 30 samples; the loop needs"):
+    with pytest.raises(DataError, match=r"run 'segment 1' has 30 samples; the loop needs at "
+                       r"least 52 per run \(the longest lag: the NARX peer's 50 input delays\)"):
         run_loop(short, base)
+    seg[-30:], seg[-2:] = 0, 1
+    shorter = from_arrays(ds.t, ds.inputs, ds.outputs, segment=seg, role=ds.role)
+    with pytest.raises(DataError, match=r"has 2 samples; the loop needs at least 3 per run "
+                       r"\(the longest lag: the rate and lag regressors need 3 samples\)"):
+        run_loop(shorter, base, peer=False)
 
 
 def test_report_model_and_continuation(tmp_path):
