@@ -321,3 +321,30 @@ def test_a_mesher_fallback_is_recorded(monkeypatch):
     given = st.run(PART, SHORT, CHEAP, materials=el,
                    mesh=st.mesh_strap(PART, CHEAP)).report["mesh"]
     assert given["mesher"] == "given" and given["attempts"] == []
+
+
+def test_a_wrap_that_inverts_a_cell_remeshes_finer(monkeypatch):
+    """A flat sliver cell that the wrap turns inside out: the strap is meshed again with shorter
+    edges (recorded in the attempts and the report's edge length); a given mesh is not."""
+    from designlab.errors import ModelError
+    from designlab.fem.cache import FEMCache, clear_memory
+
+    real, calls = st.build_model, []
+
+    def inverts_first(part, flat, settings, materials=None):
+        calls.append(flat.n_cells)
+        if len(calls) == 1:
+            raise ModelError("1 inverted or degenerate elements (non-positive Jacobian), first "
+                             "element id 7")
+        return real(part, flat, settings, materials)
+
+    monkeypatch.setattr(st, "build_model", inverts_first)
+    clear_memory()
+    r = st.run(PART, SHORT, CHEAP, materials=_elastic(), cache=FEMCache()).report["mesh"]
+    assert len(calls) >= 2 and calls[1] > calls[0]          # finer
+    assert r["edge_length_mm"] == pytest.approx(CHEAP.edge_length
+                                                * st.WRAP_REFINE ** (len(calls) - 1))
+    assert any("wrapped onto the finger: 1 inverted" in a for a in r["attempts"])
+    calls.clear()
+    with pytest.raises(ModelError, match="inverted"):
+        st.run(PART, SHORT, CHEAP, materials=_elastic(), mesh=st.mesh_strap(PART, CHEAP))

@@ -318,6 +318,12 @@ READOUT_SETTINGS = ("read_fraction", "slot", "wrap_length", "contact_ohm", "divi
 LOAD_ONLY_PARAMS = ("nail_plate_length", "nail_plate_width", "nail_plate_thickness")
 
 
+#: a mesh whose wrap turns a cell inside out is made again with edges this much shorter, at most
+#: this many times
+WRAP_REFINE = 0.8
+WRAP_RETRIES = 3
+
+
 def _viscous(part, materials=None) -> bool:
     """Whether a meshed body's material relaxes (a Prony series): then the FEM stage marches the
     protocol's history and depends on it."""
@@ -364,22 +370,43 @@ def solve_fem(part, protocol: StrapLoadTest, settings: StrapModelSettings, mater
     from designlab.fem import solve_static
     from designlab.fem.viscoelastic import History, solve_history
 
-    timings: dict[str, float] = {}
-    t0 = time.perf_counter()
-    if mesh is None:
-        say("meshing")
-        res_mesh = mesh_strap(part, settings, detailed=True)
-        mesh, mesher, attempts = res_mesh.mesh, res_mesh.mesher, list(res_mesh.attempts)
-    else:
-        mesher, attempts = "given", []
-    timings["mesh"] = time.perf_counter() - t0
+    from designlab.errors import ModelError
 
+    timings = {"mesh": 0.0, "assemble": 0.0}
+    given = mesh is not None
+    mesher, attempts, edge = "given", [], settings.edge_length
+    for retry in range(WRAP_RETRIES + 1):
+        t0 = time.perf_counter()
+        if not given:
+            say("meshing")
+            made = mesh_strap(part, dataclasses.replace(settings, edge_length=edge),
+                              detailed=True)
+            mesh, mesher = made.mesh, made.mesher
+            attempts += list(made.attempts)
+        timings["mesh"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        say("assembling")
+        try:
+            model, gauges, frame = build_model(part, mesh, settings, materials)
+            break
+        except ModelError as exc:
+            # a flat sliver cell can turn inside out on the cone (the wrap stretches the outer
+            # face by up to thickness / finger radius): re-mesh a little finer
+            if given or "inverted" not in str(exc) or settings.configuration != "worn":
+                raise
+            if retry == WRAP_RETRIES:
+                raise ModelError(f"edge_length {settings.edge_length:g} mm: wrapped onto the "
+                                 f"finger the strap mesh has {exc} (also re-meshed down to "
+                                 f"{edge:.3g} mm); try another edge_length") from None
+            attempts.append(f"wrapped onto the finger: {exc}; re-meshed at edge "
+                            f"{WRAP_REFINE * edge:.3g} mm")
+            edge *= WRAP_REFINE
+        finally:
+            timings["assemble"] += time.perf_counter() - t0
     t0 = time.perf_counter()
-    say("assembling")
-    model, gauges, frame = build_model(part, mesh, settings, materials)
     mesh = model.mesh
     model.build()
-    timings["assemble"] = time.perf_counter() - t0
+    timings["assemble"] += time.perf_counter() - t0
 
     t, fn, fx = protocol.time_history()
     t0 = time.perf_counter()
@@ -408,7 +435,7 @@ def solve_fem(part, protocol: StrapLoadTest, settings: StrapModelSettings, mater
             "gauge_quadratic": np.array([gauges[c].gauge_quadratic for c in CHANNELS]),
             "timings": np.array([timings["mesh"], timings["assemble"], timings["solve"]]),
             "mesher": np.array(mesher), "mesh_attempts": np.array(attempts, dtype=str),
-            "solver": np.array(solver)}
+            "edge_length": np.array(float(edge)), "solver": np.array(solver)}
 
 
 @dataclass(frozen=True)
@@ -525,7 +552,7 @@ def run(part=None, protocol: StrapLoadTest | None = None,
     report["timings_s"] = timings
     report["mesh"] = {"points": int(mesh.n_points), "cells": int(mesh.n_cells),
                       "order": int(mesh.order), "dofs": int(fem["dofs"]),
-                      "edge_length_mm": settings.edge_length,
+                      "edge_length_mm": float(fem["edge_length"]),
                       "refinement_edge_mm": settings.refinement_edge,
                       "mesher": str(fem["mesher"]),
                       "attempts": [str(a) for a in fem["mesh_attempts"]],
