@@ -4,6 +4,14 @@
 Dask distributed cluster (``tcp://HOST:PORT``), for sweeps on a cluster. Both yield
 ``(index, result, error)`` with ``error`` the one-line text of an exception, so a failing
 design never stops the sweep.
+
+A worker process that dies mid-design (killed, out of memory, a crash in native code) does not
+stop the sweep either. Local pool: a death fails every task still in that pool
+(``BrokenProcessPool``), so the pool is rebuilt and they are all run again (``MAX_RETRIES``
+times); if the pool breaks again, the tasks left run on a one-worker pool in order, where the
+design whose worker dies is known: that one is recorded failed with the reason, the others
+run on. Dask: the task is retried ``MAX_RETRIES`` times on another worker, then
+(``KilledWorker``) recorded failed with the reason.
 """
 
 from __future__ import annotations
@@ -12,9 +20,18 @@ import multiprocessing as mp
 import os
 import traceback
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable, Iterator, Sequence
 
 Result = tuple[int, Any, str | None]
+
+#: runs of a design after the first whose worker process died (local pool and Dask alike)
+MAX_RETRIES = 1
+
+
+def _one_line(exc: BaseException) -> str:
+    msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+    return f"{type(exc).__name__}: {msg}" if msg else type(exc).__name__
 
 
 def _guarded(fn: Callable[[Any], Any], task: Any) -> tuple[Any, str | None]:
@@ -54,19 +71,48 @@ class LocalExecutor:
                 yield (i, *_guarded(fn, t))
             return
         ctx = mp.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx,
-                                 initializer=_worker_init, initargs=(os.getpid(),)) as pool:
-            pending = {pool.submit(_guarded, fn, t): i for i, t in enumerate(tasks)}
+        todo = list(range(len(tasks)))
+        broken = 0                    # shared pools that broke so far
+        while todo:
+            alone = broken > MAX_RETRIES  # then one worker: the design that dies is known
+            pool = ProcessPoolExecutor(max_workers=1 if alone else min(self.workers, len(todo)),
+                                       mp_context=ctx, initializer=_worker_init,
+                                       initargs=(os.getpid(),))
+            pending, died = {}, []
             try:
+                pending = {pool.submit(_guarded, fn, tasks[i]): i for i in todo}
+                todo = []
                 while pending:
                     done, _ = wait(pending, return_when=FIRST_COMPLETED)
                     for f in done:
                         i = pending.pop(f)
-                        yield (i, *f.result())
+                        try:
+                            res = f.result()
+                        except BrokenProcessPool:
+                            # a worker died: every task still in this pool fails with this
+                            # error, the one that killed it among them
+                            died.append(i)
+                            continue
+                        except Exception as exc:  # e.g. a result that cannot be pickled
+                            res = (None, _one_line(exc))
+                        yield (i, *res)
             except BaseException:
                 for f in pending:
                     f.cancel()
                 raise
+            finally:
+                pool.shutdown(wait=True, cancel_futures=True)
+            if died and alone:
+                # one worker runs the tasks in order: the first that did not finish killed it
+                i = min(died)
+                died.remove(i)
+                yield (i, None, f"worker process died while running this design (killed, out "
+                                f"of memory or a crash; {broken} shared pool(s) broke with it "
+                                f"pending, then it died alone)")
+                broken = MAX_RETRIES  # the rest back on the shared pool; a death -> alone
+            elif died:
+                broken += 1
+            todo = sorted(died)
 
 
 class DaskExecutor:
@@ -90,8 +136,17 @@ class DaskExecutor:
             raise ParameterError("--scheduler", self.address,
                                  f"the address of a reachable Dask scheduler ({exc})") from None
         try:
-            futures = {client.submit(_guarded, fn, t, pure=False): i for i, t in enumerate(tasks)}
+            futures = {client.submit(_guarded, fn, t, pure=False, retries=MAX_RETRIES): i
+                       for i, t in enumerate(tasks)}
             for fut in as_completed(futures):
-                yield (futures[fut], *fut.result())
+                try:
+                    res = fut.result()
+                except (KeyboardInterrupt, SystemExit, GeneratorExit):
+                    raise
+                except BaseException as exc:  # KilledWorker (after the retry), cancelled, lost
+                    yield (futures[fut], None, f"Dask could not run this design "
+                                               f"({MAX_RETRIES + 1} tries): {_one_line(exc)}")
+                    continue
+                yield (futures[fut], *res)
         finally:
             client.close()
