@@ -21,7 +21,7 @@ import numpy as np
 from designlab.geometry.fingertip import CantileverFingertip
 from designlab.sensors.fingertip import FingertipModelSettings, mesh_fingertip
 from designlab.sensors.fingertip_contact import (PAPER, ContactSettings, condense_fingertip,
-                                                 run_contact_test)
+                                                 moment_sensitivity, run_contact_test)
 from designlab.sensors.protocols import HangingWeightTest
 
 
@@ -37,84 +37,30 @@ def lowest(rep, key="robust_eq1_span10"):
     return g["G1"]["lowest"], g["G2"]["lowest"]
 
 
-def moment_sensitivity(part, cf, s) -> None:
-    """The compressed sensor's force per N of lateral force f_x and per N mm of moment m_y
-    (linear, at the preloaded state): the condensed FEM beside an independent hand estimate
-    (rigid ball; three sensor springs along the 45 deg axes, whose lines pass through the ball
-    centre; the M2.5 bolt an Euler-Bernoulli beam clamped under its head and rigidly fixed in
-    the ball), frictionless and with every contact stuck (Mindlin k_t). The ratio (per mm of
-    arm) sets the compressed-sensor change h9 -> h1: (1 + rho 22.76) / (1 + rho 8.76) - 1."""
-    from designlab.fem.beam import beam_stiffness, circular_section
-    from designlab.fem.model import skew
-    from designlab.sensors.fingertip import FingertipModelSettings
-    from designlab.sensors.fingertip_contact import contact_laws
-
-    fs = FingertipModelSettings()
-    law = contact_laws(part, s, cf.k_sensor)[0]
-    N0 = s.bolt_preload_N / (3 * np.sin(np.pi / 4))
-    kn = float(law.normal(law.approach(N0))[1])
-    kt = float(law.kt(np.array(N0))[0])
-    axes = cf.axes
-    zh, a = part.cap_z[0], part.ball_radius
-    Kb = beam_stiffness(np.array([0, 0, zh]), np.array([0, 0, -a]), 210000.0, 210000.0 / 2.6,
-                        **circular_section(fs.bolt_minor_diameter))[6:, 6:]
-    T = np.block([[np.eye(3), -skew(np.array([0, 0, -a]))], [np.zeros((3, 3)), np.eye(3)]])
-    K_hand = T.T @ Kb @ T                           # bolt stiffness at the ball centre
-    print(f"\nmoment sensitivity (linear, preload {s.bolt_preload_N:g} N: k_n {kn:.0f} N/mm "
-          f"Hertz + sensor, Mindlin k_t {kt:.0f} N/mm); compressed sensor per N f_x, per N mm "
-          "m_y, rho = ratio per mm of arm, implied change h9 -> h1")
-    for label, stuck in (("frictionless", False), ("all contacts stuck", True)):
-        # hand: ball centre 6 dofs, springs through the centre (tangential at the contacts)
-        K = K_hand.copy()
-        for k, n in enumerate(axes):
-            r = cf.contacts[k]
-            for d, kk in [(n, kn)] + ([(t, kt) for t in np.linalg.svd(n[None])[2][1:]]
-                                      if stuck else []):
-                row = np.r_[d, np.cross(r, d)]
-                K += kk * np.outer(row, row)
-        U = np.linalg.solve(K, np.eye(6))
-        hand = np.array([[-kn * axes[k] @ U[:3, c] for k in range(3)] for c in (0, 4)])
-        # condensed FEM with the same contact springs
-        Kf = np.linalg.inv(cf.C)
-        for k in range(3):
-            Kf += kn * np.outer(cf.L[k, 0], cf.L[k, 0])
-            if stuck:
-                Kf += kt * (np.outer(cf.L[k, 1], cf.L[k, 1]) + np.outer(cf.L[k, 2], cf.L[k, 2]))
-        Uf = np.linalg.solve(Kf, cf.f_wrench.T)
-        fem = np.array([[-kn * cf.L[k, 0] @ Uf[:, c] for k in range(3)] for c in (0, 4)])
-        for name, R in (("hand", hand), ("FEM", fem)):
-            k = int(np.argmax(np.abs(R[0])))
-            f, m = abs(R[0][k]), abs(R[1][k])
-            rho = R[1][k] / R[0][k]         # > 0: the load's moment adds to its force
-            print(f"  {label:18s} {name:4s}: {f:.3f} N/N, {m:.4f} N/(N mm), rho {rho:.4f} /mm, "
-                  f"change {100 * ((1 + rho * 22.76) / (1 + rho * 8.76) - 1):.0f} %")
-    # the rotational restraint about the ball centre (no lateral coupling, frictionless) that
-    # would bring rho down to the paper's 33.9 % change: (1 + 22.76 rho) = 1.339 (1 + 8.76 rho)
-    rho_paper = 0.339 / (22.76 - 1.339 * 8.76)
-
-    def rho_fem(k_rot):
-        Kf = np.linalg.inv(cf.C)
-        Kf[3, 3] += k_rot
-        Kf[4, 4] += k_rot
-        for k in range(3):
-            Kf += kn * np.outer(cf.L[k, 0], cf.L[k, 0])
-        Uf = np.linalg.solve(Kf, cf.f_wrench.T)
-        R = np.array([[-kn * cf.L[k, 0] @ Uf[:, c] for k in range(3)] for c in (0, 4)])
-        k = int(np.argmax(np.abs(R[0])))
-        return R[1][k] / R[0][k]
-
-    lo, hi = 0.0, 1e9
-    for _ in range(200):
-        mid = np.sqrt(max(lo, 1.0) * hi)
-        lo, hi = (mid, hi) if rho_fem(mid) > rho_paper else (lo, mid)
-    bolt_rot = 1.0 / np.linalg.inv(K_hand)[4, 4]
-    print(f"  the paper's change needs rho {rho_paper:.4f} /mm: a rotational restraint of the "
-          f"ball of {hi:.3g} N mm/rad about x and y (frictionless FEM), {hi / bolt_rot:.1f}x the "
-          f"clamped bolt's own ({bolt_rot:.3g} N mm/rad at the ball centre)")
+def print_moment_sensitivity(part, cf, s) -> None:
+    """The moment sensitivity of the condensed FEM beside the hand estimate
+    (:func:`designlab.sensors.fingertip_contact.moment_sensitivity`)."""
+    ms = moment_sensitivity(part, cf, s)
+    print(f"\nmoment sensitivity (linear, preload {s.bolt_preload_N:g} N: k_n "
+          f"{ms['k_n_N_per_mm']:.0f} N/mm Hertz + sensor, Mindlin k_t {ms['k_t_N_per_mm']:.0f} "
+          "N/mm); compressed sensor per N f_x, per N mm m_y, rho = ratio per mm of arm, implied "
+          "change h9 -> h1 (hand: rigid ball, three springs through its centre, bolt beam "
+          "clamped under its head)")
+    for label in ("frictionless", "stuck"):
+        for name in ("hand", "fem"):
+            r = ms[label][name]
+            print(f"  {label:12s} {name:4s}: {r['per_N']:.3f} N/N, {r['per_Nmm']:.4f} N/(N mm), "
+                  f"rho {r['rho_per_mm']:.4f} /mm, change {r['change_h9_to_h1_pct']:.0f} %")
+    k, kb = (ms["rotational_restraint_for_paper_N_mm_per_rad"],
+             ms["bolt_rotational_stiffness_at_ball_centre_N_mm_per_rad"])
+    print(f"  the paper's change needs rho {ms['paper_rho_per_mm']:.4f} /mm: a rotational "
+          f"restraint of the ball of {k:.3g} N mm/rad about x and y (frictionless FEM), "
+          f"{k / kb:.1f}x the clamped bolt's own ({kb:.3g} N mm/rad at the ball centre)")
     print(f"  axial share through the sensors (FEM, frictionless): "
-          f"{abs(axes[:, 2] @ (-cf.linear_unit[2])):.3f}; bolt + cap axial stiffness at the "
-          f"ball {1 / cf.C[2, 2]:.0f} N/mm (steel bolt alone EA/L "
-          f"{K_hand[2, 2]:.0f}), sensors vertically {3 * kn * axes[0, 2] ** 2:.0f} N/mm")
+          f"{ms['axial_share_through_sensors']:.3f}; bolt + cap axial stiffness at the ball "
+          f"{ms['bolt_and_cap_axial_stiffness_N_per_mm']:.0f} N/mm (steel bolt alone EA/L "
+          f"{ms['bolt_alone_axial_stiffness_N_per_mm']:.0f}), sensors vertically "
+          f"{ms['sensors_vertical_stiffness_N_per_mm']:.0f} N/mm")
 
 
 def main(argv=None) -> int:
@@ -197,7 +143,7 @@ def main(argv=None) -> int:
             print(f"  mu {mu:5.3f}: {g1:7.3f} / {g2:7.3f} | {n1:8.4f} / {n2:8.4f}   h1 {v[0]:7.3f}"
                   f"  h9 {v[-1]:7.4f}  trend {'yes' if trend else 'no'}")
 
-    moment_sensitivity(part, cf, s)
+    print_moment_sensitivity(part, cf, s)
 
     print("\nsensor sideways compliance in its well (sensor_lateral_stiffness, N/mm; default "
           "0 = rigid): compressed change h9 -> h1 / r1 -> r5 %, G1 h1 noise free %, cond(A)")

@@ -363,3 +363,26 @@ def test_sweep_goal_lowest_g1_friction_hysteresis_at_the_lowest_h():
         g1.append(rep["hysteresis_percent"]["by_group_noise_free"]["G1"])
     assert int(np.argmin(g1)) == 0, g1
     assert g1[2] > 10 * g1[0], g1            # the tall design's arms reach the slip threshold
+
+
+@pytest.mark.slow
+def test_meshed_moment_sensitivity_agrees_with_the_hand_estimate(meshed):
+    """Independent check of the condensed structure: a rigid ball on three springs through its
+    centre, held by the M2.5 bolt as a beam clamped under its head, answers a moment about the
+    ball per mm of arm within 25 % of the FEM (whose printed cap lets the bolt root give, so
+    its ratio is lower); stuck contacts below the centre raise the ratio in both; the bolt and
+    cap carry most of an axial force."""
+    from designlab.sensors.fingertip_contact import moment_sensitivity
+
+    ms = moment_sensitivity(PART, meshed, ContactSettings())
+    for label in ("frictionless", "stuck"):
+        hand, fem = ms[label]["hand"]["rho_per_mm"], ms[label]["fem"]["rho_per_mm"]
+        assert hand > 0 and fem > 0                     # the moment adds to the force
+        assert 0.75 < fem / hand <= 1.0, (label, fem, hand)
+    for who in ("hand", "fem"):
+        assert ms["stuck"][who]["rho_per_mm"] > ms["frictionless"][who]["rho_per_mm"]
+        assert ms["stuck"][who]["per_N"] < ms["frictionless"][who]["per_N"]
+    assert 0.01 < ms["axial_share_through_sensors"] < 0.3
+    assert ms["bolt_and_cap_axial_stiffness_N_per_mm"] < ms["bolt_alone_axial_stiffness_N_per_mm"]
+    assert ms["rotational_restraint_for_paper_N_mm_per_rad"] > \
+        ms["bolt_rotational_stiffness_at_ball_centre_N_mm_per_rad"]

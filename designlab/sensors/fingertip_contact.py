@@ -630,6 +630,83 @@ def compare_with_paper(report, runs, seq, S_true, protocol) -> dict[str, Any]:
     return out
 
 
+def moment_sensitivity(part, cf: CondensedFingertip, settings: ContactSettings | None = None,
+                       bolt_minor_diameter: float = 2.0) -> dict[str, Any]:
+    """How much a load's moment about the ball reaches the sensors, linearised at the preload:
+    the most loaded sensor's force per N of lateral force f_x (``per_N``) and per N mm of
+    moment m_y (``per_Nmm``), their ratio ``rho`` per mm of arm (> 0: a lateral load's moment
+    adds to its force), for the condensed FEM and for an independent hand estimate (rigid ball;
+    three springs k_n along the sensor axes, whose lines pass through the ball centre; the bolt
+    an Euler-Bernoulli steel beam clamped under its head and fixed in the ball), frictionless
+    and with every contact stuck (Mindlin k_t; sensors rigid sideways). ``change_h9_to_h1_pct``
+    is the compressed-sensor change the ratio alone gives on the Table II arms. Also: the
+    rotational restraint of the ball (about x and y, no sideways coupling, frictionless FEM) that
+    would give the paper's 33.9 %, and the axial path (share of P_z through the sensors)."""
+    from designlab.fem.beam import beam_stiffness, circular_section
+    from designlab.fem.materials import get_material
+    from designlab.fem.model import skew
+    from designlab.geometry.fingertip import TABLE_II_HEIGHTS
+
+    settings = settings or ContactSettings()
+    steel = get_material("steel")
+    law = contact_laws(part, settings, cf.k_sensor)[0]
+    N0 = settings.bolt_preload_N / (3 * float(cf.axes[0, 2]))
+    kn = float(law.normal(law.approach(N0))[1])
+    kt = float(law.kt(np.array(N0))[0])
+    axes = cf.axes
+    zh, a = part.cap_z[0], part.ball_radius
+    Kb = beam_stiffness(np.array([0, 0, zh]), np.array([0, 0, -a]), steel.E, steel.G,
+                        **circular_section(bolt_minor_diameter))[6:, 6:]
+    T = np.block([[np.eye(3), -skew(np.array([0, 0, -a]))], [np.zeros((3, 3)), np.eye(3)]])
+    K_hand = T.T @ Kb @ T                               # the bolt's stiffness at the ball centre
+    h1, h9 = TABLE_II_HEIGHTS[0], TABLE_II_HEIGHTS[-1]
+
+    def summary(R):
+        k = int(np.argmax(np.abs(R[0])))
+        rho = float(R[1][k] / R[0][k])
+        return {"per_N": float(abs(R[0][k])), "per_Nmm": float(abs(R[1][k])), "rho_per_mm": rho,
+                "change_h9_to_h1_pct": 100.0 * ((1 + rho * h1) / (1 + rho * h9) - 1)}
+
+    def fem(stuck: bool, k_rot: float = 0.0):
+        K = np.linalg.inv(cf.C)
+        K[3, 3] += k_rot
+        K[4, 4] += k_rot
+        for k in range(3):
+            K += kn * np.outer(cf.L[k, 0], cf.L[k, 0])
+            if stuck:
+                K += kt * (np.outer(cf.L[k, 1], cf.L[k, 1]) + np.outer(cf.L[k, 2], cf.L[k, 2]))
+        U = np.linalg.solve(K, cf.f_wrench.T)
+        return np.array([[-kn * cf.L[k, 0] @ U[:, c] for k in range(3)] for c in (0, 4)])
+
+    out: dict[str, Any] = {"k_n_N_per_mm": kn, "k_t_N_per_mm": kt}
+    for label, stuck in (("frictionless", False), ("stuck", True)):
+        K = K_hand.copy()
+        for k, n in enumerate(axes):
+            tang = [(t, kt) for t in np.linalg.svd(n[None])[2][1:]] if stuck else []
+            for d, kk in [(n, kn), *tang]:
+                row = np.r_[d, np.cross(cf.contacts[k], d)]
+                K += kk * np.outer(row, row)
+        U = np.linalg.solve(K, np.eye(6))
+        hand = np.array([[-kn * axes[k] @ U[:3, c] for k in range(3)] for c in (0, 4)])
+        out[label] = {"hand": summary(hand), "fem": summary(fem(stuck))}
+    # rho that gives the paper's change: (1 + rho h1) = (1 + c) (1 + rho h9)
+    c = PAPER["compressed_change_h9_to_h1_pct"] / 100.0
+    rho_paper = c / (h1 - (1 + c) * h9)
+    lo, hi = 0.0, 1e9
+    for _ in range(200):
+        mid = np.sqrt(max(lo, 1.0) * hi)
+        lo, hi = (mid, hi) if summary(fem(False, mid))["rho_per_mm"] > rho_paper else (lo, mid)
+    bolt_rot = 1.0 / np.linalg.inv(K_hand)[4, 4]
+    out["paper_rho_per_mm"] = rho_paper
+    out["rotational_restraint_for_paper_N_mm_per_rad"] = float(hi)
+    out["bolt_rotational_stiffness_at_ball_centre_N_mm_per_rad"] = float(bolt_rot)
+    out["axial_share_through_sensors"] = float(abs(axes[:, 2] @ (-cf.linear_unit[2])))
+    out["bolt_and_cap_axial_stiffness_N_per_mm"] = float(1.0 / cf.C[2, 2])
+    out["bolt_alone_axial_stiffness_N_per_mm"] = float(K_hand[2, 2])
+    out["sensors_vertical_stiffness_N_per_mm"] = float(kn * np.sum(axes[:, 2] ** 2))
+    return out
+
+
 # ------------------------------------------------------------------ the paper's two designs
 
 #: the issue 12 goals (seed 001 numbers: ../shared/data/papers/fingertip_xu2014.json)
