@@ -164,8 +164,8 @@ def sweep(config: Path = typer.Argument(..., help="Sweep config (TOML): part, pa
     _check_out(out)
     _check_options(("--workers", workers, 1, 512))
     cfg, evaluator = load_sweep(config)      # [uncertainty]: robust (Monte Carlo per design)
-    _start_sweep_run(out, "sweep", config, cfg, overwrite)
     executor = _executor(scheduler, workers)
+    _start_sweep_run(out, "sweep", config, cfg, overwrite)
     try:
         with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
             res = run_sweep(cfg, out, executor=executor, progress=_sweep_callback(bar),
@@ -215,8 +215,8 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
         raise ParameterError("--method", method, "one of auto, surrogate, de, pareto")
     parse_formats(formats)
     cfg, evaluator = load_sweep(config)      # [uncertainty]: robust (Monte Carlo per design)
-    _start_sweep_run(out, "optimize", config, cfg, overwrite)
     executor = _executor(scheduler, workers)
+    _start_sweep_run(out, "optimize", config, cfg, overwrite)
     try:
         with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
             res = run_optimize(cfg, out, method=method, executor=executor,
