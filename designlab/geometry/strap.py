@@ -228,6 +228,72 @@ class ArchStrap:
             lo, hi = (mid, hi) if half_arc(mid) < target else (lo, mid)
         return hi
 
+    def _arch_width_for_radius(self, radius: float) -> float:
+        """Smallest arch_width (same arch_height) whose arch radius is at least ``radius``."""
+        h = self.arch_height
+        return 2 * math.sqrt(max(2 * h * radius - h * h, 0.0))
+
+    def _check_legs_fit(self, avail: float, need: float) -> None:
+        """The meanders (``need`` mm across) do not fit in ``avail`` = strap_width - 2 edge
+        margins: name the first parameter whose allowed range, given the others, is not empty
+        and inside its documented range; when no single parameter can make room, name the
+        first one not yet at its most room-giving documented end (with that end as the bound)."""
+        n, w, g, pad, em, sw = (self.legs, self.trace_width, self.trace_gap, self.pad_width,
+                                self.edge_margin, self.strap_width)
+
+        def lo_of(name):
+            return field_range(ArchStrap, name)[0]
+
+        def hi_of(name):
+            return field_range(ArchStrap, name)[1]
+
+        w_max = min((avail - (n - 1) * g) / n, (avail - pad) / (n - 1) - g)
+        if above(w_max, lo_of("trace_width")):
+            at_most("trace_width", w, w_max, f"strap_width - 2 edge margins, {n} legs, gap "
+                    f"{g:g}, pad {pad:g}")
+        pad_max = avail - (n - 1) * (w + g)
+        if above(pad_max, max(w, lo_of("pad_width"))):
+            at_most("pad_width", pad, pad_max,
+                    f"strap_width - 2 edge margins - {n - 1} x (trace_width + trace_gap)")
+        sw_need = 2 * em + need
+        arch_sw = 2 * (self.radius - 2)  # the strap must stay inside the arch
+        why = f"2 edge margins + {n} legs of {w:g} mm, gaps {g:g}, pad {pad:g}"
+        if above(min(hi_of("strap_width"), arch_sw), sw_need):
+            at_least("strap_width", sw, sw_need, why)
+        fit = [k for k in range(2, n, 2) if above(avail, max(
+            k * w + (k - 1) * g, (k - 1) * (w + g) + pad))]
+        if fit:
+            at_most("legs", n, max(fit), f"legs that fit in strap_width {sw:g}"
+                    " - 2 edge margins", unit="")
+        em_max = (sw - need) / 2
+        if above(em_max, lo_of("edge_margin")):
+            at_most("edge_margin", em, em_max, f"room for {n} legs")
+        g_max = min((avail - n * w) / (n - 1), (avail - pad) / (n - 1) - w)
+        if above(g_max, lo_of("trace_gap")):
+            at_most("trace_gap", g, g_max, f"room for {n} legs in strap_width {sw:g} - 2 edge "
+                    "margins")
+        if above(hi_of("strap_width"), sw_need):  # a wider strap fits, on a larger arch
+            aw = self._arch_width_for_radius(sw_need / 2 + 2)
+            if above(hi_of("arch_width"), aw):
+                at_least("arch_width", self.arch_width, aw,
+                         f"an arch (radius >= strap_width / 2 + 2) for strap_width >= "
+                         f"{sw_need:.4g}: {why}")
+        # no single parameter makes room: move one towards its roomiest documented end
+        short = f"the {n} legs need {need:.4g} mm, strap_width - 2 edge margins is {avail:.4g}"
+        if n > 2:
+            at_most("legs", n, 2, f"{short}; more changes may follow", unit="")
+        for name, end in (("edge_margin", lo_of("edge_margin")),
+                          ("trace_gap", lo_of("trace_gap")),
+                          ("trace_width", lo_of("trace_width")),
+                          ("pad_width", max(w, lo_of("pad_width")))):
+            at_most(name, getattr(self, name), end, f"{short}; more changes may follow")
+        at_least("strap_width", sw, min(hi_of("strap_width"), arch_sw),
+                 f"{short}; more changes may follow")
+        at_least("arch_width", self.arch_width, hi_of("arch_width"),
+                 f"{short}; more changes may follow")
+        raise ParameterError("strap_width", sw, f"room for {need:.4g} mm of traces + 2 edge "
+                             "margins, which no documented value gives")
+
     def _check(self) -> None:
         """Constraints between parameters. Each error names a parameter whose allowed range
         (printed as an allowed value) is not empty given the others; where it would be empty,
@@ -251,26 +317,7 @@ class ArchStrap:
         avail = self.strap_width - 2 * self.edge_margin
         need = max(n * w + (n - 1) * g, (n - 1) * (w + g) + self.pad_width)
         if not above(avail, need):
-            w_lo = field_range(ArchStrap, "trace_width")[0]
-            w_max = min((avail - (n - 1) * g) / n, (avail - self.pad_width) / (n - 1) - g)
-            pad_max = avail - (n - 1) * (w + g)
-            if above(w_max, w_lo):
-                at_most("trace_width", w, w_max, f"strap_width - 2 edge margins, {n} legs, gap "
-                        f"{g:g}, pad {self.pad_width:g}")
-            if above(pad_max, w):
-                at_most("pad_width", self.pad_width, pad_max,
-                        f"strap_width - 2 edge margins - {n - 1} x (trace_width + trace_gap)")
-            sw_need = 2 * self.edge_margin + need
-            if above(field_range(ArchStrap, "strap_width")[1], sw_need):
-                at_least("strap_width", self.strap_width, sw_need,
-                         f"2 edge margins + {n} legs of {w:g} mm, gaps {g:g}, pad {self.pad_width:g}")
-            fit = [k for k in range(2, n, 2) if above(avail, max(
-                k * w + (k - 1) * g, (k - 1) * (w + g) + self.pad_width))]
-            if fit:
-                at_most("legs", n, max(fit), f"legs that fit in strap_width {self.strap_width:g}"
-                        " - 2 edge margins", unit="")
-            at_most("edge_margin", self.edge_margin, (self.strap_width - need) / 2,
-                    f"room for {n} legs")
+            self._check_legs_fit(avail, need)
         within("pad_width", self.pad_width, w,
                min((n - 1) * (w + g) - g, field_range(ArchStrap, "pad_width")[1]),
                "trace_width to outer leg spacing - trace_gap")
@@ -291,12 +338,15 @@ class ArchStrap:
                             f"on the arch of length {self.arc_length:.4g} mm")
             at_least("arch_width", self.arch_width, self._arch_width_for(short),
                      f"an arch long enough for both gauges with arch_height {self.arch_height:g}")
-        within("gauge_offset", self.gauge_offset, lo, hi,
+        # lo stays far below the documented maximum (gauge_length/2 + trace_gap/2 + a turn)
+        within("gauge_offset", self.gauge_offset, lo,
+               min(hi, field_range(ArchStrap, "gauge_offset")[1]),
                "gauges apart at the apex and pads on the arch")
         if not above(avail, self.slot_width + 0.2):
             at_most("slot_width", self.slot_width, avail - 0.2,
                     "slot_length <= strap_width - 2 edge margins must exceed it by 0.2")
-        within("slot_length", self.slot_length, self.slot_width + 0.2, avail,
+        within("slot_length", self.slot_length, self.slot_width + 0.2,
+               min(avail, field_range(ArchStrap, "slot_length")[1]),
                "longer than slot_width + 0.2 (the lug), at most strap_width - 2 edge margins")
         at_least("slot_pitch", self.slot_pitch, self.slot_width + 0.8,
                  "slot_width + 0.8 mm web")
