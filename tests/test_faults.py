@@ -91,3 +91,16 @@ def test_a_sweep_survives_a_killed_worker_and_its_store_stays_consistent(tmp_pat
     again = run_sweep(cfg, tmp_path / "out", evaluator=sweep_kill_once,
                       executor=LocalExecutor(2))
     assert again.new == 0 and again.reused == 6
+
+
+def test_recover_removes_temp_rows_of_the_old_naming(tmp_path):
+    """``results/.KEY.RAND.tmp.parquet`` (the naming before temp names carried the writer's PID)
+    left by a killed run: removed on recover, never read as a row."""
+    from designlab.optimize.store import ResultStore
+
+    store = ResultStore(tmp_path)
+    store.rows_dir.mkdir(parents=True)
+    old = store.rows_dir / ".0123456789abcdef0123.k3x9.tmp.parquet"
+    old.write_bytes(b"")                                 # killed right after creating it
+    assert store.recover()["temporary_files"] == 1
+    assert not old.exists() and store.keys() == set()

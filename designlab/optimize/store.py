@@ -82,6 +82,7 @@ class ResultStore:
         write); those designs are evaluated again (an unreadable FEM stage is computed again
         by :class:`~designlab.fem.cache.FEMCache` itself). Returns counts."""
         temps = sum(len(sweep_temps(d)) for d in (self.rows_dir, self.cache_dir, self.fem_dir))
+        temps += len([p.unlink() for p in self.rows_dir.glob(".*.tmp.parquet")])  # old naming
         broken = 0
         for p in self._row_files():
             try:
