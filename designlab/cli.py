@@ -105,10 +105,11 @@ def _executor(scheduler: Optional[str], workers: Optional[int]):
     return LocalExecutor(workers)
 
 
-def _start_sweep_run(out: Path, what: str, config: Path, cfg, overwrite: bool) -> None:
+def _start_sweep_run(out: Path, what: str, config: Path, cfg, overwrite: bool,
+                     evaluator=None) -> None:
     """Refuse (or, with ``--overwrite``, clear) an ``--out`` holding another config's run, then
     write ``run.json`` first: a killed run's folder still says which config it resumes."""
-    identity = _config_identity(cfg)
+    identity = _config_identity(cfg, getattr(evaluator, "spec", None))
     _check_out(out, what, identity, overwrite)
     out.mkdir(parents=True, exist_ok=True)
     _write_run(out, what, {"config": str(config), "config_sha256_16": identity,
@@ -165,7 +166,7 @@ def sweep(config: Path = typer.Argument(..., help="Sweep config (TOML): part, pa
     _check_options(("--workers", workers, 1, 512))
     cfg, evaluator = load_sweep(config)      # [uncertainty]: robust (Monte Carlo per design)
     executor = _executor(scheduler, workers)
-    _start_sweep_run(out, "sweep", config, cfg, overwrite)
+    _start_sweep_run(out, "sweep", config, cfg, overwrite, evaluator)
     try:
         with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
             res = run_sweep(cfg, out, executor=executor, progress=_sweep_callback(bar),
@@ -216,7 +217,7 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
     parse_formats(formats)
     cfg, evaluator = load_sweep(config)      # [uncertainty]: robust (Monte Carlo per design)
     executor = _executor(scheduler, workers)
-    _start_sweep_run(out, "optimize", config, cfg, overwrite)
+    _start_sweep_run(out, "optimize", config, cfg, overwrite, evaluator)
     try:
         with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
             res = run_optimize(cfg, out, method=method, executor=executor,
@@ -979,14 +980,19 @@ def _read_run(out: Path) -> Optional[dict]:
     return doc if isinstance(doc, dict) and doc.get("format") == "designlab-run" else None
 
 
-def _config_identity(cfg) -> str:
+def _config_identity(cfg, uncertainty=None) -> str:
     """A sweep config's fingerprint (sha256 of the parsed config: part, swept and fixed
-    parameters, settings, protocol, objectives, constraints): a folder resumes only its own."""
+    parameters, settings, protocol, objectives, constraints, and the [uncertainty] spec of a
+    robust sweep): a folder resumes only its own."""
     import dataclasses
     import hashlib
     import json
 
-    text = json.dumps(dataclasses.asdict(cfg), sort_keys=True, default=repr)
+    doc = dataclasses.asdict(cfg)
+    if uncertainty is not None:
+        doc["uncertainty"] = (dataclasses.asdict(uncertainty)
+                              if dataclasses.is_dataclass(uncertainty) else repr(uncertainty))
+    text = json.dumps(doc, sort_keys=True, default=repr)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
 

@@ -14,6 +14,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from conftest import ROOT
 from designlab.cli import main
 
 CFG_A = ('part = "fingertip"\nmethod = "grid"\n[parameters]\n'
@@ -190,3 +191,24 @@ def test_flexure_says_stress_is_not_computed_and_what_next(tmp_path, capsys):
     assert rc == 0
     text = " ".join(so.split())
     assert "stress: not computed" in text and "open next:" in text
+
+
+def test_sweep_identity_covers_the_config_and_the_uncertainty_table():
+    """The fingerprint ``--out`` compares: the same config gives the same one; another swept
+    range, setting, or Monte Carlo spec of a robust sweep gives another."""
+    import dataclasses
+
+    from designlab.cli import _config_identity
+    from designlab.optimize.robust import load_sweep
+    from designlab.optimize.space import sweep_config
+    from designlab.params import load_toml
+
+    cfg, ev = load_sweep(ROOT / "examples" / "uncertainty_sweep_flexure.toml")
+    again, ev2 = load_sweep(ROOT / "examples" / "uncertainty_sweep_flexure.toml")
+    assert _config_identity(cfg, ev.spec) == _config_identity(again, ev2.spec)
+    other = dataclasses.replace(ev.spec, samples=ev.spec.samples + 1)
+    assert _config_identity(cfg, ev.spec) != _config_identity(cfg, other)
+    assert _config_identity(cfg, ev.spec) != _config_identity(cfg)
+    a = sweep_config(load_toml(ROOT / "examples" / "sweep_fingertip_quick.toml"))
+    b = dataclasses.replace(a, settings={"model": {"edge_length": 2.5}})
+    assert _config_identity(a) != _config_identity(b)
