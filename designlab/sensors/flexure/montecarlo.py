@@ -54,7 +54,8 @@ def build(ctx: dict[str, Any], values: dict[str, Any], seed: int) -> dict[str, A
 
     t = FlexureForceTest(hysteresis_percent=values["hysteresis_percent"],
                          pose_noise_mm=values["pose_noise_mm"], seed=seed)
-    r = run_force_test(values["wire_modulus_scale"] * ctx["K_true"], ctx["K_design"], t)
+    # an input left out of ``values`` keeps its default (the nominal wire)
+    r = run_force_test(values.get("wire_modulus_scale", 1.0) * ctx["K_true"], ctx["K_design"], t)
     out = {}
     for a in ("x", "y", "z"):
         out[f"force_error_std.{a}"] = r["per_axis"][a]["std"]
