@@ -212,3 +212,12 @@ def test_sweep_identity_covers_the_config_and_the_uncertainty_table():
     a = sweep_config(load_toml(ROOT / "examples" / "sweep_fingertip_quick.toml"))
     b = dataclasses.replace(a, settings={"model": {"edge_length": 2.5}})
     assert _config_identity(a) != _config_identity(b)
+
+
+def test_show_says_what_to_open_next(tmp_path, capsys):
+    png = tmp_path / "f.png"
+    rc, so, _ = _run(["show", "flexure", "--out", png, "--width", "320", "--height", "240"],
+                     capsys)
+    assert rc == 0 and png.is_file()
+    nxt = [ln for ln in so.splitlines() if ln.startswith("open next:")]
+    assert nxt and str(png) in nxt[0] and "designlab params flexure" in nxt[0]
