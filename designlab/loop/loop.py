@@ -126,9 +126,9 @@ def load_model(path: str | Path, what: str = "--base") -> SensorModel:
             stack.extend((f"{where}.{k}", x) for k, x in v.items())
         elif isinstance(v, list):
             stack.extend((f"{where}[{i}]", x) for i, x in enumerate(v))
-        elif isinstance(v, (int, float)) and not isinstance(v, bool) and not abs(v) <= 1e100:
+        elif isinstance(v, (int, float)) and not isinstance(v, bool) and not abs(v) <= 1e20:
             raise ModelError(f"{p}: {where[:120]}={str(v)[:30]} is not allowed: a finite "
-                             "number with |value| <= 1e+100")
+                             "number with |value| <= 1e+20 (as data values)")
     outs, inputs, prov = m.get("outputs", {}), m.get("inputs", {}), doc.get("provenance", {})
     for name, v in (("model.outputs", outs), ("model.inputs", inputs), ("provenance", prov)):
         if not isinstance(v, dict):

@@ -48,8 +48,9 @@ from scipy import ndimage, signal
 from designlab.errors import DataError
 from designlab.params import load_toml
 
-#: largest magnitude of a data value: beyond it, squares and sums overflow float64
-MAX_ABS_VALUE = 1e100
+#: largest magnitude of a data value (no sensor reads 1e20 in any unit of UNITS): at 1e99,
+#: the product of two sums of squares (a correlation) already overflows float64
+MAX_ABS_VALUE = 1e20
 
 # canonical unit first; factor to canonical (temperature: (scale, offset))
 UNITS: dict[str, dict[str, float | tuple[float, float]]] = {
