@@ -960,8 +960,9 @@ def _check_options(*specs) -> None:
             raise ParameterError(name, value, f"a finite number, {lo:g} <= value <= {hi:g}")
 
 
-#: commands that may share an output folder (optimize exports what sweep evaluated)
-_FAMILIES = {"sweep": "sweep", "optimize": "sweep"}
+#: commands that may share an output folder: optimize exports what sweep evaluated; exports
+#: of different parts go to their own subfolders (PART/)
+_FAMILIES = {"sweep": "sweep", "optimize": "sweep", "export": "export"}
 
 
 def _family(what: str) -> str:

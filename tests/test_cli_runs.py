@@ -101,11 +101,15 @@ def test_export_writes_run_json_and_says_what_to_open(tmp_path, capsys):
     assert "wire_diameter" in run["settings"]["parts"]["flexure"] or run["settings"]["parts"]["flexure"]
     nxt = [ln for ln in so.splitlines() if ln.startswith("open next:")]
     assert nxt and "flexure.3mf" in nxt[0] and "slicer" in nxt[0], so
-    # the same export again into its own folder is allowed; another part's is refused
+    # the same export again is allowed, and so is another part's (its own subfolder)
     assert _run(["export", "flexure", "--format", "3mf", "--out", out], capsys)[0] == 0
-    rc, _, se = _run(["export", "strap", "--format", "3mf", "--out", out], capsys)
+    assert _run(["export", "strap", "--format", "3mf", "--no-png", "--out", out], capsys)[0] == 0
+    assert (out / "strap" / "strap.3mf").is_file() and (out / "flexure" / "flexure.3mf").is_file()
+    assert json.loads((out / "run.json").read_text())["what"] == "export strap"
+    # a predict into an export folder is another command: refused before any work
+    rc, _, se = _run(["predict", "flexure", "--out", out], capsys)
     assert rc == 2 and "holds another run" in se
-    assert not (out / "strap").exists()
+    assert not (out / "prediction.json").exists()
 
 
 def test_a_folder_without_run_json_is_used_as_it_is(tmp_path, capsys):
