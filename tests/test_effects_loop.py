@@ -364,7 +364,9 @@ def test_run_offsets_are_in_every_fit_and_tare_a_new_run():
     got = np.array(list(offs.values()))
     assert got - got.mean() == pytest.approx(planted - planted.mean(), abs=0.01)
     assert out["error_after"] < 0.5 * out["error_before"]
-    assert out["error_after"] == pytest.approx(out["run_offsets"]["error_base_tared"])
+    assert out["error_after"] == pytest.approx(out["run_offsets"]["error_base_with_offsets"])
+    cv = out["run_offsets"]["choice_cv"]
+    assert out["run_offsets"]["tare"] is True and cv["tare"] < 0.5 * cv["mean_offset"]
 
 
 def ramps_case(seed: int, offsets: bool, planted: float = 0.12):
@@ -399,8 +401,10 @@ def test_runs_of_different_kind_with_offsets_find_relaxation(offsets):
     out = run_loop(ramps_case(1, offsets), "linear", peer=False).report["outputs"]["force"]
     assert out["effects"], out["rounds"][0]["candidates"]
     assert out["effects"][0]["name"] == "relaxation", out["rounds"][0]["candidates"]
-    assert out["error_after"] < 0.5 * out["run_offsets"]["error_base_tared"]
+    assert out["error_after"] < 0.5 * out["run_offsets"]["error_base_with_offsets"]
     assert out["error_after"] < 0.5 * out["error_before"]
+    if offsets:   # the planted zeros differ by more than a tare's noise: the tare is chosen
+        assert out["run_offsets"]["tare"] is True
 
 
 def test_acceptance_rule():

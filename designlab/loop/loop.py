@@ -33,6 +33,7 @@ the prediction made before it.
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import json
 import math
@@ -425,13 +426,16 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
     have = {f.effect.key for f in model.effects[o]}
     cands = [c for c in cands if c.key not in have]
     per_run = np.unique(train.segment).size >= 2
+    n_loaded = len(model.effects[o])
+    tare, tare_cv = True, None   # selection: each held-out run is tared (re-zeroed) on its start
     err_before = rmse(yv, yhat_v)
     accepted, rounds, stages = [], [], []
     tail_start = len(model.effects[o])   # effects from here on are refitted with each candidate
     while len(accepted) < max_effects and cands:
         tail = model.effects[o][tail_start:]
         frozen = model.predict(train, o, y, upto=tail_start) if tail else yhat
-        ctx = fx.Context(train, o, frozen, base_inputs, y, cache_tr, per_run=per_run)
+        ctx = fx.Context(train, o, frozen, base_inputs, y, cache_tr, per_run=per_run,
+                         tare=tare)
         refit = fitted_base or bool(tail) or per_run
         try:
             base_k = baselines(ctx, y, blocks, tail) if refit else None
@@ -475,7 +479,8 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
                     group = _retune(group, ctx, y - frozen, rows)
                     new_effects = model.effects[o][:tail_start] + group
                 else:
-                    c0 = fx.Context(train, o, yhat, base_inputs, y, cache_tr, per_run=per_run)
+                    c0 = fx.Context(train, o, yhat, base_inputs, y, cache_tr, per_run=per_run,
+                                    tare=tare)
                     new_effects = model.effects[o] + [fx.fit(chosen, c0, y - yhat, rows)]
                 trial = SensorModel(model.base, {**model.effects, o: new_effects})
                 yhat_new = trial.predict(train, o, y)
@@ -495,7 +500,8 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
         e_b, e_a = rmse(yv, yhat_v), rmse(yv, yhat_v + c_v)
         f = new_effects[-1] if not joint(chosen) else next(
             g for g in new_effects[tail_start:] if g.effect.key == chosen.key)
-        ctx_f = fx.Context(train, o, yhat, base_inputs, y, cache_tr, per_run=per_run)
+        ctx_f = fx.Context(train, o, yhat, base_inputs, y, cache_tr, per_run=per_run,
+                           tare=tare)
         reg, reg_name = fx.regressor(f, ctx_f)
         stages.append({"key": chosen.key, "residual": r_before, "contribution": c_tr,
                        "regressor": reg, "regressor_name": reg_name})
@@ -520,24 +526,40 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
         yhat, yhat_all = yhat_new, yhat_all_new
         yhat_v = yhat_all[vmask]
         cands = [c for c in cands if c.key != chosen.key]
-    tare = None
+    if per_run:
+        tare, tare_cv = _choose_tare(model, train, o, y, base_inputs, blocks, cache_tr,
+                                     tail_start)
+        if not tare:
+            model.effects[o] = model.effects[o][:n_loaded] + [
+                dataclasses.replace(f, tare=False) if f.runs else f
+                for f in model.effects[o][n_loaded:]]
+            yhat = model.predict(train, o, y)
+            yhat_all = model.predict(data, o, y_all)
+            yhat_v = yhat_all[vmask]
+    tare_rep = None
     if per_run and not (model.effects[o] and model.effects[o][-1].runs):
         # the runs' own zeros: one offset per training run, a new run tared on its start
         c0 = fx.Context(train, o, yhat, base_inputs, y, cache_tr)
-        f = fx.fit(fx.EFFECTS["run_offset"](), c0, y - yhat, np.ones(len(train), bool))
+        f = fx.fit(fx.EFFECTS["run_offset"](), c0, y - yhat, np.ones(len(train), bool),
+                   [{"runs": fx.run_paths(train), "tare_s": fx.TARE_S if tare else 0.0}])
         model.effects[o].append(f)
         yhat = model.predict(train, o, y)
         yhat_all = model.predict(data, o, y_all)
         yhat_v = yhat_all[vmask]
-        tare = {"effect": "run_offset", "parameters": fx.describe(f)}
+        tare_rep = {"effect": "run_offset", "parameters": fx.describe(f)}
     if per_run:
         b0 = SensorModel(model.base, {o: []})
         c0 = fx.Context(train, o, b0.predict(train, o), base_inputs, y, {})
-        f0 = fx.fit(fx.EFFECTS["run_offset"](), c0, y - c0.yhat, np.ones(len(train), bool))
+        f0 = fx.fit(fx.EFFECTS["run_offset"](), c0, y - c0.yhat, np.ones(len(train), bool),
+                    [{"runs": fx.run_paths(train), "tare_s": fx.TARE_S if tare else 0.0}])
         b0.effects[o] = [f0]
-        tare = {**(tare or {}), "error_base_tared": rmse(yv, b0.predict(data, o, y_all)[vmask]),
-                "rule": "one intercept per training run in every fit; a run not seen in "
-                        f"training is tared on its first {fx.TARE_S:g} s"}
+        tare_rep = {**(tare_rep or {}), "tare": tare, "choice_cv": tare_cv,
+                    "error_base_with_offsets": rmse(yv, b0.predict(data, o, y_all)[vmask]),
+                    "rule": "one intercept per training run in every fit; a run not seen in "
+                            + (f"training is tared on its first {fx.TARE_S:g} s" if tare else
+                               "training gets the mean of the runs' offsets") + " (chosen by "
+                            "leave-one-run-out on the selected model: tare or mean, the lower error; the "
+                            "selection tares every held-out run)"}
     r_v = yv - yhat_v
     var_y = float(np.var(yv))
     unexplained = float(np.var(r_v) / var_y) if var_y > 0 else float("nan")
@@ -571,7 +593,7 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
                        "nrmse_after_percent": 100 * rmse(yv, yhat_v) / max(np.ptp(yv), 1e-300)},
         "unexplained_fraction": unexplained, "residual_correlations": corrs[:8],
         "stopped": stop, "verdict": verdict, "rounds": rounds, "not_applicable": skipped,
-        **({"run_offsets": tare} if tare is not None else {}),
+        **({"run_offsets": tare_rep} if tare_rep is not None else {}),
         "base": model.base.parameters.get(o, {}),
     }
     ser = {"t_val": val.t, "seg_val": val.segment, "y_val": yv, "base_val": y0_val,
@@ -580,6 +602,24 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
            "top_var": corrs[0]["variable"] if corrs else None,
            "top_values": _variable(val, corrs[0]["variable"], yhat_v) if corrs else None}
     return rep, ser
+
+
+def _choose_tare(model: SensorModel, train: Dataset, o: str, y: np.ndarray,
+                 base_inputs: tuple[str, ...], blocks, cache: dict, tail_start: int
+                 ) -> tuple[bool, dict]:
+    """How a run not seen in training gets its intercept in the final model: tared on its
+    first seconds (as a rig re-zeros) or the mean of the training runs' offsets. Leave-one-run-
+    out on the selected model (its refittable effects refitted per held-out run) decides: the
+    lower mean held-out RMSE wins (ties: tare). The selection itself always tares the held-out
+    run (on the base alone the tare can lose only because the base misses a mechanism)."""
+    tail = model.effects[o][tail_start:]
+    frozen = model.predict(train, o, y, upto=tail_start)
+    errs = {}
+    for tare in (True, False):
+        ctx = fx.Context(train, o, frozen, base_inputs, y, cache, per_run=True, tare=tare)
+        pred = baselines(ctx, y, blocks, tail)
+        errs[tare] = float(np.mean([rmse(y[h], p[h]) for p, (_, h) in zip(pred, blocks)]))
+    return errs[True] <= errs[False], {"tare": errs[True], "mean_offset": errs[False]}
 
 
 def _retune(group: list[fx.Fitted], ctx: fx.Context, target: np.ndarray,

@@ -43,6 +43,7 @@ from designlab.loop.effects.base import (
     rate,
     regressor,
     robust_range,
+    run_paths,
     shift,
     varying_drives,
 )
@@ -54,7 +55,8 @@ for _m in pkgutil.iter_modules(__path__):
 
 __all__ = ["EFFECTS", "TARE_S", "Context", "Effect", "Fitted", "contribution", "dahl", "describe",
            "drive_inputs", "effects_table", "fit", "fit_group", "group_member", "highpass", "library", "nuisance_columns",
-           "ordered", "play", "rate", "regressor", "robust_range", "shift", "varying_drives"]
+           "ordered", "play", "rate", "regressor", "robust_range", "run_paths", "shift",
+           "varying_drives"]
 
 
 def library(train: Dataset, output: str, base_inputs: tuple[str, ...]

@@ -128,6 +128,7 @@ class Context:
     measured: np.ndarray | None = None
     cache: dict = field(default_factory=dict)       # regressors of the data alone
     per_run: bool = False   # one intercept per training run in every fit (>= 2 runs)
+    tare: bool = True       # a new run's intercept: tared on its start (else the runs' mean)
     pred_cache: dict = field(default_factory=dict)  # regressors of this yhat
 
 
@@ -252,12 +253,13 @@ class Fitted:
     nuisance: tuple[str, ...]
     sse: float = float("nan")
     runs: tuple[str, ...] = ()   # per-run intercepts (alpha starts with one per run)
+    tare: bool = True            # a run not in ``runs`` is tared (else the runs' mean offset)
 
     def to_json(self) -> dict:
         return {"name": self.effect.name, "channel": self.effect.channel,
                 "theta": jsonable(self.theta), "beta": list(self.beta),
                 "alpha": list(self.alpha), "nuisance": list(self.nuisance),
-                **({"runs": list(self.runs)} if self.runs else {}),
+                **({"runs": list(self.runs), "tare": self.tare} if self.runs else {}),
                 "parameters": describe(self)}
 
     @staticmethod
@@ -269,7 +271,8 @@ class Fitted:
         eff = EFFECTS[name](d.get("channel"))
         th = {k: tuple(v) if isinstance(v, list) else v for k, v in d["theta"].items()}
         return Fitted(eff, th, tuple(d["beta"]), tuple(d["alpha"]), tuple(d["nuisance"]),
-                      runs=tuple(str(r) for r in d.get("runs", [])))
+                      runs=tuple(str(r) for r in d.get("runs", [])),
+                      tare=bool(d.get("tare", True)))
 
 
 #: seconds at the start of a run not seen in training over which its offset is tared (5 s: over
@@ -381,7 +384,7 @@ def fit_group(members: list[Effect], ctx: Context, residual: np.ndarray, rows: n
             at += widths[i]
         if i == len(members) - 1:
             alpha = tuple(map(float, coef[0 if fixed else at:]))
-            out.append(Fitted(m, th, beta, alpha, tuple(ctx.base_inputs), sse, runs))
+            out.append(Fitted(m, th, beta, alpha, tuple(ctx.base_inputs), sse, runs, ctx.tare))
         else:
             k = (1 if type(m).intercept else 0) + len(ctx.base_inputs)
             out.append(Fitted(m, th, beta, (0.0,) * k, tuple(ctx.base_inputs), sse))
@@ -392,7 +395,8 @@ def contribution(f: Fitted, ctx: Context) -> np.ndarray:
     """What the fitted effect adds to the prediction ``ctx.yhat`` on ``ctx.data``. With
     per-run intercepts, a run not seen in training is tared: its offset is the mean of the
     remaining residual over its first :data:`TARE_S` seconds when the measured output is known
-    (as a rig re-zeros at the start of a run), else the mean of the trained runs' offsets."""
+    (as a rig re-zeros at the start of a run) and ``f.tare``, else the mean of the trained runs'
+    offsets."""
     F = f.effect.columns(ctx, f.theta)
     N = nuisance_columns(ctx.data, f.nuisance, f.effect.intercept, f.runs)
     out = F @ np.asarray(f.beta) + (N @ np.asarray(f.alpha) if N.shape[1] else 0.0)
@@ -411,7 +415,7 @@ def _tare(f: Fitted, ctx: Context, partial: np.ndarray) -> np.ndarray:
         m = d.segment == s
         if which[m][0] in f.runs:
             continue
-        if ctx.measured is not None:
+        if ctx.measured is not None and f.tare:
             tin = d.time_in_run() if tin is None else tin
             w = m & (tin <= TARE_S)
             off[m] = float(np.mean((ctx.measured - ctx.yhat - partial)[w]))

@@ -39,7 +39,8 @@ class RunOffset(Effect):
 
     def extra(self, f: Fitted, ctx: Context, partial: np.ndarray) -> np.ndarray:
         """Offsets of runs not seen in training: the mean residual over each run's first
-        ``tare_s`` seconds when the measured output is known, else the mean trained offset."""
+        ``tare_s`` seconds when the measured output is known (and ``tare_s`` > 0), else the mean
+        trained offset."""
         d = ctx.data
         extra = np.zeros(len(d))
         tin = d.time_in_run()
@@ -47,7 +48,7 @@ class RunOffset(Effect):
             if d.segments[s]["path"] in f.theta["runs"]:
                 continue
             m = d.segment == s
-            if ctx.measured is not None:
+            if ctx.measured is not None and f.theta["tare_s"] > 0:
                 w = m & (tin <= f.theta["tare_s"])
                 extra[m] = float(np.mean((ctx.measured - ctx.yhat - partial)[w]))
             else:
