@@ -105,12 +105,19 @@ def _executor(scheduler: Optional[str], workers: Optional[int]):
     return LocalExecutor(workers)
 
 
-def _start_sweep_run(out: Path, what: str, config: Path, cfg, overwrite: bool,
+def _start_sweep_run(ctx, out: Path, what: str, config: Path, cfg, overwrite: bool,
                      evaluator=None) -> None:
     """Refuse (or, with ``--overwrite``, clear) an ``--out`` holding another config's run, then
     write ``run.json`` first: a killed run's folder still says which config it resumes."""
+    from designlab.atomic import out_lock
+
     identity = _config_identity(cfg, getattr(evaluator, "spec", None))
-    _check_out(out, what, identity, overwrite)
+    if not overwrite:
+        _check_reuse(out, what, identity, overwrite=False)
+    # the folder's one writer from here to the end of the command (the sweep under it shares
+    # the lock): --overwrite never removes the rows of a run still writing them
+    ctx.with_resource(out_lock(out, f"designlab {what}"))
+    _check_reuse(out, what, identity, overwrite)
     out.mkdir(parents=True, exist_ok=True)
     _write_run(out, what, {"config": str(config), "config_sha256_16": identity,
                            "part": cfg.part, "method": cfg.method,
@@ -149,7 +156,8 @@ def _summary_table(rows, config, pareto_keys, best_key, limit: int = 20, tie_key
 
 
 @app.command()
-def sweep(config: Path = typer.Argument(..., help="Sweep config (TOML): part, parameters, objectives..."),
+def sweep(ctx: typer.Context,
+          config: Path = typer.Argument(..., help="Sweep config (TOML): part, parameters, objectives..."),
           out: Path = typer.Option(..., "--out", help="Output directory (reused to resume)."),
           scheduler: Optional[str] = typer.Option(None, "--scheduler",
                                                   help="Dask scheduler tcp://HOST:PORT (default: local processes)."),
@@ -166,7 +174,7 @@ def sweep(config: Path = typer.Argument(..., help="Sweep config (TOML): part, pa
     _check_options(("--workers", workers, 1, 512))
     cfg, evaluator = load_sweep(config)      # [uncertainty]: robust (Monte Carlo per design)
     executor = _executor(scheduler, workers)
-    _start_sweep_run(out, "sweep", config, cfg, overwrite, evaluator)
+    _start_sweep_run(ctx, out, "sweep", config, cfg, overwrite, evaluator)
     try:
         with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
             res = run_sweep(cfg, out, executor=executor, progress=_sweep_callback(bar),
@@ -192,7 +200,8 @@ def sweep(config: Path = typer.Argument(..., help="Sweep config (TOML): part, pa
 
 
 @app.command()
-def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with objectives."),
+def optimize(ctx: typer.Context,
+             config: Path = typer.Argument(..., help="Sweep config (TOML) with objectives."),
              out: Path = typer.Option(..., "--out", help="Output directory."),
              method: str = typer.Option("auto", "--method", help="auto | surrogate | de | pareto"),
              maxiter: int = typer.Option(10, "--maxiter", help="Differential-evolution generations (method de)."),
@@ -217,7 +226,7 @@ def optimize(config: Path = typer.Argument(..., help="Sweep config (TOML) with o
     parse_formats(formats)
     cfg, evaluator = load_sweep(config)      # [uncertainty]: robust (Monte Carlo per design)
     executor = _executor(scheduler, workers)
-    _start_sweep_run(out, "optimize", config, cfg, overwrite, evaluator)
+    _start_sweep_run(ctx, out, "optimize", config, cfg, overwrite, evaluator)
     try:
         with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
             res = run_optimize(cfg, out, method=method, executor=executor,

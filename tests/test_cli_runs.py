@@ -225,3 +225,34 @@ def test_show_says_what_to_open_next(tmp_path, capsys):
     assert rc == 0 and png.is_file()
     nxt = [ln for ln in so.splitlines() if ln.startswith("open next:")]
     assert nxt and str(png) in nxt[0] and "designlab params flexure" in nxt[0]
+
+
+def test_overwrite_waits_for_no_one_and_removes_nothing_of_a_running_sweep(cheap_sweeps, tmp_path,
+                                                                            capsys):
+    """--overwrite of a folder another process is writing: refused (the folder's lock), its
+    rows untouched."""
+    import textwrap
+    import time
+
+    a, b = cheap_sweeps
+    out = tmp_path / "out"
+    assert _run(["sweep", a, "--out", out, "--workers", "1"], capsys)[0] == 0
+    keys = _keys(out)
+    holder = subprocess.Popen([sys.executable, "-c", textwrap.dedent(f"""
+        import sys, time
+        from designlab.atomic import out_lock
+        with out_lock({str(out)!r}, "designlab sweep"):
+            print("held", flush=True)
+            time.sleep(60)
+        """)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        rc, _, se = _run(["sweep", b, "--out", out, "--workers", "1", "--overwrite"], capsys)
+        assert rc == 2 and "in use by" in se
+        assert _keys(out) == keys and (out / "results").is_dir()
+    finally:
+        holder.kill()
+        holder.wait()
+    time.sleep(0.1)
+    assert _run(["sweep", b, "--out", out, "--workers", "1", "--overwrite"], capsys)[0] == 0
+    assert not _keys(out) & keys
