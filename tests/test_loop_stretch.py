@@ -49,20 +49,26 @@ def test_stiffness_factor_converges_to_closed_form_for_a_slender_free_bar():
 
 
 def test_force_improves_on_held_out_run(result):
+    """The issue's force goal (<= 0.110 N on multisine_300s_2): relaxation first, then
+    rate-independent hysteresis refitted jointly with it (0.1609 -> 0.1085 N measured)."""
     force = result.report["outputs"]["force"]
     assert force["effects"], force["verdict"]
-    assert force["error_after"] < 0.85 * force["error_before"]
+    assert [e["name"] for e in force["effects"]][:2] == ["relaxation", "hysteresis"]
+    assert force["effects"][1]["refitted_with_it"] == ["relaxation[displacement]"]
+    assert force["error_after"] <= 0.110
     assert force["validation"]["runs"][0].endswith("multisine_300s_2.csv")
 
 
-def test_resistance_is_reported_honestly(result):
+def test_resistance_goal_with_a_named_effect(result):
+    """The resistance goal: <= 0.7x the base's error with a named physical effect, within 1.3x
+    of the NARX peer (204.3 -> 131.3 ohm with one mPL cell, peer 190.8 ohm, measured)."""
     res = result.report["outputs"]["resistance"]
-    assert res["error_after"] <= 1.02 * res["error_before"]
+    assert res["effects"], res["verdict"]
+    assert res["error_after"] <= 0.7 * res["error_before"]
     assert 0 < res["unexplained_fraction"] < 1
     assert res["residual_correlations"] and res["verdict"]
-    # one run cannot show what carries over: the NARX peer does a little better
-    assert res["peer"]["kind"] == "narx" and res["peer"]["error"] < res["error_before"]
-    assert res["verdict_kind"] == "missing mechanism"
+    assert res["peer"]["kind"] == "narx" and res["error_after"] <= 1.3 * res["peer"]["error"]
+    assert res["verdict_kind"] == "explained"
 
 
 def test_force_beside_the_peer(result):

@@ -126,8 +126,10 @@ def test_fingertip_friction_times_arm_goes_loop_to_predict(tmp_path):
     ex = _examples()
     part = CantileverFingertip.tested()
     unit = _rigid_unit(part)
+    # one effect: with the joint refit a small Prandtl-Ishlinskii term also passes on sensor_1
+    # in round 2 (+2.5 % held out, 0.215 -> 0.210 mV), the shape the Dahl grid misses
     res = run_loop(_fingertip_dataset(ex.fingertip_measured(part, unit, seed=1)), "load-arm",
-                   max_effects=2, peer=False)
+                   max_effects=1, peer=False)
     for k, o in enumerate(fl.OUTPUTS):
         rep = res.report["outputs"][o]
         e = rep["effects"][0]

@@ -212,9 +212,7 @@ def joint(effect: fx.Effect) -> bool:
 def _members(effect: fx.Effect, tail: list[fx.Fitted]) -> tuple[list[fx.Effect], list]:
     """The members and settings of a joint fit of ``effect`` (its grid) with ``tail`` (their
     settings kept); an effect with its own solver (a constrained density) goes first."""
-    own = type(effect).solve is not fx.Effect.solve
-    te, tt = [f.effect for f in tail], [[f.theta] for f in tail]
-    return ([effect] + te, [None] + tt) if own else (te + [effect], tt + [None])
+    return [f.effect for f in tail] + [effect], [[f.theta] for f in tail] + [None]
 
 
 def _chain(fitted: list[fx.Fitted], ctx: fx.Context) -> np.ndarray:
@@ -558,8 +556,8 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
                     "rule": "one intercept per training run in every fit; a run not seen in "
                             + (f"training is tared on its first {fx.TARE_S:g} s" if tare else
                                "training gets the mean of the runs' offsets") + " (chosen by "
-                            "leave-one-run-out on the selected model: tare or mean, the lower error; the "
-                            "selection tares every held-out run)"}
+                            "leave-one-run-out on the selected model: tare or mean, the lower "
+                            "error; the selection tares every held-out run)"}
     r_v = yv - yhat_v
     var_y = float(np.var(yv))
     unexplained = float(np.var(r_v) / var_y) if var_y > 0 else float("nan")

@@ -332,8 +332,8 @@ def fit_group(members: list[Effect], ctx: Context, residual: np.ndarray, rows: n
     union of their regressors and the nuisance columns on ``rows``; settings by AIC over the
     product of the members' grids (``thetas[i]`` None: member i's own grid). Returns one
     :class:`Fitted` per member, in order; the nuisance refit (``alpha``, per-run intercepts when
-    ``ctx.per_run``) is carried by the last member, the others get zeros. A member with its own
-    ``solve`` (a constrained density) must come first or alone."""
+    ``ctx.per_run``) is carried by the last member, the others get zeros. At most one member
+    may have its own ``solve`` (a constrained density): its columns lead the system."""
     members = list(members)
     last = members[-1]
     intercept = all(type(m).intercept for m in members)
@@ -345,6 +345,10 @@ def fit_group(members: list[Effect], ctx: Context, residual: np.ndarray, rows: n
     grids = [(thetas[i] if thetas is not None and thetas[i] is not None else m.grid(ctx))
              for i, m in enumerate(members)]
     fixed = len(members) == 1 and last.fixed_coefficients
+    own = [i for i, m in enumerate(members) if type(m).solve is not Effect.solve]
+    if len(own) > 1:
+        raise ModelError("a joint fit takes at most one effect with its own solver")
+    order = own + [i for i in range(len(members)) if i not in own]
     best = None
     why = "an empty grid"
     try:
@@ -357,12 +361,20 @@ def fit_group(members: list[Effect], ctx: Context, residual: np.ndarray, rows: n
             widths = [F.shape[1] for F in Fs]
             if fixed:
                 X, target = N[rows], r - Fs[0][rows].sum(1)
-            else:
-                X, target = np.column_stack([F[rows] for F in Fs] + [N[rows]]), r
+            else:   # the member with its own solver first (its columns lead in X)
+                X = np.column_stack([Fs[i][rows] for i in order] + [N[rows]])
+                target = r
             if X.shape[1]:
                 coef = (np.linalg.lstsq(X, target, rcond=None)[0] if fixed
-                        else members[0].solve(X, target, widths[0]))
+                        else members[order[0]].solve(X, target, widths[order[0]]))
                 sse = float(np.sum((target - X @ coef) ** 2))
+                if not fixed:   # back to the members' order
+                    at, parts = 0, {}
+                    for i in order:
+                        parts[i] = coef[at:at + widths[i]]
+                        at += widths[i]
+                    coef = np.r_[np.concatenate([parts[i] for i in range(len(members))]),
+                                 coef[at:]]
             else:
                 coef, sse = np.zeros(0), float(np.sum(target ** 2))
             p = X.shape[1] + (len(combo[0]) if fixed else 0)
