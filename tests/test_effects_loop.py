@@ -623,3 +623,20 @@ def test_gain_offset_of_a_loaded_model_goes_first():
     assert out["error_after"] < 0.5 * out["error_before"]
     fitted = run_loop(ds, "linear", max_effects=1, peer=False).report["outputs"]["force"]
     assert "gain_offset" in fitted["not_applicable"]
+
+
+def test_a_peer_worse_than_the_base_gives_no_learnable_fraction(monkeypatch):
+    """When the peer does no better than the base (as on the fingertip staircase), the
+    fraction of the learnable error that the physics explains is undefined: null, and the
+    verdict says so."""
+    from designlab.loop import loop as loop_mod
+
+    def constant_peer(data, output):
+        return np.full(len(data), float(np.mean(data.outputs[output]))), {"kind": "narx"}
+
+    monkeypatch.setattr(loop_mod, "fit_peer", constant_peer)
+    ds, base = case("drift")
+    out = run_loop(ds, base, max_effects=1).report["outputs"]["force"]
+    assert out["peer"]["error"] > out["error_before"]
+    assert out["explained_of_learnable"] is None
+    assert "explained_of_learnable is null" in out["verdict"]

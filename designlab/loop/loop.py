@@ -748,6 +748,9 @@ def _add_peer(rep: dict, ser: dict, data: Dataset, o: str) -> None:
         why = (f"missing mechanism: the NARX peer reaches {err:.4g} {unit}, the physics "
                f"{after:.4g} {unit} (base {base:.4g} {unit}); the residual correlates most "
                f"with {top}")
+    if rep["explained_of_learnable"] is None:
+        why += (f"; the peer is no better than the base ({err:.4g} vs {base:.4g} {unit}): "
+                "explained_of_learnable is null")
     rep["verdict"] = why + "; " + rep["verdict"]
     ser["peer_val"] = pred[vmask]
 
