@@ -10,6 +10,12 @@ contiguous blocks of it (a guard gap around the held-out block). A candidate is 
 the mean relative improvement of the held-out RMSE exceeds ``min_relative`` and either exceeds
 ``n_se`` standard errors of its unit-to-unit spread or is positive on every held-out unit. The
 best such candidate is fitted on all the training data and added; repeat until nothing helps.
+A candidate whose regressors depend on the data alone is fitted jointly with the accepted
+effects of that kind (one least squares over the union of their regressors and the base's
+affine part; after acceptance each member's settings are chosen again), and the model without
+the candidate is refitted on the same rows for the comparison. With several training runs every
+fit has one intercept per run; a held-out run is tared on its first seconds (the final model
+tares a new run or gives it the runs' mean offset, whichever does better leave-one-run-out).
 Errors are then reported on the validation data, beside a black-box peer (the NARX network of
 :mod:`designlab.measured.narx`, same inputs and training data), with how much of the residual
 remains unexplained, what it still correlates with, and a verdict (explained / missing
