@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import re
 from pathlib import Path
+from typing import Iterator
 
 import pytest
 
@@ -16,7 +17,7 @@ from designlab.optimize.space import sweep_config
 
 CFG = ('part = "fingertip"\nmethod = "grid"\n[parameters]\n'
        'h = { range = [0.0, 4.0], levels = 2 }\n[fixed]\nr = 9.0\n'
-       '[settings]\nmodel = { edge_length = 4.0, order = 1 }\n'
+       '[settings]\nmodel = { edge_length = 4.5, order = 1 }\n'
        '[objectives]\ncondition_number = "min"\n"hysteresis_percent.overall" = "min"\n')
 
 
@@ -82,13 +83,18 @@ def test_choice_in_words_for_the_pareto_method():
 
 
 @pytest.fixture(scope="module")
-def optimized(tmp_path_factory) -> Path:
+def optimized(tmp_path_factory) -> Iterator[Path]:
     """A small real optimize (2 designs, coarse TET4 mesh, two objectives: Pareto)."""
     tmp = tmp_path_factory.mktemp("opt")
     cfg = tmp / "s.toml"
     cfg.write_text(CFG)
     main(["optimize", str(cfg), "--out", str(tmp / "o"), "--workers", "1", "--format", "stl"])
-    return tmp / "o"
+    yield tmp / "o"
+    # its FEM stays out of the in-process cache that later tests' forked workers inherit (a
+    # test counting the FEM files its own sweep writes would find none)
+    from designlab.fem.cache import clear_memory
+
+    clear_memory()
 
 
 @pytest.mark.slow
@@ -100,10 +106,10 @@ def test_optimize_report_in_chromium(optimized, tmp_path):
     assert re.search(r'<section id="design">.*?<img src="data:image/png', html, re.S)
     assert "the chosen design (printed bodies" in html
     assert re.search(r'href="chosen/fingertip/[^"]+\.stl"', html)
-    # the run's settings (edge_length 4, TET4), not the class defaults
+    # the run's settings (edge_length 4.5, TET4), not the class defaults
     ms = html[html.index("<h2>Model settings</h2>"):]
     ms = ms[:ms.index("</table>")]
-    assert re.search(r"<td>edge_length</td><td>4</td>", ms) and \
+    assert re.search(r"<td>edge_length</td><td>4.5</td>", ms) and \
         re.search(r"<td>order</td><td>1</td>", ms)
     sw = html[html.index("<h2>Swept parameters</h2>"):]
     assert "straight height" in sw[:sw.index("</table>")]
