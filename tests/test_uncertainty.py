@@ -300,6 +300,24 @@ def test_robust_config_refuses_an_unknown_mc_metric():
     assert "force_error_std.z" in str(e.value) and "\n" not in str(e.value)
 
 
+def test_a_robust_sweeps_rows_are_keyed_apart_from_the_nominal_and_other_specs():
+    """A robust row carries mc.* columns: its key holds the [uncertainty] spec, so a nominal
+    row (or another spec's) left in the same store is never reused for it."""
+    import dataclasses
+
+    from designlab.optimize.robust import RobustEvaluator, load_robust_config
+    from designlab.optimize.sweep import tasks_of
+
+    cfg, spec = load_robust_config("examples/uncertainty_sweep_flexure.toml")
+    nominal = [t["key"] for t in tasks_of(cfg)]
+    robust = [t["key"] for t in tasks_of(cfg, RobustEvaluator(spec))]
+    other = [t["key"] for t in tasks_of(cfg, RobustEvaluator(
+        dataclasses.replace(spec, seed=spec.seed + 1)))]
+    assert len(set(nominal)) == len(nominal) == len(robust)
+    assert not set(nominal) & set(robust) and not set(robust) & set(other)
+    assert robust == [t["key"] for t in tasks_of(cfg, RobustEvaluator(spec))]
+
+
 # ------------------------------------------------------- the Monte Carlo model in the record
 
 def test_a_sensor_brings_its_own_monte_carlo_model(monkeypatch):

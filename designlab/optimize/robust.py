@@ -78,6 +78,12 @@ class RobustEvaluator:
     def __init__(self, spec):
         self.spec = spec
 
+    @property
+    def key_extra(self) -> dict[str, Any]:
+        """Part of each design's key (:func:`designlab.optimize.sweep.tasks_of`): a nominal row
+        (no ``mc.*`` columns) or another spec's row is never reused for this one."""
+        return {"uncertainty": dataclasses.asdict(self.spec)}
+
     def __call__(self, task: dict[str, Any]) -> dict[str, Any]:
         from designlab.optimize.evaluate import evaluate_design
         from designlab.sensors.uncertainty import build_values, draw, run_batch, summarize

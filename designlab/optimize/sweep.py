@@ -71,15 +71,22 @@ def materials_fingerprint() -> str:
     return hashlib.sha256(repr(sorted(MATERIALS.items())).encode()).hexdigest()[:16]
 
 
-def tasks_of(config: SweepConfig) -> list[dict[str, Any]]:
+def tasks_of(config: SweepConfig, evaluator: Any = None) -> list[dict[str, Any]]:
+    """One task per design; its key holds what determines its row: the design, the settings,
+    the protocol, the material library and what the evaluator adds (``evaluator.key_extra``,
+    e.g. a robust sweep's [uncertainty] spec: its rows carry Monte Carlo columns)."""
     materials = materials_fingerprint()
+    extra: dict[str, Any] = {"materials": materials}
+    evaluator_extra = getattr(evaluator, "key_extra", None)
+    if evaluator_extra is not None:
+        extra["evaluator"] = evaluator_extra
     out = []
     for swept in config.designs():
         params = {**config.fixed, **swept}
         out.append({"part": config.part, "params": params, "swept": swept,
                     "settings": config.settings, "protocol": config.protocol,
                     "key": design_key(config.part, params, config.settings, config.protocol,
-                                      {"materials": materials})})
+                                      extra)})
     return out
 
 
@@ -117,9 +124,9 @@ def _run_sweep(config: SweepConfig, out: Path, *, evaluator, executor, progress,
     store.recover()
     evaluator = evaluator or default_evaluator
     executor = executor or LocalExecutor()
-    tasks = tasks_of(config)
+    tasks = tasks_of(config, evaluator)
     for t in tasks:            # one FEM per distinct model, shared by the sweep's designs
-        t["fem_cache"] = str(out / "fem")
+        t["fem_cache"] = str(store.fem_dir)
     done_keys = store.keys()
     if retry_failed:
         failed = {r["key"] for r in store.rows() if r.get("status") != "ok"}
