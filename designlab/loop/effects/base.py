@@ -410,12 +410,21 @@ def contribution(f: Fitted, ctx: Context) -> np.ndarray:
     (as a rig re-zeros at the start of a run) and ``f.tare``, else the mean of the trained runs'
     offsets."""
     F = f.effect.columns(ctx, f.theta)
-    N = nuisance_columns(ctx.data, f.nuisance, f.effect.intercept, f.runs)
+    runs = per_run_layout(f)
+    N = nuisance_columns(ctx.data, f.nuisance, f.effect.intercept, runs)
     out = F @ np.asarray(f.beta) + (N @ np.asarray(f.alpha) if N.shape[1] else 0.0)
-    if f.runs and f.effect.intercept:
+    if runs:
         out = out + _tare(f, ctx, out)
     extra = f.effect.extra(f, ctx, out)
     return out if extra is None else out + extra
+
+
+def per_run_layout(f: Fitted) -> tuple[str, ...]:
+    """The runs of ``f``'s per-run intercepts, or () when its ``alpha`` has one intercept (a
+    mechanism carried over to a design with its affine refit replaced, ``alpha`` zeroed)."""
+    if f.runs and f.effect.intercept and len(f.alpha) == len(f.runs) + len(f.nuisance):
+        return f.runs
+    return ()
 
 
 def _tare(f: Fitted, ctx: Context, partial: np.ndarray) -> np.ndarray:
