@@ -348,3 +348,25 @@ def test_a_wrap_that_inverts_a_cell_remeshes_finer(monkeypatch):
     calls.clear()
     with pytest.raises(ModelError, match="inverted"):
         st.run(PART, SHORT, CHEAP, materials=_elastic(), mesh=st.mesh_strap(PART, CHEAP))
+
+
+def test_prediction_carries_the_force_error_test_at_the_protocols_loads():
+    """predict strap runs seed 000's calibration with its electrical noise on the designed
+    strap (finish hook): loads at the protocol's amplitudes, the error split exactly, the
+    noise part equal to the resolution the electrical budget predicts."""
+    from designlab.sensors.predict import predict
+
+    proto = {k: getattr(SHORT, k) for k in ("n_steps", "step_hold_s", "dt_s", "cycles",
+                                             "cycle_period_s")}
+    pred = predict("strap", {}, protocol=proto,
+                   settings={"edge_length": 2.0, "order": 1, "mesh_convergence": False})
+    r = pred.metrics["force_error_test"]
+    assert r["budget"]["loads"] == {"normal_N": SHORT.normal_N, "shear_N": SHORT.shear_N}
+    for a in ("F_n", "F_x"):
+        sp = r["split_std"][a]
+        assert r["per_axis"][a]["std"] > 0 and set(sp) == {"johnson", "adc", "model_error"}
+        noise = np.hypot(sp["johnson"], sp["adc"])
+        assert noise == pytest.approx(r["fit"][a]["noise_std_predicted_N"], rel=0.15)
+    # the sensitivities the test used are the prediction's own
+    s = pred.metrics["sensitivity"]["V_per_N"]
+    assert r["budget"]["sensitivity_V_per_N"]["Ch1"]["F_n"] == s["Ch1"]["F_n"]

@@ -804,7 +804,19 @@ def apply_model(report: dict[str, Any], prediction: StrapPrediction, model_path:
     return out
 
 
+def finish(report: dict[str, Any], prediction: StrapPrediction, part, protocol) -> None:
+    """The strap's calibration with its electrical noise, as seed 000 fitted it (in place):
+    ``report["force_error_test"]`` (:func:`designlab.sensors.strap_noise.run_strap_force_test`:
+    sum/difference lines fitted on virtual loads at the protocol's amplitudes, the force error
+    per axis on held-out loads, split into Johnson noise, ADC noise and model error; it uses
+    the sensitivities and the divider already in the report: no FEM)."""
+    from designlab.sensors.strap_noise import StrapForceTest, run_strap_force_test
+
+    test = StrapForceTest(normal_N=float(protocol.normal_N), shear_N=float(protocol.shear_N))
+    report["force_error_test"] = run_strap_force_test(report, test)
+
+
 SENSOR = Sensor(
     name="strap", paper="seed 000 (TPU arch strap with two printed strain-gauge traces)",
     protocol=StrapLoadTest, settings=StrapModelSettings, run=run, plots=plots, gains=gains,
-    apply_model=apply_model, cached=True)
+    apply_model=apply_model, finish=finish, cached=True)
