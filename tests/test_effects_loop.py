@@ -398,13 +398,23 @@ def test_runs_of_different_kind_with_offsets_find_relaxation(offsets):
     """Runs that differ in kind and length (ramps at two rates and a hold) with per-run zeros:
     relaxation is found (each run's intercept is in every fit, the validation run is tared on
     its first 5 s) and at least halves the error of the tared base."""
-    out = run_loop(ramps_case(1, offsets), "linear", peer=False).report["outputs"]["force"]
+    ds = ramps_case(1, offsets)
+    res = run_loop(ds, "linear", peer=False)
+    out = res.report["outputs"]["force"]
     assert out["effects"], out["rounds"][0]["candidates"]
     assert out["effects"][0]["name"] == "relaxation", out["rounds"][0]["candidates"]
     assert out["error_after"] < 0.5 * out["run_offsets"]["error_base_with_offsets"]
     assert out["error_after"] < 0.5 * out["error_before"]
     if offsets:   # the planted zeros differ by more than a tare's noise: the tare is chosen
         assert out["run_offsets"]["tare"] is True
+    # carried to a design as the sensors do (affine refit zeroed): the per-run layout is dropped
+    import dataclasses
+    f = res.model.effects["force"][0]
+    assert f.effect.name == "relaxation" and len(f.runs) == 3
+    bare = dataclasses.replace(f, nuisance=(), alpha=(0.0,))
+    ctx = fx.Context(ds, "force", np.zeros(len(ds)), ())
+    assert fx.contribution(bare, ctx) == pytest.approx(
+        f.effect.columns(ctx, f.theta) @ np.asarray(f.beta))
 
 
 def test_acceptance_rule():
