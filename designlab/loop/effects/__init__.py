@@ -54,7 +54,8 @@ for _m in pkgutil.iter_modules(__path__):
         importlib.import_module(f"{__name__}.{_m.name}")
 
 __all__ = ["EFFECTS", "TARE_S", "Context", "Effect", "Fitted", "contribution", "dahl", "describe",
-           "drive_inputs", "effects_table", "fit", "fit_group", "group_member", "highpass", "library", "nuisance_columns",
+           "drive_inputs", "effects_table", "fit", "fit_group", "group_member", "highpass",
+           "library", "nuisance_columns",
            "ordered", "play", "rate", "regressor", "robust_range", "run_paths", "shift",
            "varying_drives"]
 
