@@ -144,7 +144,7 @@ def _summary_table(rows, config, pareto_keys, best_key, limit: int = 20, tie_key
                 else "P" if r["key"] in pareto_keys else "")
         if r.get("status") != "ok":
             mark = "x"
-        vals = [x for o in objs for x in (fmt(r.get(o)), fmt(error_bar(r, o)))]
+        vals = [x for o in objs for x in (fmt(r.get(o)), fmt(error_bar(r, o, config)))]
         t.add_row(mark, *[fmt(r.get(f"param.{d}")) for d in dims], *vals,
                   "yes" if r.get("feasible") else "no", fmt(r.get("elapsed_s")))
     if len(rows) > limit:
@@ -188,9 +188,9 @@ def sweep(ctx: typer.Context,
     for line in band_lines(res.rows, cfg, [res.best_key] if res.best_key else None):
         console.print("Monte Carlo band " + line, highlight=False, markup=False)
     if res.tie_keys:
-        console.print(f"{len(res.tie_keys) + 1} designs are not distinguishable by "
-                      f"{next(iter(cfg.objectives))}: their differences are within the mesh "
-                      "error bars", highlight=False, markup=False)
+        console.print(f"{len(res.tie_keys) + 1} designs are not distinguishable: their "
+                      "differences are within the mesh error bars on every objective",
+                      highlight=False, markup=False)
     for w in res.warnings:
         err_console.print(_plain(("warning:", "yellow"), " ", w), highlight=False)
     console.print(f"{res.new} evaluated, {res.reused} from the store, {res.failed} failed -> "
@@ -235,10 +235,11 @@ def optimize(ctx: typer.Context,
     except KeyboardInterrupt:
         err_console.print("interrupted: finished designs are stored; run the same command to resume")
         raise typer.Exit(130)
-    from designlab.optimize.sweep import indistinguishable
+    from designlab.optimize.sweep import compare_to_best
 
     rows = list({r["key"]: r for r in [*res.sweep.rows, res.chosen]}.values())
-    ties = indistinguishable(rows, cfg, res.chosen["key"]) if cfg.objectives else []
+    ties, unknown = (compare_to_best(rows, cfg, res.chosen["key"]) if cfg.objectives
+                     else ([], []))
     from designlab.optimize.report import choice_text
 
     chosen, chosen_params = res.chosen, res.chosen_params
@@ -251,11 +252,14 @@ def optimize(ctx: typer.Context,
         chosen_params = {d.name: chosen[f"param.{d.name}"] for d in cfg.dimensions}
         from designlab.sensors.labels import metric_label
 
-        choice = (f"{choice} But {len(group)} designs are not distinguishable by "
-                  f"{metric_label(next(iter(cfg.objectives)))} (differences within the mesh "
-                  "error bars): none "
-                  "is chosen on it; exported the one with the least printed volume "
+        objs = ", ".join(metric_label(o) for o in cfg.objectives)
+        choice = (f"{choice} But {len(group)} designs are not distinguishable by {objs} "
+                  "(differences within the mesh error bars on every objective): none "
+                  "is chosen on them; exported the one with the least printed volume "
                   f"({chosen.get('printed_volume_mm3', float('nan')):.4g} mm^3)")
+    if unknown:
+        choice = (f"{choice} {len(unknown)} other design(s) have no error bar on an objective "
+                  "(unknown, not zero): whether they differ from the chosen one is not known")
     _summary_table(res.sweep.rows, cfg, res.sweep.pareto_keys, chosen["key"], tie_keys=ties)
     for line in band_lines(rows, cfg, [chosen["key"]], limit=1):
         console.print("Monte Carlo band of the chosen design " + line, highlight=False,
@@ -264,7 +268,7 @@ def optimize(ctx: typer.Context,
     files = _export_chosen(cfg, {**cfg.fixed, **chosen_params}, design_dir, formats,
                            fem_cache=out / "fem")
     summary = {"method": res.method, "chosen_params": chosen_params, "chosen": chosen,
-               "choice": choice, "not_distinguishable": ties,
+               "choice": choice, "not_distinguishable": ties, "error_bar_unknown": unknown,
                "surrogate": res.surrogate, "files": [str(f) for f in files]}
     atomic_write_json(out / "optimize.json", summary)
     write_report(out, res.sweep.rows, cfg, res.sweep.pareto_keys, chosen["key"],
@@ -1180,6 +1184,19 @@ def _write_log(argv: Optional[List[str]]) -> Optional[Path]:
         return None
 
 
+_WARNINGS_SHOWN = [0]
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Python warnings as one plain line each (at most 5 numeric ones per command)."""
+    if issubclass(category, RuntimeWarning):
+        _WARNINGS_SHOWN[0] += 1
+        if _WARNINGS_SHOWN[0] > 5:
+            return
+    err_console.print(_plain(("warning:", "yellow"), " ", _one_line(str(message), 300)),
+                      highlight=False, soft_wrap=True)
+
+
 def _error(exc: BaseException, prefix: str = "error:") -> None:
     err_console.print(_plain((prefix, "bold red"), " ", _one_line(exc)), highlight=False,
                       soft_wrap=True)
@@ -1190,7 +1207,12 @@ def main(argv: Optional[List[str]] = None) -> None:
     option) is one line + exit 2; anything else one line naming a log file with the
     traceback + exit 1; Ctrl-C exit 130. Messages are printed literally (no rich markup)."""
     import click
+    import warnings
 
+    # numeric warnings (overflow, invalid values) never flood the terminal: a result they
+    # spoil is refused by its own check; the first few go to one line each on stderr
+    warnings.simplefilter("once", RuntimeWarning)
+    warnings.showwarning = _show_warning
     try:
         rc = app(args=argv, standalone_mode=False)
         if isinstance(rc, int) and rc:

@@ -807,6 +807,14 @@ def write_outputs(result: LoopResult, out: str | Path) -> list[Path]:
     return written
 
 
+def _file_safe(name: str) -> str:
+    """A channel or effect name as a file-name part: anything but letters, digits, '.', '-'
+    becomes '_' (a channel named 'a/b' or '[/bold]' never writes outside --out)."""
+    import re
+
+    return re.sub(r"[^\w.-]", "_", str(name))
+
+
 def _savefig(fig, path: Path) -> Path:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
@@ -844,7 +852,7 @@ def _plots(o: str, ser: dict, rep: dict, out: Path) -> list[Path]:
     ax[1].set_xlabel("validation time (s)")
     ax[1].legend(loc="upper right", fontsize=8)
     fig.tight_layout()
-    files.append(_savefig(fig, out / f"timeseries_{o}.png"))
+    files.append(_savefig(fig, out / f"timeseries_{_file_safe(o)}.png"))
     plt.close(fig)
     for k, st in enumerate(ser["stages"], 1):
         fig, ax = plt.subplots(1, 2, figsize=(11, 4.5))
@@ -863,8 +871,8 @@ def _plots(o: str, ser: dict, rep: dict, out: Path) -> list[Path]:
         ax[1].legend(fontsize=8)
         fig.suptitle(f"{o} effect {k}: {st['key']}")
         fig.tight_layout()
-        safe = st["key"].replace("[", "_").replace("]", "")
-        files.append(_savefig(fig, out / f"effect_{o}_{k}_{safe}.png"))
+        safe = _file_safe(st["key"])
+        files.append(_savefig(fig, out / f"effect_{_file_safe(o)}_{k}_{safe}.png"))
         plt.close(fig)
     if ser["top_var"] is not None:
         fig, ax = plt.subplots(figsize=(6, 4.5))
@@ -873,6 +881,6 @@ def _plots(o: str, ser: dict, rep: dict, out: Path) -> list[Path]:
         ax.set_ylabel(f"{o} final residual ({unit})")
         ax.set_title(f"{o}: unexplained {100 * rep['unexplained_fraction']:.1f} % of variance")
         fig.tight_layout()
-        files.append(_savefig(fig, out / f"unexplained_{o}.png"))
+        files.append(_savefig(fig, out / f"unexplained_{_file_safe(o)}.png"))
         plt.close(fig)
     return files

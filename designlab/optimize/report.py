@@ -24,8 +24,9 @@ def _numeric(rows, name):
                      else np.nan for r in rows], float)
 
 
-def _bars(rows, name):
-    return np.array([error_bar(r, name) if r.get("status") == "ok" else np.nan for r in rows])
+def _bars(rows, name, config=None):
+    return np.array([error_bar(r, name, config) if r.get("status") == "ok" else np.nan
+                     for r in rows])
 
 
 def pareto_plot(rows: list[dict], config: SweepConfig, pareto_keys: list[str],
@@ -42,7 +43,7 @@ def pareto_plot(rows: list[dict], config: SweepConfig, pareto_keys: list[str],
     x, y = _numeric(rows, names[0]), _numeric(rows, names[1])
     is_p = np.array([r["key"] in pareto_keys for r in rows])
     fig, ax = figure(width=8.5, height=4.6)
-    ex, ey = _bars(rows, names[0]), _bars(rows, names[1])
+    ex, ey = _bars(rows, names[0], config), _bars(rows, names[1], config)
     ok = np.isfinite(x) & np.isfinite(y)
     ax.errorbar(x[ok], y[ok], xerr=np.nan_to_num(ex[ok]), yerr=np.nan_to_num(ey[ok]), fmt="none",
                 ecolor="0.5", elinewidth=0.8, capsize=2, label="mesh error bar", zorder=1)
@@ -214,7 +215,7 @@ def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: 
         for n in objs:
             spec = config.objectives[n]
             name, unit = metric_name_unit(n)
-            v, e = best.get(n), error_bar(best, n)
+            v, e = best.get(n), error_bar(best, n, config)
             res.append({"name": name, "value": fmt_value(v) if not isinstance(v, float)
                         else f"{v:.4g}", "bar": "" if not np.isfinite(e) else f"{e:.2g}",
                         "unit": unit, "note": f"objective: {spec}"})
@@ -235,7 +236,7 @@ def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: 
                else "pareto" if r["key"] in pareto_keys else "")
         cells = [r["key"][:8]] + [fmt_value(r.get(f"param.{d}")) for d in dims]
         for n in objs:
-            v, e = r.get(n), error_bar(r, n)
+            v, e = r.get(n), error_bar(r, n, config)
             cells += [f"{v:.4g}" if isinstance(v, float) else fmt_value(v),
                       f"{e:.2g}" if np.isfinite(e) else ""]
         cells += ["yes" if r.get("feasible") else "no", r.get("status", ""),

@@ -19,6 +19,12 @@ from designlab.params import fmt_bound
 METRICS: dict[str, tuple[str, str]] = {
     "hysteresis_percent.overall": ("hysteresis (eq. 1, overall)", "% of span"),
     "hysteresis_percent": ("hysteresis (eq. 1)", "% of span"),
+    "hysteresis_percent.by_group_noise_free.G1": (
+        "friction hysteresis of the lateral loads G1 (eq. 1, no readout noise)", "% of span"),
+    "hysteresis_percent.by_group_noise_free.G2": (
+        "friction hysteresis of the radial loads G2 (eq. 1, no readout noise)", "% of span"),
+    "hysteresis_percent.by_group.G1": ("hysteresis of the lateral loads G1 (eq. 1)", "% of span"),
+    "hysteresis_percent.by_group.G2": ("hysteresis of the radial loads G2 (eq. 1)", "% of span"),
     "condition_number": ("condition number of the calibration matrix", ""),
     "geometric_condition_number": ("condition number of the ideal geometry", ""),
     "printed_volume_mm3": ("printed volume", "mm³"),

@@ -341,6 +341,8 @@ def fit_group(members: list[Effect], ctx: Context, residual: np.ndarray, rows: n
     N = nuisance_columns(ctx.data, ctx.base_inputs, intercept, runs)
     r = residual[rows]
     n = int(rows.sum())
+    if n == 0:      # a fold with no usable samples (short runs, long lags): skip, say why
+        raise ModelError(f"{last.name}: no samples left to fit in this fold")
     ctx.cache["rows"] = rows
     grids = [(thetas[i] if thetas is not None and thetas[i] is not None else m.grid(ctx))
              for i, m in enumerate(members)]
