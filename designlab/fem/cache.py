@@ -115,6 +115,18 @@ class FEMCache:
             return self._remember(key, data)
 
 
+def cached_stage(compute: Callable[[], dict[str, np.ndarray]], key: str | None,
+                 cache: FEMCache | None = None) -> tuple[dict[str, np.ndarray], bool]:
+    """(arrays, reused): ``compute()`` once per ``key`` in ``cache`` (default: the in-process
+    layer only); ``key`` None (a mesh given by the caller) computes without caching."""
+    if key is None:
+        return compute(), False
+    cache = cache if cache is not None else FEMCache()
+    hits = cache.hits
+    data = cache.get_or_compute(key, compute)
+    return data, cache.hits > hits
+
+
 def clear_memory() -> None:
     """Forget the in-process layer (tests; a changed material library)."""
     _MEMORY.clear()

@@ -48,7 +48,6 @@ from designlab.errors import ParameterError
 from designlab.fem.contact import MU_MAX
 from designlab.fem.settings import FEMSettings
 from designlab.params import rng, validate
-from designlab.sensors.protocols import FSS015_RANGE_N
 
 #: Honeywell FSS015WNSX: "low deflection, approximately 30 microns typical at full scale" (FSS
 #: series datasheet) over the 15 N range -> about 500 N/mm.
@@ -388,7 +387,7 @@ def run(part, protocol: HangingWeightTest | None = None,
     """Mesh (unless given), build, run the load history, and evaluate the metrics. ``cache``
     (:class:`~designlab.fem.cache.FEMCache`): the FEM stage is computed once per
     :func:`fem_key` and reused by every design that shares it (an (h, r) sweep)."""
-    from designlab.fem.cache import FEMCache
+    from designlab.fem.cache import cached_stage
     from designlab.mesh.tetmesh import TetMesh
 
     protocol = protocol or HangingWeightTest()
@@ -396,18 +395,9 @@ def run(part, protocol: HangingWeightTest | None = None,
     check_locations(part, protocol)
     say = progress or (lambda s: None)
     t0 = time.perf_counter()
-    key = None
-    if mesh is not None:
-        fem = solve_fem(part, protocol, settings, materials, mesh, say)
-        reused = False
-    else:
-        cache = cache if cache is not None else FEMCache()
-        hits = cache.hits
-        key = fem_key(part, protocol, settings, materials)
-        fem = cache.get_or_compute(key,
-                                   lambda: solve_fem(part, protocol, settings, materials, None,
-                                                     say))
-        reused = cache.hits > hits
+    key = None if mesh is not None else fem_key(part, protocol, settings, materials)
+    fem, reused = cached_stage(lambda: solve_fem(part, protocol, settings, materials, mesh, say),
+                               key, cache)
     wall = time.perf_counter() - t0
     t, load, step = protocol.time_history()
     if bool(fem["viscoelastic"]):

@@ -465,7 +465,7 @@ def run(part=None, protocol: StrapLoadTest | None = None,
     FEM stage (:func:`solve_fem`) is computed once per :func:`fem_key` and reused by every
     design that shares it (readout settings, the wrap's slot, the nail plate)."""
     from designlab.fem import Model
-    from designlab.fem.cache import FEMCache
+    from designlab.fem.cache import cached_stage
     from designlab.geometry.strap import ArchStrap
     from designlab.mesh.tetmesh import TetMesh
 
@@ -474,17 +474,9 @@ def run(part=None, protocol: StrapLoadTest | None = None,
     settings = settings or StrapModelSettings()
     say = progress or (lambda s: None)
     t0 = time.perf_counter()
-    key = None
-    if mesh is not None:
-        fem = solve_fem(part, protocol, settings, materials, mesh, say)
-        reused = False
-    else:
-        cache = cache if cache is not None else FEMCache()
-        hits = cache.hits
-        key = fem_key(part, protocol, settings, materials)
-        fem = cache.get_or_compute(key, lambda: solve_fem(part, protocol, settings, materials,
-                                                          None, say))
-        reused = cache.hits > hits
+    key = None if mesh is not None else fem_key(part, protocol, settings, materials)
+    fem, reused = cached_stage(lambda: solve_fem(part, protocol, settings, materials, mesh, say),
+                               key, cache)
     wall = time.perf_counter() - t0
     mesh_t, assemble_t, solve_t = (float(x) for x in fem["timings"])
     timings: dict[str, float] = ({"mesh": 0.0, "assemble": 0.0, "solve": 0.0, "fem_cache": wall}
