@@ -427,27 +427,22 @@ def test_acceptance_rule():
     assert not acceptable({"skipped": "fit failed", "relative": None}, 2.0, 0.01)
 
 
+def _test_effect(effect_name, features, solve=None):
+    """Register a one-candidate effect (test only) with the given regressors and, optionally,
+    its own constrained solve; the caller removes it from the registry."""
+    body = {"name": effect_name, "summary": "test only", "regressors_doc": "test only",
+            "applies_doc": "test only", "__doc__": "test only",
+            "applies": classmethod(lambda cls, train, output, base_inputs: [cls()]),
+            "grid": lambda self, ctx: [{}], "features": lambda self, ctx, theta: features(ctx)}
+    if solve is not None:
+        body["solve"] = lambda self, X, target, k: solve()
+    return type(effect_name.title(), (fx.Effect,), body)
+
+
 @pytest.fixture
 def broken_effect():
     """An effect whose regressors are NaN: its fit fails and the loop skips it."""
-
-    class Broken(fx.Effect):
-        """Always NaN (test only)."""
-
-        name = "broken"
-        summary = regressors_doc = applies_doc = "test only"
-
-        @classmethod
-        def applies(cls, train, output, base_inputs):
-            return [cls()]
-
-        def grid(self, ctx):
-            return [{}]
-
-        def features(self, ctx, theta):
-            return np.full(len(ctx.data), np.nan)
-
-    yield Broken
+    yield _test_effect("broken", lambda ctx: np.full(len(ctx.data), np.nan))
     del fx.EFFECTS["broken"]
 
 
@@ -464,26 +459,10 @@ def nnls_failure():
     """An effect whose constrained solve raises RuntimeError, as scipy's NNLS does when it runs
     out of iterations."""
 
-    class Stuck(fx.Effect):
-        """Never converges (test only)."""
+    def stuck():
+        raise RuntimeError("Maximum number of iterations reached.")
 
-        name = "stuck"
-        summary = regressors_doc = applies_doc = "test only"
-
-        @classmethod
-        def applies(cls, train, output, base_inputs):
-            return [cls()]
-
-        def grid(self, ctx):
-            return [{}]
-
-        def features(self, ctx, theta):
-            return ctx.data.time_in_run()
-
-        def solve(self, X, target, k):
-            raise RuntimeError("Maximum number of iterations reached.")
-
-    yield Stuck
+    yield _test_effect("stuck", lambda ctx: ctx.data.time_in_run(), solve=stuck)
     del fx.EFFECTS["stuck"]
 
 
