@@ -440,16 +440,9 @@ def test_full_disk_leaves_nothing_half_written(tmp_path, capsys, monkeypatch):
 
 
 # ------------------------------------------------ user text in tables and absurd model numbers
-MARKUP_CARD = """
-[[files]]
-path = "run.csv"
-[time]
-column = "t"
-[inputs]
-displacement = { column = "P", unit = "mm" }
-[outputs]
-"a[red]b" = { column = "[/bold]", unit = "N" }
-"""
+#: the valid CARD with its output channel named ``a[red]b``, read from the column ``[/bold]``
+MARKUP_CARD = CARD.replace('force = { column = "F", unit = "N" }',
+                           '"a[red]b" = { column = "[/bold]", unit = "N" }')
 
 
 def _markup_inputs(tmp: Path) -> Path:
