@@ -48,7 +48,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
-from threadpoolctl import threadpool_limits   # installed with scikit-learn
+from threadpoolctl import threadpool_limits
 
 from designlab.atomic import atomic_write_bytes, atomic_write_json
 from designlab.calibration.metrics import rmse
