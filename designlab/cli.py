@@ -1206,7 +1206,6 @@ def main(argv: Optional[List[str]] = None) -> None:
     """Console-script entry point: run the app; a user error (:class:`DesignlabError`, a bad
     option) is one line + exit 2; anything else one line naming a log file with the
     traceback + exit 1; Ctrl-C exit 130. Messages are printed literally (no rich markup)."""
-    import click
     import warnings
 
     # numeric warnings (overflow, invalid values) never flood the terminal: a result they
@@ -1225,9 +1224,12 @@ def main(argv: Optional[List[str]] = None) -> None:
     except (typer.Abort, KeyboardInterrupt):
         err_console.print("interrupted")
         sys.exit(130)
-    except click.ClickException as exc:  # usage errors of the command parser (bad option...)
-        exc.show()
-        sys.exit(exc.exit_code or 2)
+    except typer.TyperException as exc:  # usage errors of the command parser (bad option...)
+        # typer >= 0.29 carries its own click: these are typer's, not the click package's
+        ctx = getattr(exc, "ctx", None)
+        hint = f" (see {ctx.command_path} --help)" if ctx is not None else ""
+        _error(f"{exc.format_message()}{hint}")
+        sys.exit(getattr(exc, "exit_code", 2) or 2)
     except SystemExit:
         raise
     except BrokenPipeError:  # output piped into a reader that quit (head, less)

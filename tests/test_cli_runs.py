@@ -256,3 +256,19 @@ def test_overwrite_waits_for_no_one_and_removes_nothing_of_a_running_sweep(cheap
     time.sleep(0.1)
     assert _run(["sweep", b, "--out", out, "--workers", "1", "--overwrite"], capsys)[0] == 0
     assert not _keys(out) & keys
+
+
+@pytest.mark.parametrize("argv, text", [
+    (["sweep", "x.toml", "--out", "o", "--bogus"], "No such option: --bogus"),
+    (["predict"], "Missing argument 'part'"),
+    (["sweep", "x.toml", "--out", "o", "--workers", "two"], "'--workers'"),
+    (["nosuch"], "No such command 'nosuch'"),
+])
+def test_usage_errors_are_one_line_exit_2(argv, text, capsys):
+    """The command parser's errors (typer carries its own click) are a user error: one line
+    naming the option, exit 2 -- not an internal error with a log file."""
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    err = capsys.readouterr().err.strip()
+    assert e.value.code == 2
+    assert text in err and "internal error" not in err and len(err.splitlines()) == 1
