@@ -7,7 +7,9 @@ Per printed body:
 * its tessellation is watertight and consistently wound (trimesh) and a valid manifold
   (``manifold3d.Manifold(...).status() == NoError``), enclosing a positive volume;
 * smallest features, measured by casting a ray from surface samples along the inward normal to the
-  opposite wall (VTK cell locator): *walls* (samples whose normal is mostly horizontal) must be at
+  opposite wall (Embree through ``embreex`` where installed, all rays at once; else a VTK cell
+  locator, one ray at a time: both find the hit triangle, the distance to its plane is computed
+  in float64, so the two agree to ~1e-14 mm except on rays through an edge): *walls* (samples whose normal is mostly horizontal) must be at
   least the nozzle diameter wide, *skins* (normal mostly vertical) at least one layer thick.
   A conductive trace's thickness is thus governed by the layer height (0.2 mm = two 0.1 mm
   layers is fine) and its width by the nozzle. The thin surface area is measured over the area
@@ -24,11 +26,19 @@ Per part: printed bodies must not overlap each other (manifold3d intersection vo
 the slicer would print the shared volume with one material only.
 
 Bought bodies (``printed=False``) are not checked.
+
+A body's report (and its tessellation, which the overlap check needs) is kept in a small
+in-process cache keyed by its B-rep (OpenCascade's binary form without triangulation, SHA-256),
+its name, extruder and the check's settings: in a sweep the bodies a design parameter does not
+touch (the fingertip's base and cap for every (h, r)) are checked once per worker.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import hashlib
+import io
+from collections import OrderedDict
+from dataclasses import dataclass, field, replace
 from typing import Mapping
 
 import numpy as np
@@ -140,13 +150,30 @@ def _area_samples(mesh: trimesh.Trimesh, per_mm2: float, n_min: int, n_max: int,
     return pts, mesh.face_normals[fi], float(mesh.area) / max(len(pts), 1)
 
 
-def ray_thickness(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray,
-                  max_depth: float | None = None, opposed: float | None = None) -> np.ndarray:
-    """Distance (mm) from each surface point along its inward normal to the opposite wall
-    (inf when the ray leaves the bounding box without a hit). With ``opposed``, a hit counts
-    only when the wall it reaches faces back (``n_start . n_hit < -opposed``): a ray that
-    grazes out through a face at a corner (a 90 deg edge, tessellated with chords) is a corner,
-    not a wall; sharp wedges (faces closer than ``acos(opposed)`` to antiparallel) still count."""
+def ray_backend() -> str:
+    """``"embree"`` when the ``embreex`` package is importable (rays cast all at once), else
+    ``"vtk"`` (a VTK cell locator, one ray at a time)."""
+    try:
+        import embreex.rtcore_scene  # noqa: F401
+    except ImportError:
+        return "vtk"
+    return "embree"
+
+
+def _first_hits_embree(mesh: trimesh.Trimesh, starts: np.ndarray,
+                       directions: np.ndarray) -> np.ndarray:
+    """Index of the first triangle each ray hits (-1: none), Embree (float32 geometry)."""
+    from embreex import rtcore_scene
+    from embreex.mesh_construction import TriangleMesh
+
+    scene = rtcore_scene.EmbreeScene()
+    TriangleMesh(scene, np.ascontiguousarray(mesh.triangles, dtype=np.float32))
+    return np.asarray(scene.run(np.ascontiguousarray(starts, dtype=np.float32),
+                                np.ascontiguousarray(directions, dtype=np.float32)))
+
+
+def _first_hits_vtk(mesh: trimesh.Trimesh, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """Index of the first triangle each segment ``starts -> ends`` hits (-1: none), VTK."""
     import vtk
     from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
     from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData, vtkStaticCellLocator
@@ -162,19 +189,53 @@ def ray_thickness(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray
     loc = vtkStaticCellLocator()
     loc.SetDataSet(pd)
     loc.BuildLocator()
-    depth = float(max_depth or np.linalg.norm(mesh.extents) * 1.01)
-    eps = 1e-5 * max(1.0, depth)
     t, sub, cid = vtk.reference(0.0), vtk.reference(0), vtk.reference(0)
     x, pc = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
-    starts = points - eps * normals
-    ends = points - depth * normals
-    out = np.full(len(points), np.inf)
-    fn = np.asarray(mesh.face_normals)
-    for i in range(len(points)):
+    out = np.full(len(starts), -1, dtype=np.int64)
+    for i in range(len(starts)):
         if loc.IntersectWithLine(starts[i], ends[i], 1e-9, t, x, pc, sub, cid):
-            if opposed is not None and fn[cid.get()] @ normals[i] > -opposed:
-                continue
-            out[i] = eps + t.get() * (depth - eps)
+            out[i] = cid.get()
+    return out
+
+
+def ray_thickness(mesh: trimesh.Trimesh, points: np.ndarray, normals: np.ndarray,
+                  max_depth: float | None = None, opposed: float | None = None,
+                  backend: str | None = None) -> np.ndarray:
+    """Distance (mm) from each surface point along its inward normal to the opposite wall
+    (inf when the ray leaves the bounding box without a hit). With ``opposed``, a hit counts
+    only when the wall it reaches faces back (``n_start . n_hit < -opposed``): a ray that
+    grazes out through a face at a corner (a 90 deg edge, tessellated with chords) is a corner,
+    not a wall; sharp wedges (faces closer than ``acos(opposed)`` to antiparallel) still count;
+    without it any wall facing back at all counts.
+
+    ``backend`` (default :func:`ray_backend`) finds the first triangle hit; the distance is that
+    of the hit triangle's plane along the ray, in float64, for both backends."""
+    backend = backend or ray_backend()
+    if backend not in ("embree", "vtk"):
+        raise DesignlabError(f"backend={backend!r}: allowed 'embree' or 'vtk'")
+    points = np.asarray(points, dtype=np.float64)
+    normals = np.asarray(normals, dtype=np.float64)
+    out = np.full(len(points), np.inf)
+    if not len(points):
+        return out
+    depth = float(max_depth or np.linalg.norm(mesh.extents) * 1.01)
+    eps = 1e-5 * max(1.0, depth)
+    starts = points - eps * normals
+    if backend == "embree":
+        hit = _first_hits_embree(mesh, starts, -normals)
+    else:
+        hit = _first_hits_vtk(mesh, starts, points - depth * normals)
+    rays = np.flatnonzero(hit >= 0)
+    tri = hit[rays]
+    fn = np.asarray(mesh.face_normals)[tri]
+    v0 = np.asarray(mesh.triangles)[tri, 0]
+    cos = np.einsum("ij,ij->i", fn, normals[rays])       # n_hit . n_start
+    keep = cos < 0 if opposed is None else cos <= -opposed
+    rays, fn, v0, cos = rays[keep], fn[keep], v0[keep], cos[keep]
+    # the ray p - s n reaches the hit plane n_hit . (x - v0) = 0 at s = n_hit.(p - v0) / cos
+    dist = eps + np.einsum("ij,ij->i", fn, starts[rays] - v0) / cos
+    inside = dist <= depth
+    out[rays[inside]] = dist[inside]
     return out
 
 
@@ -292,29 +353,80 @@ def overlaps(meshes: Mapping[str, trimesh.Trimesh]) -> dict[tuple[str, str], flo
     return out
 
 
+#: per-body reports (with their tessellation) kept in this process, newest last
+_BODY_CACHE: "OrderedDict[str, tuple[BodyReport, trimesh.Trimesh | None]]" = OrderedDict()
+_BODY_CACHE_SIZE = 24
+
+
+def _body_key(part: str, body: Body, nozzle: float, layer: float, min_wall: float) -> str:
+    """SHA-256 of what a body's report depends on: its B-rep (binary, no triangulation), names,
+    the check's settings and this module's rule constants (tests patch them). A few flag bits of
+    the binary form change once a shape is tessellated or checked: the same body has one key
+    before and one after, both point to the same report."""
+    from OCP.BinTools import BinTools, BinTools_FormatVersion
+
+    buf = io.BytesIO()
+    BinTools.Write_s(topods(body.shape), buf, False, False,
+                     BinTools_FormatVersion.BinTools_FormatVersion_CURRENT)
+    h = hashlib.sha256(buf.getvalue())
+    h.update(repr((part, body.name, body.printed, body.extruder, nozzle, layer, min_wall,
+                   SKIN_NZ, WALL_OPPOSED, THIN_AREA_MM2, SLIVER_FRACTION, AREA_SAMPLES_PER_MM2,
+                   AREA_SAMPLES_MIN, AREA_SAMPLES_MAX, ray_backend())).encode())
+    return h.hexdigest()
+
+
+def clear_cache() -> None:
+    """Forget the per-body reports kept in this process."""
+    _BODY_CACHE.clear()
+
+
+def _checked(part: str, body: Body, nozzle: float, layer: float, min_wall: float,
+             mesh: trimesh.Trimesh | None) -> tuple[BodyReport, trimesh.Trimesh | None]:
+    """(report, tessellation) of a printed body; a body with no ``mesh`` given comes from the
+    cache when the same B-rep was checked with the same settings in this process."""
+    key = None
+    if mesh is None:
+        key = _body_key(part, body, nozzle, layer, min_wall)
+        if key in _BODY_CACHE:
+            _BODY_CACHE.move_to_end(key)
+            return _BODY_CACHE[key]
+        try:
+            mesh = tessellate(body.shape, check=False)
+        except MeshingError:
+            mesh = None  # check_body reports it
+    report = check_body(part, body, nozzle, layer, mesh, min_wall=min_wall)
+    if key is not None:
+        # tessellating and checking a shape flip flags of its edges in OpenCascade's binary form:
+        # the same body seen again after either is found under its second key
+        for k in {key, _body_key(part, body, nozzle, layer, min_wall)}:
+            _BODY_CACHE[k] = (report, mesh)
+        while len(_BODY_CACHE) > _BODY_CACHE_SIZE:
+            _BODY_CACHE.popitem(last=False)
+    return report, mesh
+
+
 def check_part(part: str, bodies: Mapping[str, Body], nozzle: float = 0.4, layer: float = 0.1,
                meshes: Mapping[str, trimesh.Trimesh] | None = None) -> list[BodyReport]:
     """Reports for every body of a part (bought bodies included, unchecked), with overlaps of
-    printed bodies added to both bodies' problems."""
-    meshes = dict(meshes or {})
-    for name, b in bodies.items():
-        if b.printed and name not in meshes:
-            try:
-                meshes[name] = tessellate(b.shape, check=False)
-            except MeshingError:
-                pass  # check_body reports it
+    printed bodies added to both bodies' problems. Bodies without a mesh in ``meshes`` are
+    tessellated here (and their reports cached per process, see the module docstring)."""
+    given = dict(meshes or {})
     host = min((b.extruder for b in bodies.values() if b.printed), default=1)
-    reports = {name: check_body(part, b, nozzle, layer, meshes.get(name),
-                                min_wall=nozzle * (MM_WALL_FACTOR if b.extruder != host else 1.0))
-               for name, b in bodies.items()}
+    reports, meshes = {}, {}
+    for name, b in bodies.items():
+        min_wall = nozzle * (MM_WALL_FACTOR if b.extruder != host else 1.0)
+        if not b.printed:
+            reports[name] = check_body(part, b, nozzle, layer, min_wall=min_wall)
+            continue
+        reports[name], mesh = _checked(part, b, nozzle, layer, min_wall, given.get(name))
+        if mesh is not None:
+            meshes[name] = mesh
     printed = {n: meshes[n] for n, r in reports.items()
                if r.printed and r.watertight and r.manifold and n in meshes}
     for (a, b), vol in overlaps(printed).items():
         for x, y in ((a, b), (b, a)):
             r = reports[x]
-            reports[x] = BodyReport(**{**r.__dict__,
-                                       "problems": r.problems + (
-                                           f"overlaps {y} by {vol:.3g} mm^3",)})
+            reports[x] = replace(r, problems=r.problems + (f"overlaps {y} by {vol:.3g} mm^3",))
     return list(reports.values())
 
 
