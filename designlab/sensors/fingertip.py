@@ -561,8 +561,11 @@ def design_protocol(protocol: HangingWeightTest, design, overrides: dict | None)
 
 def finish(report: dict[str, Any], prediction: FingertipPrediction, part,
            protocol: HangingWeightTest) -> None:
-    """Paper comparison and what drives the condition number (seed 001 Section IV); the table's
-    load points this design lacks."""
+    """Paper comparison and what drives the condition number (seed 001 Section IV); the
+    calibration error budget (``force_error_test``: the FSS015/DAQ readout noise through the
+    paper's calibration, force error per axis on held-out points beside Fig. 9, on the FEM
+    this prediction solved: :func:`designlab.sensors.fingertip_calibration.
+    prediction_force_error`); the table's load points this design lacks."""
     own = report.get("paper_comparison")         # the contact run's, for this design
     unit = prediction.unit_readings[-1]                       # (6 wrench, 3 sensors), N per N
     axes, _ = part.sensor_axes()
@@ -633,6 +636,11 @@ def finish(report: dict[str, Any], prediction: FingertipPrediction, part,
         # the range and overforce checks (preload included) were the contact run's
     else:
         protocol.check_sensor_range(report.get("peak_sensor_force_N", 0.0), "FSS015 sensor")
+    t0 = time.perf_counter()
+    from designlab.sensors.fingertip_calibration import prediction_force_error
+
+    report["force_error_test"] = prediction_force_error(part, protocol, prediction)
+    report.setdefault("timings_s", {})["force_error_test"] = time.perf_counter() - t0
     table = HangingWeightTest.preset("optimized") if part.load_table == "III" else HangingWeightTest()
     report["locations_omitted"] = [
         n for n in (*table.g1_locations, *table.g2_locations)
