@@ -290,9 +290,11 @@ class Chain(ActiveSet):
         n = len(u)
         sec = circular_section(2 * r)
         K = np.zeros((6 * n, 6 * n))
+        self.ke = np.zeros((n_el, 12, 12))         # element stiffnesses (section forces)
         for e in range(n_el):
             ke = beam_stiffness(X[e], X[e + 1], coil.E, coil.G, sec["A"], sec["Iy"], sec["Iz"],
                                 sec["J"], sec["As"])
+            self.ke[e] = ke
             idx = np.r_[6 * e:6 * e + 12]
             K[np.ix_(idx, idx)] += ke
         # ---- ends: bonded nodes (base fixed, tip rigid to the master)
@@ -341,6 +343,27 @@ class Chain(ActiveSet):
         self.kn = np.array([c.k_n for c in self.contacts])
         self.g0 = np.array([c.g0 for c in self.contacts])
         self.bonded_turns = (len(base_bond) + len(tip_bond)) * self.h / 2
+
+    # ------------------------------------------------------------------ section forces
+    def section_forces(self, q: np.ndarray) -> dict[str, np.ndarray]:
+        """Wire section forces of the reduced state ``q`` at both ends of every beam: the
+        element's end forces ``k_e u_e`` (global) split on the beam axis into axial force
+        ``N``, shear ``V``, torsion ``T`` and bending moment ``M`` (magnitudes, N and N mm),
+        with the end points ``X`` (mm). Arrays of shape (2 n_el,): element ends a, b in turn."""
+        u = self.T @ np.asarray(q, float)
+        n_el = len(self.u) - 1
+        ue = np.lib.stride_tricks.sliding_window_view(u, 12)[::6][:n_el]     # (n_el, 12)
+        f = np.einsum("eij,ej->ei", self.ke, ue).reshape(n_el, 2, 2, 3)    # end, (F, M), xyz
+        t = np.diff(self.X, axis=0)
+        t /= np.linalg.norm(t, axis=1)[:, None]
+        F, M = f[:, :, 0].reshape(-1, 3), f[:, :, 1].reshape(-1, 3)
+        t2 = np.repeat(t, 2, axis=0)
+        n, tq = np.einsum("ij,ij->i", F, t2), np.einsum("ij,ij->i", M, t2)
+        return {"N": np.abs(n), "T": np.abs(tq),
+                "V": np.linalg.norm(F - n[:, None] * t2, axis=1),
+                "M": np.linalg.norm(M - tq[:, None] * t2, axis=1),
+                "X": np.stack([self.X[:-1], self.X[1:]], axis=1).reshape(-1, 3),
+                "element": np.repeat(np.arange(n_el), 2)}
 
     # ------------------------------------------------------------------ operators
     def _rigid(self, x) -> np.ndarray:

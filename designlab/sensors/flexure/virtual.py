@@ -32,6 +32,7 @@ estimated wrench.
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -131,6 +132,18 @@ def chain_truth(part, settings: "FlexureModelSettings"):
     return chain_stiffness(spring_as_built(part), cs)
 
 
+def _wire_stress(part, protocol: FlexureWrenchTest, settings: "FlexureModelSettings") -> dict:
+    """Wire stress and safety factor of the spring as built under the protocol's load cases
+    (:func:`designlab.sensors.flexure.stress.wire_stress`): the closed form, and the beam
+    chain beside it unless the truth is the Timoshenko column (no chain in that model)."""
+    from designlab.sensors.flexure.beam_chain import ChainSettings
+    from designlab.sensors.flexure.stress import wire_stress
+
+    cs = ChainSettings(seat=settings.seat, seat_material=getattr(part, "disc_material", "PLA"))
+    return wire_stress(spring_as_built(part), protocol, cs, material=part.material,
+                       chain=settings.truth != "timoshenko")
+
+
 def _fem_model(mesh, settings: FlexureModelSettings, centre, materials=None):
     """Base clamped, tip rigid to a master at the spring centre, six unit wrench cases."""
     from designlab.fem import Model
@@ -160,9 +173,12 @@ class FlexurePrediction:
 
 def run(part=None, protocol: FlexureWrenchTest | None = None,
         settings: FlexureModelSettings | None = None, *, materials=None, mesh=None,
-        progress: Callable[[str], None] | None = None) -> FlexurePrediction:
+        progress: Callable[[str], None] | None = None, wire_stress: bool = True
+        ) -> FlexurePrediction:
     """K_f (closed form, FEM), the protocol's wrenches through the true stiffness, the sensor's
-    estimate through the designer's, and the metrics."""
+    estimate through the designer's, the metrics and (``wire_stress``) the wire's stress and
+    safety factor per load case (``report["stress"]``, :mod:`designlab.sensors.flexure.stress`;
+    a safety factor below 2 warns)."""
     from designlab.sensors.flexure.spring import stiffness_timoshenko, stiffness_zero_pitch, to_si
     from designlab.geometry.flexure import SpringFlexure
 
@@ -287,6 +303,13 @@ def run(part=None, protocol: FlexureWrenchTest | None = None,
                         "mean_diameter_mm": spring.mean_diameter,
                         "active_coils": spring.active_coils, "pitch_angle_rad": spring.pitch_angle,
                         "E_MPa": spring.E, "G_MPa": spring.G, "length_mm": float(part.length)}
+    if wire_stress:
+        t0 = time.perf_counter()
+        say("wire stress")
+        report["stress"] = _wire_stress(part, protocol, settings)
+        timings["wire_stress"] = time.perf_counter() - t0
+        for w in report["stress"]["warnings"]:
+            warnings.warn(w, stacklevel=2)
     report["timings_s"] = timings
     report["notes"] = notes
     return FlexurePrediction(W, X, W_est, K_true, K_design, report, mesh, u_vtu)
