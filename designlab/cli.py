@@ -848,6 +848,10 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
         t.add_row("geometric condition number", f"{pred['geometric_condition_number']:.4g}")
     if pred.get("paper_comparison"):
         t.add_row("paper condition number", f"{pred['paper_comparison']['condition_number_paper']:.4g}")
+    from designlab.sensors.report_html import force_error_lines
+
+    for name, value in force_error_lines(pred):    # the calibration with the noise budget
+        t.add_row(name, value)
     if prediction.K_f is not None:
         import numpy as np
 
