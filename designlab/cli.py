@@ -389,9 +389,12 @@ def flexure(preset: str = typer.Option("visiflex-catalog", "--preset",
                       highlight=False)
     for note in report["notes"]:
         console.print(_plain(("note:", "bold"), " ", note), highlight=False)
-    console.print("stress: not computed (the closed form and the beam chain give stiffness, "
-                  "no stress field; check the wire's strength separately)", highlight=False,
-                  markup=False)
+    from designlab.sensors.flexure.stress import stress_table, wire_stress
+
+    report["stress"] = wire_stress(spring, chain_settings=ChainSettings(seat=seat))
+    console.print(stress_table(report["stress"]))
+    for w in report["stress"]["warnings"]:
+        err_console.print(_plain(("warning:", "yellow"), " ", w), highlight=False)
     if json_out is not None:
         fr.write_json(json_out, report)
         console.print(f"wrote {json_out}", highlight=False, markup=False)
