@@ -787,6 +787,7 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
             protocol: Optional[Path] = typer.Option(None, "--protocol", help="Protocol TOML (defaults: the papers')."),
             setting: Optional[List[str]] = typer.Option(None, "--setting", help="Model setting NAME=VALUE, e.g. edge_length=2.5."),
             model: Optional[Path] = typer.Option(None, "--model", help="A loop's model.json: add its learned effects (strap, fingertip, flexure)."),
+            measured: Optional[Path] = typer.Option(None, "--measured", help="Measured printed-material data (JSON, docs/formats.md): replaces the stand-ins of the materials it names."),
             out: Path = typer.Option(..., "--out", help="Output directory."),
             samples: Optional[int] = typer.Option(None, "--samples", help="Monte Carlo: N virtual builds with scattered inputs and readout noise (resumable in --out)."),
             uncertainty: Optional[Path] = typer.Option(None, "--uncertainty", help="TOML with an [uncertainty] table (default: the documented distributions)."),
@@ -819,6 +820,10 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
         if model is not None or protocol is not None:
             raise ParameterError("--model/--protocol", str(model or protocol),
                                  "none with --samples (the Monte Carlo runs the paper's calibration)")
+        if measured is not None:
+            raise ParameterError("--measured", str(measured), "none with --samples (the Monte "
+                                 "Carlo scatters the library materials; predict without "
+                                 "--samples uses measured ones)")
         spec = load_uncertainty(part, uncertainty if uncertainty is not None else config,
                                 samples=samples)
         executor = _executor(scheduler, workers)
@@ -836,9 +841,15 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
             err_console.print(_plain(("failed:", "yellow"), " ", f"{n} builds: {err}"), highlight=False)
         console.print(f"wrote {out / 'uncertainty.json'}", markup=False, highlight=False)
         return
+    records = None
+    if measured is not None:
+        from designlab.fem.materials import load_measured
+
+        records = load_measured(measured)
     with progress_bar(f"predict {part}: building") as bar:
         prediction = run_predict(part, overrides, protocol_path=protocol, settings=settings,
-                                 model_path=model, progress=lambda s: bar(f"predict {part}: {s}"))
+                                 model_path=model, measured=records,
+                                 progress=lambda s: bar(f"predict {part}: {s}"))
         bar(f"predict {part}: writing")
         files = write_prediction(prediction, out)
     pred = prediction.metrics
@@ -867,6 +878,15 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
         t.add_row("smallest safety factor", f"{crit['safety_factor']:.3g} ({crit['body']}, "
                   f"{crit['material']}, {crit['max_von_mises_MPa']:.3g} MPa von Mises, "
                   f"load case {crit['load_case']})")
+    for m, v in ((pred.get("stress") or {}).get("materials") or {}).items():
+        if v.get("strength_MPa") is None:
+            t.add_row(f"safety factor of {m}", f"not computed ({v.get('source') or 'no documented strength'})")
+    wrap = (pred.get("prestrain") or {}).get("stress") or {}
+    if wrap.get("critical"):
+        w = wrap["critical"]
+        t.add_row("wrap prestress safety factor", f"{w['safety_factor']:.3g} ({w['body']}, "
+                  f"{w['material']}, {w['max_von_mises_MPa']:.3g} MPa at initial strain "
+                  f"{wrap['initial_strain']:.3g})")
     for k, v in prediction.timings_s.items():
         t.add_row(f"time: {k}", f"{v:.2f} s")
     console.print(t)

@@ -271,13 +271,16 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
             protocol_path: str | Path | None = None, protocol: dict[str, Any] | None = None,
             settings: dict[str, Any] | None = None, model_path: str | Path | None = None,
             progress: Callable[[str], None] | None = None,
-            fem_cache: str | Path | None = None) -> Prediction:
+            fem_cache: str | Path | None = None, measured=None) -> Prediction:
     """Run the virtual test of one design: ``name`` is a sensor name (then ``overrides`` are
     its parameters) or a part object (``designlab.Fingertip(h=3, r=9)``; ``overrides`` change
     it further). ``protocol_path``/``protocol``: a protocol TOML / overrides; ``settings``:
     model settings;
     ``model_path``: a loop's model.json whose learned effects correct the virtual test;
-    ``fem_cache``: a folder where FEM stages are kept and reused (sweeps)."""
+    ``fem_cache``: a folder where FEM stages are kept and reused (sweeps);
+    ``measured``: measured printed-material records (a JSON file of
+    :func:`~designlab.fem.materials.load_measured` or its records): the part's materials they
+    name are replaced (:func:`measured_materials`) in the FEM, the readout and the stress."""
     from designlab.fem.cache import FEMCache
 
     from designlab.geometry.parts import make_part
@@ -303,6 +306,9 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
     t_cad += time.perf_counter() - t0
     cache = FEMCache(fem_cache)
     kw = {"cache": cache} if sensor.cached else {}
+    mats, records = measured_materials(part, measured)
+    if mats:
+        kw["materials"] = mats
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         result = sensor.run(part, proto, sett, progress=progress, **kw)
@@ -319,7 +325,10 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
     t0 = time.perf_counter()
     if progress:
         progress("stress")
-    cases, stresses, stress_warn = _stress(sensor, part, proto, sett, result, cache, report)
+    if records:
+        report["measured_materials"] = [dataclasses.asdict(r) for r in records]
+    cases, stresses, stress_warn = _stress(sensor, part, proto, sett, result, cache, report,
+                                           mats or None)
     report["timings_s"] = {"cad": t_cad, **report.get("timings_s", {}),
                            "stress": time.perf_counter() - t0}
     report["timings_s"]["total"] = float(sum(v for v in report["timings_s"].values()
@@ -328,10 +337,34 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
                       [str(w.message) for w in caught] + stress_warn, cases, stresses)
 
 
-def _stress(sensor, part, protocol, settings, result, cache, report):
+def measured_materials(part, measured) -> tuple[dict[str, Any], list]:
+    """({body: material with the measured properties}, records) for the part's meshed bodies
+    whose material a record of ``measured`` names (a JSON path or records; None: none). A
+    record naming a material the part does not use is a one-line error."""
+    from designlab.fem.materials import Material, get_material, load_measured, with_measured
+
+    if measured is None:
+        return {}, []
+    records = load_measured(measured) if isinstance(measured, (str, Path)) else list(measured)
+    built = part.build()
+    bodies = {}
+    for name in part.mesh_bodies():
+        spec = built[name].material
+        bodies[name] = spec if isinstance(spec, Material) else get_material(spec)
+    used = sorted({m.name for m in bodies.values()})
+    for r in records:
+        if r.material not in used:
+            raise ParameterError("measured", r.material, "a material of this part: "
+                                 + ", ".join(used))
+    mats = {b: with_measured(m, records) for b, m in bodies.items()
+            if any(r.material == m.name for r in records)}
+    return mats, records
+
+
+def _stress(sensor, part, protocol, settings, result, cache, report, materials=None):
     """The load cases of the virtual test (``Sensor.load_cases``, else the result's one
     displacement), their von Mises stress and the ``stress`` section of the report (None when
-    the prediction has no mesh)."""
+    the prediction has no mesh); ``materials``: the run's body overrides (measured)."""
     from designlab.fem.stress import case_stresses, stress_report, stress_warnings
     from designlab.sensors.sensor import LoadCase
 
@@ -352,8 +385,9 @@ def _stress(sensor, part, protocol, settings, result, cache, report):
     if not cases:
         report["stress"] = None
         return [], [], []
-    stresses = case_stresses(mesh, {c.name: (c.description, c.displacement) for c in cases})
-    report["stress"] = stress_report(mesh, stresses)
+    stresses = case_stresses(mesh, {c.name: (c.description, c.displacement) for c in cases},
+                             materials)
+    report["stress"] = stress_report(mesh, stresses, materials)
     return cases, stresses, stress_warnings(report["stress"])
 
 

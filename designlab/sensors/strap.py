@@ -46,6 +46,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -57,6 +58,7 @@ from designlab.calibration.calibration_matrix import (condition_number, fit_cali
 from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
 from designlab.atomic import atomic_savefig
 from designlab.sensors.protocols import StrapLoadTest
+from designlab.sensors.montecarlo_strap import MONTE_CARLO
 from designlab.sensors.sensor import Sensor, linear_sensor_model
 from designlab.errors import ParameterError
 from designlab.fem.settings import FEMSettings
@@ -303,6 +305,9 @@ class StrapPrediction:
     report: dict[str, Any]
     mesh: Any = None            # the worn mesh and its displacement (n_points, 3) mm at the
     displacement: Any = None    # peak normal force, for the VTU of the deformed sensor
+    #: (n_points, 3, 2) long-time displacement per newton of F_n and F_x (the stress check's
+    #: load cases, :func:`load_cases`); None from a FEM stage stored without it
+    unit_displacement: Any = None
 
 
 #: settings that act after the FEM: the readout (electrical, divider, ADC), the staircase read
@@ -350,7 +355,8 @@ def fem_key(part, protocol: StrapLoadTest, settings: StrapModelSettings, materia
     skip = {"mesh_convergence", "coarse_factor", *READOUT_SETTINGS}
     sett = {k: v for k, v in as_dict(settings).items() if k not in skip}
     viscous = _viscous(part, materials)
-    return key("strap-gauge-strain", params=params, settings=sett,
+    # stage 2: the stage also holds the long-time unit displacements (U_long) of the stress
+    return key("strap-gauge-strain", stage=2, params=params, settings=sett,
                materials=repr(sorted(MATERIALS.items())),
                overrides=repr(sorted((materials or {}).items())),
                protocol=as_dict(protocol) if viscous else None)
@@ -365,7 +371,9 @@ def solve_fem(part, protocol: StrapLoadTest, settings: StrapModelSettings, mater
     ``gauge_quadratic`` (Ch1, Ch2), and either the gauge strain history ``strain`` (n_t, 2) and
     the displacement ``u_peak`` at the peak normal force (a relaxing material: the protocol's
     history is marched) or the strain per newton ``unit`` (channel, case) and the displacement
-    per newton of F_n ``U_n`` (elastic: one static solve of the unit cases); ``timings`` (mesh,
+    per newton of F_n ``U_n`` (elastic: one static solve of the unit cases); ``U_long``
+    (n_points, 3, 2): the long-time displacement per newton of F_n and F_x (relaxed moduli: one
+    more static solve when a material relaxes), the stress check's load cases; ``timings`` (mesh,
     assemble, solve s), ``mesher``, ``mesh_attempts``, ``solver`` (the one that ran)."""
     from designlab.fem import solve_static
     from designlab.fem.viscoelastic import History, solve_history
@@ -404,6 +412,7 @@ def solve_fem(part, protocol: StrapLoadTest, settings: StrapModelSettings, mater
         finally:
             timings["assemble"] += time.perf_counter() - t0
     t0 = time.perf_counter()
+    flat = mesh
     mesh = model.mesh
     model.build()
     timings["assemble"] += time.perf_counter() - t0
@@ -424,7 +433,19 @@ def solve_fem(part, protocol: StrapLoadTest, settings: StrapModelSettings, mater
         U = res.U[:, [res.system.case_index(c) for c in CASES]]
         out["unit"] = np.array([gauges[c].strain(U) for c in CHANNELS])   # (channel, case)
         out["U_n"] = res.displacement(CASES[0])
+        out["U_long"] = np.stack([res.displacement(c) for c in CASES], axis=-1)
         solver = res.solver.kind
+    if viscous:
+        # the stress check's load cases: the long-time displacement per newton of each case
+        # (relaxed moduli, the springs of the finger unchanged; fem.stress's convention), one
+        # more static solve; superposed over the protocol's loads (exact for the linear model)
+        say("long-time unit loads (stress)")
+        from designlab.fem.stress import relaxed
+
+        rel = {mesh.region_names[r]: relaxed(m) for r, m in model.region_materials.items()}
+        long_model, _, _ = build_model(part, flat, settings, rel)
+        res_long = solve_static(long_model, solver=settings.solver)
+        out["U_long"] = np.stack([res_long.displacement(c) for c in CASES], axis=-1)
     timings["solve"] = time.perf_counter() - t0
     names = [mesh.region_names[k] for k in sorted(mesh.region_names)]
     return {**out, "points": mesh.points, "cells": mesh.cells, "region": mesh.region,
@@ -578,7 +599,121 @@ def run(part=None, protocol: StrapLoadTest | None = None,
         report["notes"].append("materials have no Prony series: elastic response, hysteresis "
                                "is 0 by construction (not a measurement of the printed part)")
     report["notes"].extend(stand)
-    return StrapPrediction(t, fn, fx, strain, voltage, dV, report, mesh, u_peak)
+    if pre is not None:
+        pre["stress"] = wrap_stress(region_materials, mesh, pre["initial_strain"])
+        for w in wrap_stress_warnings(pre["stress"]):
+            warnings.warn(w, stacklevel=2)
+    U_long = np.array(fem["U_long"], float) if "U_long" in fem else None
+    return StrapPrediction(t, fn, fx, strain, voltage, dV, report, mesh, u_peak, U_long)
+
+
+# ------------------------------------------------------------------------------------ stress
+
+def load_envelope(fn: np.ndarray, fx: np.ndarray) -> list[tuple[float, float, int]]:
+    """The protocol's load states whose stresses bound every other one: the vertices of the
+    convex hull of its (F_n, F_x) path without the unloaded origin, as (F_n, F_x, first sample
+    index). Von Mises stress is a convex function of the loads of a linear model (a seminorm of
+    a linear map), so its largest value over the whole history is reached at one of them:
+    exact, not a sample. A path on one line (no shear) gives its end points."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    P = np.column_stack([fn, fx])
+    pts, first = np.unique(np.round(P, 12), axis=0, return_index=True)
+    try:
+        idx = ConvexHull(pts).vertices
+    except (QhullError, ValueError):          # collinear (or too few) states: the extremes
+        d = pts[np.argmax(np.abs(pts).sum(1))]
+        proj = pts @ (d / max(np.linalg.norm(d), 1e-300))
+        idx = np.unique([int(np.argmin(proj)), int(np.argmax(proj))])
+    out = [(float(pts[i, 0]) + 0.0, float(pts[i, 1]) + 0.0, int(first[i])) for i in idx
+           if np.abs(pts[i]).max() > 0]
+    return sorted(out, key=lambda c: c[2])
+
+
+def load_cases(part, protocol: StrapLoadTest, settings: StrapModelSettings, result, cache=None):
+    """Stress load cases (``Sensor.load_cases``): every vertex of the protocol's load envelope
+    (:func:`load_envelope`) as the long-time displacement ``F_n U_n + F_x U_x`` (exact
+    superposition of the unit cases of the FEM stage); written to the VTU: the largest F_n, the
+    largest and the smallest F_x. A result without the unit displacements (an older FEM stage)
+    gives its one displacement at the peak normal force."""
+    from designlab.sensors.sensor import LoadCase
+
+    if getattr(result, "mesh", None) is None:
+        return []
+    frame = pad_frame(part, settings)
+    t, fn, fx = protocol.time_history()
+    n_stair = (2 * protocol.n_steps + 1) * max(1, int(round(protocol.step_hold_s / protocol.dt_s)))
+    U = result.unit_displacement
+    if U is None:
+        if result.displacement is None:
+            return []
+        k = int(np.argmax(fn))
+        return [LoadCase("peak F_n", f"F_n {fn[k]:.3g} N, F_x {fx[k]:+.3g} N at t = {t[k]:.3g} s "
+                         "(displacement of the history at the peak normal force)",
+                         result.displacement, frame["centre"], frame["n"], float(fn[k]))]
+    env = load_envelope(fn, fx)
+    if not env:
+        return []
+    top = max(range(len(env)), key=lambda i: (env[i][0], env[i][1]))
+    show = {top, max(range(len(env)), key=lambda i: (env[i][1], env[i][0])),
+            min(range(len(env)), key=lambda i: (env[i][1], -env[i][0]))}
+    out = []
+    for i, (Fn, Fx, k) in enumerate(env):
+        force = Fn * frame["n"] + Fx * frame["t"]
+        size = float(np.linalg.norm(force))
+        where = "staircase" if k < n_stair else "grasp cycle"
+        out.append(LoadCase(f"F_n {Fn:.3g} N, F_x {Fx:+.3g} N",
+                            f"pad load F_n {Fn:.4g} N (outward normal) and F_x {Fx:+.4g} N "
+                            f"(along the strap) at t = {t[k]:.4g} s of the {where}; long-time "
+                            "displacement", np.asarray(U) @ np.array([Fn, Fx]), frame["centre"],
+                            force / size, size, vtu=i in show))
+    # the largest F_n first: the deformed render shows it
+    return [out[top]] + out[:top] + out[top + 1:]
+
+
+def wrap_stress(region_materials, mesh, eps0: float) -> dict[str, Any]:
+    """Stress of the wrap's initial strain ``eps0`` in closed form: a uniaxial membrane stress
+    along the band, the same strain in every body, the incompressible neo-Hookean stand-in law
+    of :func:`designlab.sensors.strap_fit.neo_hooke` (``E eps0`` at small strain) with each
+    material's instantaneous modulus (when the strap is put on; it relaxes to the long-time
+    value while worn). Uniaxial: von Mises = |sigma|. The FEM carries no prestress (linear
+    increments on the worn state, module docstring): under a load the von Mises stress is at
+    most this plus the load case's (von Mises is a seminorm: triangle inequality)."""
+    from designlab.fem.stress import WARN_SAFETY_FACTOR, relaxed
+    from designlab.sensors.strap_fit import neo_hooke
+
+    e = max(float(eps0), 0.0)
+    factor = neo_hooke(e)["stress_over_linear"]
+    bodies, worst = {}, None
+    for rid, m in sorted(region_materials.items()):
+        body = mesh.region_names.get(rid, str(rid))
+        sigma = float(m.E * e * factor)
+        sf = (None if m.strength is None else (m.strength / sigma if sigma > 0 else float("inf")))
+        bodies[body] = {"material": m.name, "max_von_mises_MPa": sigma,
+                        "long_time_MPa": float(relaxed(m).E * e * factor),
+                        "linear_E_eps0_MPa": float(m.E * e),
+                        "strength_MPa": m.strength, "safety_factor": sf}
+        if sf is not None and (worst is None or sf < worst["safety_factor"]):
+            worst = {"body": body, **bodies[body]}
+    return {"initial_strain": float(eps0),
+            "method": "uniaxial membrane stress of the wrap's initial strain (closed form, "
+                      "neo-Hookean stand-in, instantaneous modulus); under load the von Mises "
+                      "stress is at most this plus the load case's",
+            "bodies": bodies, "min_safety_factor": None if worst is None else
+            worst["safety_factor"], "critical": worst, "warn_below": WARN_SAFETY_FACTOR}
+
+
+def wrap_stress_warnings(ws: dict[str, Any]) -> list[str]:
+    """One line per body whose wrap safety factor is below the warning level."""
+    out = []
+    for body, e in ws["bodies"].items():
+        sf = e["safety_factor"]
+        if sf is not None and sf < ws["warn_below"]:
+            out.append(f"safety factor {sf:.2g} < {ws['warn_below']:g} in {body} "
+                       f"({e['material']}) from the wrap alone (initial strain "
+                       f"{ws['initial_strain']:.3g}): {e['max_von_mises_MPa']:.3g} MPa vs "
+                       f"strength {e['strength_MPa']:.3g} MPa")
+    return out
 
 
 # ------------------------------------------------------------------------------------ metrics
@@ -811,4 +946,5 @@ def finish(report: dict[str, Any], prediction: StrapPrediction, part, protocol) 
 SENSOR = Sensor(
     name="strap", paper="seed 000 (TPU arch strap with two printed strain-gauge traces)",
     protocol=StrapLoadTest, settings=StrapModelSettings, run=run, plots=plots, gains=gains,
-    apply_model=apply_model, finish=finish, cached=True)
+    apply_model=apply_model, finish=finish, cached=True, load_cases=load_cases,
+    uncertainty=MONTE_CARLO)
