@@ -128,6 +128,7 @@ def _mat(name):
     return get_material(name)
 
 
+@pytest.mark.slow
 def test_the_vtu_has_a_von_mises_field_per_load_case_and_the_region_names(wrapped, tmp_path):
     import pyvista as pv
 
@@ -146,6 +147,7 @@ def test_the_vtu_has_a_von_mises_field_per_load_case_and_the_region_names(wrappe
     assert list(grid.field_data["region_names"]) == ["strap", "trace_left", "trace_right"]
 
 
+@pytest.mark.slow
 def test_measured_moduli_change_the_prediction_as_the_scaling_law_says(tmp_path):
     """Both TPUs measured twice as stiff and the finger's support doubled: the whole model is
     twice as stiff, so every gauge strain halves exactly, the stress (load control) stays, and

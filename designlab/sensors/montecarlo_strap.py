@@ -138,13 +138,13 @@ def build(ctx: dict[str, Any], values: dict[str, Any], seed: int) -> dict[str, A
     part, sett, proto = ctx["part"], ctx["settings"], ctx["protocol"]
     s_E = float(values.get("tpu_modulus_scale", 1.0))
     unit = unit_at(ctx, float(values.get("tissue_stiffness", 0.02)) / s_E) / s_E
-    # resistance: rho_eff scale and the printed width (legs, turns, leads and pads alike)
-    printed = dataclasses.replace(part, trace_width=part.trace_width
-                                  * float(values.get("trace_width_scale", 1.0)))
-    R_nom = el.gauge_resistance(printed, 0.0)["total"]   # rho_eff without contacts
-    contacts = 2 * sett.contact_ohm
-    rho = el.effective_resistivity(sett.contact_ohm) / el.effective_resistivity(0.0)
-    R0 = R_nom * rho * float(values.get("resistivity_scale", 1.0)) + contacts
+    # resistance: the rho_eff scale, and the printed width over the designed one on the
+    # meander's lines (legs, turns, leads: squares = length / width); the 2 x 3 mm pads are
+    # not printed at the trace width and keep their squares
+    Rg = el.gauge_resistance(part, sett.contact_ohm)
+    lines = sum(v for k, v in Rg.items() if k not in ("pads", "contacts", "total"))
+    R0 = ((lines / float(values.get("trace_width_scale", 1.0)) + Rg.get("pads", 0.0))
+          * float(values.get("resistivity_scale", 1.0)) + Rg["contacts"])
     g = float(values.get("gauge_factor_scale", 1.0))
     mat = ctx["trace_material"]
     mat = dataclasses.replace(mat, gauge_factor=mat.gauge_factor * g,
@@ -165,7 +165,7 @@ def build(ctx: dict[str, Any], values: dict[str, Any], seed: int) -> dict[str, A
     M = _fit_transfer(F, dV)
     sd = np.column_stack([dV[:, 0] + dV[:, 1], dV[:, 0] - dV[:, 1]])
     M_sd = _fit_transfer(F, sd)
-    rep = el.electrical_report(printed, mat, float(M_sd[0, 0]), float(M_sd[1, 1]),
+    rep = el.electrical_report(part, mat, float(M_sd[0, 0]), float(M_sd[1, 1]),
                                contact_ohm=sett.contact_ohm, R_fixed=sett.divider_ohm,
                                V_s=sett.supply_V, adc_bits=sett.adc_bits,
                                adc_full_scale_V=sett.supply_V, bandwidth_hz=sett.bandwidth_hz,
