@@ -168,9 +168,11 @@ def test_monte_carlo_resumes_and_summarises(tmp_path):
 
 
 def test_sobol_indices_with_salib():
-    spec = parse_uncertainty("flexure", {"samples": 8, "sensitivity": "sobol"})
+    # 64 base samples: the Sobol estimate of a linear y is within a few % of its ST = 1 with
+    # any number of sampled inputs (8 left it at 0.55 once the wire diameter was sampled too)
+    spec = parse_uncertainty("flexure", {"samples": 64, "sensitivity": "sobol"})
     cols, V = draw(spec)
-    assert len(V) == 8 * (2 * len(cols) + 2)
+    assert len(V) == 64 * (2 * len(cols) + 2)
     rows = [{"index": i, "status": "ok", "metrics": {"y": float(3 * v[0] + 0.01 * v[1])}}
             for i, v in enumerate(V)]
     s = summarize(spec, cols, V, rows)
