@@ -4,6 +4,8 @@ Table II), print their bodies, closed-form checks and build times, and save colo
     /work/venv/bin/python examples/parts_gallery.py [OUT_DIR]   # default: parts_gallery/
 
 Units mm, mm^3, s. Each part is built once in this process (the first build is what is timed).
+:func:`render_parts` writes a PNG of each part (``python scripts/gallery.py`` puts them in
+``docs/img/`` for docs/gallery.md and docs/parts.md).
 """
 
 from __future__ import annotations
@@ -19,9 +21,27 @@ from designlab.geometry.solids import volume
 from designlab.geometry.strap import ArchStrap
 
 
+def gallery_parts() -> dict:
+    """The parts of the gallery: the three defaults and the tested fingertip of Table II."""
+    return {"strap": ArchStrap(), "fingertip": CantileverFingertip(),
+            "fingertip_tested": CantileverFingertip.tested(), "flexure": SpringFlexure()}
+
+
+def render_parts(out: Path, size: tuple[int, int] = (640, 480)) -> list[Path]:
+    """A PNG per gallery part, ``out/part_<name>.png`` (bodies coloured, bought parts
+    see-through); returns the paths."""
+    from designlab.geometry.render import render_bodies
+
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name, part in gallery_parts().items():
+        paths.append(out / f"part_{name}.png")
+        render_bodies(part.build(), paths[-1], size=size, title=type(part).__name__)
+    return paths
+
+
 def main(out: Path) -> None:
-    parts = {"strap": ArchStrap(), "fingertip": CantileverFingertip(),
-             "fingertip_tested": CantileverFingertip.tested(), "flexure": SpringFlexure()}
+    parts = gallery_parts()
     print(f"{'part':18s} {'body':12s} {'material':10s} {'printed':7s} {'volume mm^3':>12s}")
     for name, part in parts.items():
         t0 = time.perf_counter()
