@@ -111,6 +111,61 @@ def _value_text(row: dict, name: str) -> str:
     return f"{metric_name_unit(name)[0]} = {v:.4g}{bar}" + (f" {unit}" if unit else "")
 
 
+def band_of(row: dict, name: str) -> tuple[float, float] | None:
+    """The Monte Carlo 5-95 % band of an objective in a robust sweep's row: of ``M`` for an
+    objective ``mc.M.<stat>`` (a quantile or the mean of M), else of the nominal metric's own
+    Monte Carlo columns ``mc.<name>.p5`` / ``.p95``; None when the row has none."""
+    from designlab.optimize.robust import STATS
+
+    head, _, stat = name.rpartition(".")
+    base = head if name.startswith("mc.") and stat in STATS else f"mc.{name}"
+    lo, hi = row.get(f"{base}.p5"), row.get(f"{base}.p95")
+    ok = all(isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+             for v in (lo, hi))
+    return (float(lo), float(hi)) if ok else None
+
+
+def _band_text(band: tuple[float, float] | None) -> str:
+    return "" if band is None else f"{band[0]:.4g} .. {band[1]:.4g}"
+
+
+def mc_metrics_of(row: dict) -> list[str]:
+    """The Monte Carlo metrics ``M`` a robust sweep's row carries (columns ``mc.M.<stat>``)."""
+    from designlab.optimize.robust import STATS
+
+    names = []
+    for k in row:
+        if k.startswith("mc.") and k.rpartition(".")[2] in STATS:
+            m = k[3:].rpartition(".")[0]
+            if m not in names:
+                names.append(m)
+    return names
+
+
+def scatter_of_row(row: dict, samples: int | None = None, spec: dict | None = None
+                   ) -> dict[str, Any] | None:
+    """The "Scatter (Monte Carlo)" section of one design of a robust sweep: per Monte Carlo
+    metric its nominal value (the row's nominal column of the same name, where there is one),
+    mean, 5 % and 95 %; the failed builds (``mc.failed``); the drivers are not kept in a row."""
+    from designlab.sensors.report_html import scatter_section
+
+    names = mc_metrics_of(row)
+    if not names:
+        return None
+    summary = {"metrics": {m: {s: row.get(f"mc.{m}.{s}") for s in ("mean", "p5", "p95")}
+                           for m in names},
+               "failed": int(row.get("mc.failed") or 0), "builds": samples,
+               "ok": None if samples is None else samples - int(row.get("mc.failed") or 0),
+               "spec": spec or {}}
+    nominal = {m: row[m] for m in names
+               if isinstance(row.get(m), (int, float)) and not isinstance(row.get(m), bool)}
+    sec = scatter_section(summary, nominal, note=(
+        f"design {row['key'][:8]}: nominal is the design's prediction (blank where it has no "
+        "metric of that name); the drivers are not kept in a sweep row: designlab predict "
+        "PART --samples N on the design ranks them"))
+    return sec
+
+
 def choice_text(method: str, rows: list[dict], config: SweepConfig, pareto_keys: list[str],
                 chosen: dict) -> str:
     """Why the design was chosen, in words: the objective(s) with readable names, units and
@@ -175,11 +230,14 @@ def chosen_renders(chosen_dir: Path) -> list[tuple[Path, str]]:
 def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: list[str],
                  best_key: str | None, title: str = "designlab sweep",
                  tie_keys: list[str] = (), *, choice: str | None = None,
-                 chosen_dir: Path | None = None, kind: str = "sweep") -> dict[str, Path]:
+                 chosen_dir: Path | None = None, kind: str = "sweep",
+                 uncertainty=None) -> dict[str, Path]:
     """Write ``pareto.png``, ``sensitivity.png`` and ``report.html`` (the shared template of
     :mod:`designlab.sensors.report_html`, images embedded). ``choice``: why the design was
     chosen (optimize); ``chosen_dir``: the exported chosen design with its ``prediction/``
-    (renders, plots, stress, paper comparison, files)."""
+    (renders, plots, stress, paper comparison, files). A robust run's rows (``mc.*``
+    columns): each objective's 5-95 % band beside it and the chosen design's "Scatter (Monte
+    Carlo)" section; ``uncertainty`` (its spec) gives the builds per design."""
     from designlab.sensors.labels import fmt_value, metric_label, metric_name_unit, param_label
     from designlab.sensors.registry import SENSORS
     from designlab.sensors.report_html import (file_links, param_table, png_uri,
@@ -216,9 +274,11 @@ def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: 
             spec = config.objectives[n]
             name, unit = metric_name_unit(n)
             v, e = best.get(n), error_bar(best, n, config)
+            band = band_of(best, n)
             res.append({"name": name, "value": fmt_value(v) if not isinstance(v, float)
                         else f"{v:.4g}", "bar": "" if not np.isfinite(e) else f"{e:.2g}",
-                        "unit": unit, "note": f"objective: {spec}"})
+                        "unit": unit, "note": f"objective: {spec}" + (
+                            f"; Monte Carlo 5-95 %: {_band_text(band)}" if band else "")})
         for d in dims:
             v = best.get(f"param.{d}")
             res.append({"name": param_label(part_cls, d), "value": fmt_value(v), "bar": "",
@@ -226,9 +286,11 @@ def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: 
         ctx["results"], ctx["results_title"] = res, "Chosen design: objectives"
     if tie_keys:
         ctx["ties"] = [k[:8] for k in tie_keys]
-    # designs table
+    # designs table (a robust run: each objective's Monte Carlo band beside it)
+    banded = {n for n in objs if any(r.get("status") == "ok" and band_of(r, n) for r in rows)}
     cols = (["design"] + [param_label(part_cls, d).split(":")[0] for d in dims]
-            + [c for n in objs for c in (metric_label(n), "±")]
+            + [c for n in objs for c in (metric_label(n), "±")
+               + (("5-95 %",) if n in banded else ())]
             + ["feasible", "status", "time (s)", "error"])
     trows = []
     for r in rows:
@@ -239,6 +301,8 @@ def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: 
             v, e = r.get(n), error_bar(r, n, config)
             cells += [f"{v:.4g}" if isinstance(v, float) else fmt_value(v),
                       f"{e:.2g}" if np.isfinite(e) else ""]
+            if n in banded:
+                cells.append(_band_text(band_of(r, n)))
         cells += ["yes" if r.get("feasible") else "no", r.get("status", ""),
                   f"{r.get('elapsed_s', float('nan')):.1f}", r.get("error") or ""]
         trows.append({"cls": cls, "cells": cells})
@@ -248,7 +312,19 @@ def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: 
                                 "pink: Pareto set. ±: each design's discretisation error bar "
                                 "(metric on the chosen mesh minus the same on one coarser "
                                 "mesh). Design: the first 8 characters of its key in "
-                                "results.parquet."}
+                                "results.parquet."
+                                + (" 5-95 %: the objective's Monte Carlo band over the "
+                                   "design's virtual builds (robust run)." if banded else "")}
+    if best is not None:
+        samples, spec = None, None
+        if uncertainty is not None:
+            import dataclasses
+
+            from designlab.sensors.uncertainty import draw
+
+            spec_p = dataclasses.replace(uncertainty, sensor=config.part)
+            samples, spec = len(draw(spec_p)[1]), spec_p.to_json()      # Sobol: N (2d + 2)
+        ctx["scatter"] = scatter_of_row(best, samples, spec)
     from designlab.geometry.api import field_rows
 
     meta = {r["name"]: r for r in field_rows(part_cls)} if part_cls is not None else {}
