@@ -10,6 +10,12 @@ back to ``edge_length`` over a shell of ``(edge_length - e) / grading``), combin
 Same input, same mesh, bit for bit: one thread, a fixed random seed, the 2-D Frontal-Delaunay
 and 3-D Delaunay algorithms, no configuration files read. Linear tetrahedra come out; the
 caller makes TET10 with straight mid-edge nodes.
+
+Named faces: a part can name B-rep faces of its bodies (``{set name: [(body index, face), ...]}``,
+the faces as build123d/OCP shapes). Each becomes a physical surface group; after ``fragment``
+(which may split a face where bodies touch) a gmsh surface belongs to a named face when a point
+inside it (the projection of the centroid of its largest triangle onto the surface) lies on that
+face (OpenCascade distance below ``NAMED_TOL``). The group's triangles are returned per name.
 """
 
 from __future__ import annotations
@@ -17,7 +23,7 @@ from __future__ import annotations
 import os
 import tempfile
 import threading
-from typing import Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -32,6 +38,9 @@ DETERMINISTIC = {
     "Mesh.Optimize": 1, "Mesh.OptimizeNetgen": 0, "Mesh.ElementOrder": 1,
 }
 
+
+#: a gmsh surface lies on a named B-rep face when a point inside it is this close (mm)
+NAMED_TOL = 1e-6
 
 #: gmsh is one global state per process (its model, options, initialisation): threads that mesh
 #: at the same time (Dask's threaded workers) take turns
@@ -48,18 +57,92 @@ def available() -> bool:
 
 def tetrahedralize(shapes: Sequence, names: Sequence[str], edge_length: float,
                    refinement: Sequence[tuple] = (), grading: float = 0.5,
-                   min_edge: float | None = None, curvature: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                   min_edge: float | None = None, curvature: int = 0,
+                   named_faces: Mapping[str, Sequence[tuple[int, Any]]] | None = None):
     """(points (n, 3) mm, cells (m, 4), region (m,) = index of the body) of the solids
     ``shapes`` (build123d/OCP), conforming where they touch. ``curvature``: elements per
     2 pi of a curved face's radius (0 = size from ``edge_length`` alone). Overlapping bodies, a body that
     gmsh cannot import or mesh -> :class:`MeshingError` naming it. One call at a time per
-    process (:data:`_LOCK`: gmsh's state is global)."""
+    process (:data:`_LOCK`: gmsh's state is global).
+
+    With ``named_faces`` (``{name: [(body index, B-rep face), ...]}``) a fourth item is
+    returned: ``{name: (k, 3) triangles}`` (point indices, gmsh's winding) of the gmsh surfaces
+    lying on those faces (see the module docstring); a name none of whose faces is found ->
+    :class:`MeshingError` naming it."""
     with _LOCK:
         return _tetrahedralize(shapes, names, edge_length, refinement, grading, min_edge,
-                               curvature)
+                               curvature, named_faces)
 
 
-def _tetrahedralize(shapes, names, edge_length, refinement, grading, min_edge, curvature):
+def _face_points(tags: Sequence[int], node_tags: np.ndarray, points: np.ndarray
+                 ) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
+    """Per gmsh surface: its triangles (point indices) and a point inside it (the centroid of
+    its largest triangle projected onto the surface)."""
+    import gmsh
+
+    tris, inside = {}, {}
+    for s in tags:
+        types, _, enodes = gmsh.model.mesh.getElements(2, s)
+        t = [np.asarray(n, np.int64).reshape(-1, 3) for ty, n in zip(types, enodes) if ty == 2]
+        if not t:
+            continue
+        tri = np.searchsorted(node_tags, np.vstack(t))
+        p = points[tri]
+        area = np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+        c = p[int(np.argmax(area))].mean(axis=0)
+        q, _ = gmsh.model.getClosestPoint(2, s, c.tolist())
+        tris[s], inside[s] = tri, np.asarray(q, float)
+    return tris, inside
+
+
+def _named_triangles(named_faces, volumes_of, node_tags, points, diag: float
+                     ) -> dict[str, np.ndarray]:
+    """``{name: triangles}`` of the gmsh surfaces that lie on each name's B-rep faces."""
+    import gmsh
+    from OCP.Bnd import Bnd_Box
+    from OCP.BRepBndLib import BRepBndLib
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
+    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+    from OCP.gp import gp_Pnt
+
+    from designlab.geometry.tessellate import topods
+
+    # the boundary surfaces of each body's volumes (a named face is one of its own body's)
+    surf_of: dict[int, list[int]] = {}
+    for k, vols in enumerate(volumes_of):
+        faces = gmsh.model.getBoundary([(3, v) for v in vols], combined=False, oriented=False)
+        surf_of[k] = sorted({abs(t) for d, t in faces if d == 2})
+    tris, inside = _face_points(sorted({s for v in surf_of.values() for s in v}), node_tags,
+                                points)
+    tol = NAMED_TOL * max(1.0, diag)
+    out = {}
+    for name, items in named_faces.items():
+        found: list[int] = []
+        for k, face in items:
+            f = topods(face)
+            box = Bnd_Box()
+            BRepBndLib.Add_s(f, box)
+            box.Enlarge(10 * tol)
+            for s in surf_of.get(int(k), []):
+                if s not in inside or s in found:
+                    continue
+                q = gp_Pnt(*inside[s])
+                if box.IsOut(q):
+                    continue
+                dist = BRepExtrema_DistShapeShape(BRepBuilderAPI_MakeVertex(q).Vertex(), f)
+                if dist.IsDone() and dist.Value() <= tol:
+                    found.append(s)
+        if not found:
+            raise MeshingError(f"named face set {name!r}: none of its {len(items)} B-rep faces "
+                               "is a surface of the meshed bodies")
+        found.sort()
+        gmsh.model.addPhysicalGroup(2, found, name=name)
+        out[name] = np.vstack([tris[s] for s in found])
+    return out
+
+
+def _tetrahedralize(shapes, names, edge_length, refinement, grading, min_edge, curvature,
+                    named_faces=None):
     import gmsh
     from build123d import export_brep
 
@@ -147,7 +230,11 @@ def _tetrahedralize(shapes, names, edge_length, refinement, grading, min_edge, c
                     region.append(np.full(len(c), k, np.int64))
         if not cells or not sum(len(c) for c in cells):
             raise MeshingError(f"gmsh made no tetrahedra for bodies {', '.join(names)}")
-        return points, np.vstack(cells), np.concatenate(region)
+        if named_faces is None:
+            return points, np.vstack(cells), np.concatenate(region)
+        diag = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+        named = _named_triangles(named_faces, volumes_of, node_tags, points, diag)
+        return points, np.vstack(cells), np.concatenate(region), named
     finally:
         if own:
             gmsh.finalize()

@@ -2,7 +2,11 @@
 
 Two meshers. ``gmsh`` (the default, :mod:`designlab.mesh.brep`) meshes the bodies' exact B-rep:
 deterministic (the same input gives the same mesh bit for bit) and fast; it is tried first with
-the size field alone, then with curvature-based sizing, then finer. ``tetwild`` (fTetWild via
+the size field alone, then with curvature-based sizing, then finer. Facet sets: a set the part
+names by B-rep faces (``named_faces``; a part's optional ``named_faces(bodies)`` method) is, on
+the gmsh path, the boundary triangles of the gmsh surfaces on those faces (a physical surface
+group); every other set, and every set of an fTetWild mesh, comes from the part's facet
+predicates (``facet_sets``). ``MeshResult.named_sets`` lists the sets taken from B-rep faces. ``tetwild`` (fTetWild via
 pytetwild) meshes triangle soups (an STL from elsewhere, a scan) and is the fallback when gmsh
 fails on a part; ``MeshResult.mesher`` says which one made the mesh.
 
@@ -66,6 +70,8 @@ class MeshResult:
     seconds: float = 0.0
     #: "gmsh" (from the B-rep) or "tetwild" (fTetWild on the tessellation)
     mesher: str = "gmsh"
+    #: facet sets taken from named B-rep faces (the others come from the facet predicates)
+    named_sets: tuple[str, ...] = ()
 
     def region_volumes(self) -> dict[str, float]:
         """Mesh volume of each region, mm^3."""
@@ -92,6 +98,7 @@ class MeshResult:
                                    100.0 * (got[name] / self.body_volumes[name] - 1.0)}
                         for rid, name in m.region_names.items()},
             "facet_sets": {k: int(len(v)) for k, v in m.facet_sets.items()},
+            "facet_sets_from_brep_faces": list(self.named_sets),
             "quality": mesh_quality(m).as_dict(),
         }
 
@@ -360,10 +367,15 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
                          tessellation_tolerance: float | None = None,
                          angular_tolerance: float = 0.5, volume_rtol: float = 0.05,
                          interfaces: bool = True, threads: int = 1, isolate: bool = True,
-                         target_cells: int = TARGET_CELLS, mesher: str = "auto") -> MeshResult:
+                         target_cells: int = TARGET_CELLS, mesher: str = "auto",
+                         named_faces: Mapping[str, Sequence[tuple[str, Any]]] | None = None
+                         ) -> MeshResult:
     """Mesh bodies into one conforming TET4/TET10 mesh; see the module doc for the method.
 
     mesher:      ``auto`` (gmsh from the B-rep, fTetWild if gmsh fails), ``gmsh`` or ``tetwild``
+    named_faces: ``{set name: [(body name, B-rep face), ...]}``: on the gmsh path these sets are
+                 the boundary triangles on those faces, replacing a predicate of the same name
+                 in ``facet_sets`` (which stays the fallback, e.g. for fTetWild)
 
     edge_length: ideal edge length, mm (default: the smaller of 1.5 x the host's thickness
                  ``2 V / A`` and the size for ``target_cells``; scaled by the ``quality`` preset)
@@ -408,11 +420,16 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
         edge_length = factor * min(1.5 * t_body[host], h_vol)
     names = [b.name for b in items]
     log: list[str] = []
+    named_in = _named_faces_by_index(named_faces, names)
 
-    def finish(points, cells, region, h, e, se, which):
+    def finish(points, cells, region, h, e, se, which, named=None):
         region_names = {k: n for k, n in enumerate(names)}
         mesh = TetMesh(points, cells, region, region_names, {b.name: b.material for b in items})
-        sets = select_facets(points, mesh.boundary_facets(), facet_sets or {})
+        boundary = mesh.boundary_facets()
+        from_faces = boundary_sets(boundary, named or {})
+        sets = select_facets(points, boundary, {k: v for k, v in (facet_sets or {}).items()
+                                                if k not in from_faces})
+        sets.update(from_faces)
         if interfaces and len(items) > 1:
             for name, tri in interface_facets(cells, region, region_names).items():
                 sets.setdefault(name, tri)
@@ -420,7 +437,7 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
         if order == 2:
             mesh = mesh.quadratic()
         return MeshResult(mesh, h, e, se, {n: float(v) for n, v in zip(names, volumes)}, log,
-                          time.perf_counter() - t0, which)
+                          time.perf_counter() - t0, which, tuple(sorted(from_faces)))
 
     def volume_error(points, cells, region, what) -> bool:
         p = points[cells]
@@ -441,9 +458,15 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
         for h, curvature in ((float(edge_length), 0), (float(edge_length), 12),
                              (0.6 * float(edge_length), 12)):
             what = f"gmsh: edge {h:.3g} mm, curvature {curvature}"
+            named = None
             try:
-                points, cells, region = brep.tetrahedralize(
-                    [b.shape for b in items], names, h, refinement, curvature=curvature)
+                if named_in:
+                    points, cells, region, named = brep.tetrahedralize(
+                        [b.shape for b in items], names, h, refinement, curvature=curvature,
+                        named_faces=named_in)
+                else:
+                    points, cells, region = brep.tetrahedralize(
+                        [b.shape for b in items], names, h, refinement, curvature=curvature)
             except MeshingError as exc:
                 log.append(f"{what}: {_one_line(exc, 300)}")
                 if "regions must not intersect" in str(exc):
@@ -452,12 +475,17 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
             except Exception as exc:  # gmsh reports its own failures as plain exceptions
                 log.append(f"{what}: gmsh error ({type(exc).__name__}: {_one_line(exc, 300)})")
                 continue
+            if named:
+                renumber = np.full(len(points), -1, np.int64)
+                used = np.unique(cells)
+                renumber[used] = np.arange(len(used))
+                named = {k: renumber[t] for k, t in named.items()}
             points, cells = compact(points, cells)
             if volume_error(points, cells, region, what):
                 continue
             log.append(f"{what}: ok, {len(cells)} cells")
             try:
-                return finish(points, cells, region, h, 0.0, float("nan"), "gmsh")
+                return finish(points, cells, region, h, 0.0, float("nan"), "gmsh", named)
             except MeshingError as exc:  # a small facet set no triangle of this mesh hits
                 log[-1] = f"{what}: {exc}"
         if mesher == "gmsh":
@@ -506,6 +534,40 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
     raise MeshingError(_failure(f"meshing bodies {', '.join(names)} failed", log, items, volumes,
                                 float(edge_length), refinement if mesher != "tetwild" else None,
                                 volume_rtol))
+
+
+def _named_faces_by_index(named_faces, names: list[str]) -> dict[str, list[tuple[int, Any]]]:
+    """``named_faces`` with body names turned into body indices; an unknown body -> one line."""
+    out: dict[str, list[tuple[int, Any]]] = {}
+    for set_name, items in (named_faces or {}).items():
+        for body, face in items:
+            if body not in names:
+                raise MeshingError(f"named face set {set_name!r}: body {body!r} is not meshed "
+                                   f"(meshed: {', '.join(names)})")
+            out.setdefault(set_name, []).append((names.index(body), face))
+    return out
+
+
+def boundary_sets(boundary: np.ndarray, triangles: Mapping[str, np.ndarray]
+                  ) -> dict[str, np.ndarray]:
+    """``{name: the rows of boundary}`` (outward corner triangles) whose three corners are those
+    of a triangle of ``triangles[name]`` (any winding); a name none of whose triangles is on the
+    boundary (an interface between two bodies) is left out."""
+    if not triangles:
+        return {}
+    n = int(max(boundary.max(), max(int(t.max()) for t in triangles.values() if len(t)))) + 1
+
+    def key(t):
+        s = np.sort(np.asarray(t)[:, :3], axis=1).astype(np.int64)
+        return (s[:, 0] * n + s[:, 1]) * n + s[:, 2]
+
+    kb = key(boundary)
+    out = {}
+    for name, tri in triangles.items():
+        mask = np.isin(kb, key(tri))
+        if mask.any():
+            out[name] = boundary[mask]
+    return out
 
 
 def _one_line(text: str, limit: int = 200) -> str:
@@ -577,7 +639,9 @@ def mesh_part_detailed(part: Any, *, refine: bool = True, **kw: Any) -> MeshResu
         raise MeshingError(f"part {type(part).__name__} names mesh body {exc} that build() "
                            f"does not return (has {', '.join(built)})") from None
     refinement = (list(part.refinement()) if refine else []) + list(kw.pop("refinement", ()))
-    return mesh_bodies_detailed(bodies, part.facet_sets(), refinement=refinement, **kw)
+    named = part.named_faces(built) if hasattr(part, "named_faces") else None
+    return mesh_bodies_detailed(bodies, part.facet_sets(), refinement=refinement,
+                                named_faces=named, **kw)
 
 
 def mesh_stl(path: str | Path, *, edge_length: float | None = None, order: int = 2,
