@@ -1,7 +1,7 @@
 """The images of docs/gallery.md (and the part renders of docs/parts.md), made by the example
 scripts and the README's commands, shrunk for the repository.
 
-    python scripts/gallery.py              # all images into docs/img/ and docs/gallery.md (~3 min)
+    python scripts/gallery.py              # all images into docs/img/ and docs/gallery.md
     python scripts/gallery.py --page-only  # only docs/gallery.md (no image is made)
     python scripts/gallery.py --only fingertip --reuse fingertip=OUT   # images of a finished run
 
@@ -105,7 +105,7 @@ def _load(path: Path, name: str):
 
 
 def _designlab(*args: str, cwd: Path) -> None:
-    cmd = [sys.executable, "-m", "designlab.cli", "-q", *args]
+    cmd = [sys.executable, "-m", "designlab.cli", *args]
     p = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
     if p.returncode != 0:
         raise SystemExit(f"{' '.join(args)} failed (exit {p.returncode}):\n{p.stderr[-2000:]}")
@@ -139,7 +139,8 @@ def gallery_page() -> str:
              "shrunk to at most "
              f"{MAX_WIDTH} px wide and {COLOURS} colours for the repository (the commands write "
              "them full size). Regenerate all of them and this page with "
-             "`python scripts/gallery.py` (about 3 minutes on 2 cores). Each section names the "
+             "`python scripts/gallery.py` (it runs every command below; `--reuse JOB=DIR` takes "
+             "a job's images from a folder the same command wrote). Each section names the "
              "command that makes its images; `OUT` is any output folder. The parameters of each "
              "part: [parts.md](parts.md).", ""]
     for job, (title, command, note) in JOBS.items():

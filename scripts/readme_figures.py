@@ -1,6 +1,6 @@
 """Regenerate the README's figure and measured numbers, and check the README against them.
 
-    python scripts/readme_figures.py                       # everything (~3 min on 2 cores)
+    python scripts/readme_figures.py                       # everything: the main job, 3 predicts
     python scripts/readme_figures.py --only main-job,flexure --check
     python scripts/readme_figures.py --json out/readme_figures.json
 
@@ -130,7 +130,7 @@ def fingertip_figure(path: Path = FIGURE) -> Path:
 
 # ---------------------------------------------------------------------------------- numbers
 def _designlab(*args: str) -> None:
-    cmd = [sys.executable, "-m", "designlab.cli", "-q", *args]
+    cmd = [sys.executable, "-m", "designlab.cli", *args]
     p = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
     if p.returncode != 0:
         raise SystemExit(f"designlab {' '.join(args)} failed (exit {p.returncode}):\n"
