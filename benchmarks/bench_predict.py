@@ -4,6 +4,14 @@ mesh, auto solver) side by side with the previous pipeline (``mesher=tetwild``,
 
     OMP_NUM_THREADS=1 python benchmarks/bench_predict.py [fingertip strap ...] [--no-peer]
     OMP_NUM_THREADS=1 python benchmarks/bench_predict.py --contact   (issue 12: < 2 s)
+    OMP_NUM_THREADS=1 python benchmarks/bench_predict.py --calculix  (the CalculiX peer alone)
+
+CalculiX peer (with the fingertip, unless ``--no-peer``): the fingertip's own mesh (gmsh TET10 of
+base and cap, the default settings) as a plain linear static problem both solvers can state: the
+cap's mounting face fixed, a 1 MPa traction along each sensor's axis on its well floor (the
+sensors pushing on the base), ABS. Ours (``solve_static``, the auto solver) and ``ccx``
+(``designlab.fem.calculix``, one thread, SPOOLES) on the same nodes, elements and load vector;
+printed: both times and the largest nodal displacement difference (ccx prints 7 digits).
 
 Each prediction runs in a fresh process (no FEM cache from an earlier one), so the times are
 what a user's first ``designlab predict PART`` costs, including the coarser mesh of the
@@ -59,6 +67,8 @@ def main(parts, peer: bool) -> None:
         rows = [("ours", {})]
         if peer:
             rows.append(("peer: fTetWild + SuperLU", {"mesher": "tetwild", "solver": "direct"}))
+        if peer and part == "fingertip":
+            calculix_peer()
         for label, settings in rows:
             r = run(part, settings)
             ts = r["timings"]
@@ -71,6 +81,40 @@ def main(parts, peer: bool) -> None:
                                                        for s, t, m in r["marks"]))
             print(f"    condition number {r['cond']:.4g}, hysteresis {r['hyst']:.4g} %, "
                   f"mesh_convergence {json.dumps(r['mesh_convergence'])}", flush=True)
+
+
+def calculix_peer() -> None:
+    """Ours and CalculiX on the fingertip's mesh (see the module docstring)."""
+    from designlab.fem import Model
+    from designlab.fem.calculix import ccx_path
+    from designlab.fem.verify import compare_with_calculix
+    from designlab.geometry.fingertip import CantileverFingertip
+    from designlab.sensors.fingertip import FingertipModelSettings, mesh_fingertip
+
+    ccx_path()                                  # one line if ccx is not installed
+    part, fs = CantileverFingertip(), FingertipModelSettings()
+    t0 = time.perf_counter()
+    made = mesh_fingertip(part, fs, detailed=True)
+    t_mesh = time.perf_counter() - t0
+    mesh = made.mesh
+    model = Model(mesh)
+    model.fix("cap_mount")
+    axes, _ = part.sensor_axes()
+    for k, a in enumerate(axes):                # the sensor pushes the floor outward (+axis)
+        model.traction(f"sensor_well_{k + 1}", tuple(float(x) for x in a))
+    t0 = time.perf_counter()
+    rel, u, ref = compare_with_calculix(model, threads=1)
+    both = time.perf_counter() - t0
+    ours = both - ref.total_time_s              # compare_with_calculix = our solve + ccx
+    diff = float(abs(u - ref.displacement).max())
+    print(f"fingertip mesh ({made.mesher}, TET10, {3 * mesh.n_points} DOF, meshed in "
+          f"{t_mesh:.1f} s): cap mount fixed, 1 MPa on each well floor along its sensor axis",
+          flush=True)
+    print(f"    ours (solve_static, assembly + factorisation + solve): {ours:6.2f} s", flush=True)
+    print(f"    CalculiX {ref.ccx_version} (1 thread): {ref.wall_time_s:6.2f} s ccx run, "
+          f"{ref.total_time_s:6.2f} s with writing the deck and reading the result", flush=True)
+    print(f"    max |u - u_ccx| = {diff:.3g} mm of max |u_ccx| = "
+          f"{float(abs(ref.displacement).max()):.4g} mm (relative {rel:.2g})", flush=True)
 
 
 def contact_protocol(repeats: int = 3) -> None:
@@ -102,6 +146,9 @@ def contact_protocol(repeats: int = 3) -> None:
 if __name__ == "__main__":
     if "--contact" in sys.argv:
         contact_protocol()
+        sys.exit(0)
+    if "--calculix" in sys.argv:
+        calculix_peer()
         sys.exit(0)
     names = [a for a in sys.argv[1:] if not a.startswith("--")] or ["fingertip", "strap"]
     main(names, "--no-peer" not in sys.argv)
