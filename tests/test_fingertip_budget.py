@@ -166,3 +166,22 @@ def test_report_and_summary_show_the_budget(predicted):
     assert any("Fig. 9" in t for t in p.text)
     rows = {r[0]: r[1] for r in pred.summary_rows()}
     assert rows["force error std, z"] == f"{fe['per_axis']['z']['std']:.4g}"
+
+
+def test_linear_model_budget_runs_on_the_linear_fem_gains(predicted):
+    """``contact=false``: the budget's readings are the linear FEM's sensor forces per unit
+    wrench; they equal the condensed structure with the bilateral springs put back."""
+    from designlab.geometry.parts import make_part
+    from designlab.sensors.fingertip_calibration import (build_of, calibration_test,
+                                                         prediction_force_error)
+
+    pred, _ = predicted
+    part = make_part("fingertip", pred.params)
+    lin = dataclasses.replace(pred.result.settings, contact=False)
+    r = prediction_force_error(part, pred.protocol, dataclasses.replace(
+        pred.result, condensed=None, settings=lin))
+    assert r["stick_margin"] is None and "linear FEM" in r["budget"]["structure"]
+    ref = calibration_test(part, pred.result.condensed, lin, pred.protocol, build_of(lin))
+    for a in "xyz":
+        for k in ("mean", "std", "max_abs"):
+            assert r["per_axis"][a][k] == pytest.approx(ref["per_axis"][a][k], rel=1e-6)
