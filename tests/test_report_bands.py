@@ -113,6 +113,7 @@ def mc_run(tmp_path_factory):
     return out, summary
 
 
+@pytest.mark.slow
 def test_scatter_section_of_a_monte_carlo(mc_run):
     out, summary = mc_run
     assert summary["failed"] >= 1 and summary["ok"] >= 2          # the seed gives both
@@ -144,6 +145,7 @@ def test_scatter_section_of_a_monte_carlo(mc_run):
     assert inputs["hysteresis_percent"]["distribution"].startswith("dist = uniform")
 
 
+@pytest.mark.slow
 def test_nominal_build_is_deterministic(mc_run):
     """Evaluated again, the nominal build gives the numbers the report shows."""
     from designlab.sensors.labels import metric_name_unit
@@ -158,6 +160,7 @@ def test_nominal_build_is_deterministic(mc_run):
         assert rows[metric_name_unit(m)[0]]["nominal"] == fmt(a[m])
 
 
+@pytest.mark.slow
 def test_scatter_section_in_chromium(mc_run, tmp_path):
     out, summary = mc_run
     dom = dom_of(out / "report.html", tmp_path)
@@ -188,6 +191,7 @@ def robust_sweep(tmp_path_factory):
     return out, res, cfg
 
 
+@pytest.mark.slow
 def test_robust_sweep_report_shows_the_band_of_each_objective(robust_sweep):
     out, res, cfg = robust_sweep
     from designlab.optimize.report import band_of
@@ -211,6 +215,7 @@ def test_robust_sweep_report_shows_the_band_of_each_objective(robust_sweep):
         assert cells[r["key"][:8]][i + 2] == f"{fmt(lo)} .. {fmt(hi)}"
 
 
+@pytest.mark.slow
 def test_robust_sweep_report_scatter_of_the_best_design(robust_sweep):
     out, res, cfg = robust_sweep
     best = next(r for r in res.rows if r["key"] == res.best_key)
