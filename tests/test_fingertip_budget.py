@@ -166,6 +166,15 @@ def test_report_and_summary_show_the_budget(predicted):
     assert any("Fig. 9" in t for t in p.text)
     rows = {r[0]: r[1] for r in pred.summary_rows()}
     assert rows["force error std, z"] == f"{fe['per_axis']['z']['std']:.4g}"
+    # the terminal summary of designlab predict (cli): per axis, then the line, then the paper
+    from designlab.sensors.report_html import force_error_lines
+
+    lines = dict(force_error_lines(pred.metrics))
+    z = fe["per_axis"]["z"]
+    assert lines["force error z (N, held-out)"] == (
+        f"{z['mean']:.4g} ± {z['std']:.4g} (max |e| {z['max_abs']:.4g})")
+    assert "P_z worst, as Fig. 9" in lines["force error"]
+    assert "Pz poorly sensed" in lines["paper"]
 
 
 def test_linear_model_budget_runs_on_the_linear_fem_gains(predicted):
