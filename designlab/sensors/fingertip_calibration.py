@@ -31,6 +31,12 @@ unit, Table I) x 5 V x gain 5, with the FSS015 repeatability and the DAQ quantis
 heaviest weight minus the one at no weight. A is fitted by least squares on the paper's 72 load
 sets (Table III locations h1-h6, r1-r6 x 6 rotations), then tested on held-out points: the same
 locations at the rotations halfway between (30 deg offset) and every weight of the staircase.
+
+**In every prediction.** ``predict fingertip`` runs the same calibration on the structure its
+contact model already condensed (ball and wells, the bolt inside, cached under its FEM key) as
+``force_error_test`` (:func:`prediction_force_error`): no second FEM, about 0.01-0.05 s. The
+Monte Carlo uses :func:`structure` instead (wells and bolt head, bolt added here), whose
+printed-modulus scale is exact; at the nominal moduli both give the same contact forces.
 """
 
 from __future__ import annotations
