@@ -32,6 +32,11 @@ FORMAT = 2
 _MEMORY: "OrderedDict[str, dict[str, Any]]" = OrderedDict()
 _MEMORY_SIZE = 6
 
+#: what this process's caches did (tests and benchmarks read it; :func:`clear_memory` keeps it):
+#: ``computed`` stages, ``written`` files, ``file_reads`` (a stage read from its file) and
+#: ``memory_hits`` (from the in-process layer)
+STATS = {"computed": 0, "written": 0, "file_reads": 0, "memory_hits": 0}
+
 
 def fem_key(kind: str, **parts: Any) -> str:
     """SHA-256 (hex) of ``kind`` and the keyword values as canonical JSON (sorted keys; numpy
@@ -57,6 +62,7 @@ class FEMCache:
     def _load(self, key: str) -> dict[str, Any] | None:
         if key in _MEMORY:
             _MEMORY.move_to_end(key)
+            STATS["memory_hits"] += 1
             return _MEMORY[key]
         if self.directory is None or not self._path(key).is_file():
             return None
@@ -65,6 +71,7 @@ class FEMCache:
                 data = {k: z[k] for k in z.files}
         except (OSError, ValueError, EOFError):
             return None                        # unreadable: recompute (and overwrite)
+        STATS["file_reads"] += 1
         return self._remember(key, data)
 
     @staticmethod
@@ -108,10 +115,12 @@ class FEMCache:
                 return data
             self.misses += 1
             data = {k: np.asarray(v) for k, v in compute().items()}
+            STATS["computed"] += 1
             if self.directory is not None:
                 with atomic_path(self._path(key)) as tmp:
                     with open(tmp, "wb") as fh:
                         np.savez(fh, **data)
+                STATS["written"] += 1
             return self._remember(key, data)
 
 
