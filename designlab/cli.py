@@ -183,7 +183,8 @@ def sweep(ctx: typer.Context,
         err_console.print("interrupted: finished designs are stored; run the same command to resume")
         raise typer.Exit(130)
     write_report(out, res.rows, cfg, res.pareto_keys, res.best_key,
-                 title=f"designlab sweep: {config.name}", tie_keys=res.tie_keys, kind="sweep")
+                 title=f"designlab sweep: {config.name}", tie_keys=res.tie_keys, kind="sweep",
+                 uncertainty=getattr(evaluator, "spec", None))
     _summary_table(res.rows, cfg, res.pareto_keys, res.best_key, tie_keys=res.tie_keys)
     for line in band_lines(res.rows, cfg, [res.best_key] if res.best_key else None):
         console.print("Monte Carlo band " + line, highlight=False, markup=False)
@@ -273,7 +274,8 @@ def optimize(ctx: typer.Context,
     atomic_write_json(out / "optimize.json", summary)
     write_report(out, res.sweep.rows, cfg, res.sweep.pareto_keys, chosen["key"],
                  title=f"designlab optimize: {config.name}", tie_keys=ties, choice=choice,
-                 chosen_dir=design_dir, kind="optimize")
+                 chosen_dir=design_dir, kind="optimize",
+                 uncertainty=getattr(evaluator, "spec", None))
     console.print(choice, highlight=False, markup=False)
     console.print("exported: " + ", ".join(f"{k}={v:.4g}" for k, v in chosen_params.items()),
                   highlight=False, markup=False)
@@ -839,7 +841,10 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
         console.print(t)
         for err, n in summary["failed_errors"].items():
             err_console.print(_plain(("failed:", "yellow"), " ", f"{n} builds: {err}"), highlight=False)
-        console.print(f"wrote {out / 'uncertainty.json'}", markup=False, highlight=False)
+        from designlab.sensors.report_html import write_uncertainty_report
+
+        report = write_uncertainty_report(out, summary, params=overrides, settings=settings or None)
+        console.print(f"wrote {out / 'uncertainty.json'}, {report}", markup=False, highlight=False)
         return
     records = None
     if measured is not None:
