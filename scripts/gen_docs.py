@@ -24,6 +24,10 @@ ROOT = Path(__file__).resolve().parents[1]
 PARTS_MD = ROOT / "docs" / "parts.md"
 #: the renders of the parts at their defaults (written by ``python scripts/gallery.py``)
 IMG = "img/part_{name}.png"
+#: further figures of a part (caption, image under docs/)
+EXTRA = {"fingertip": [("h, r and the seed 001 load points: G1 lateral at heights h1.., G2 axial "
+                        "at radii r1.. (python scripts/readme_figures.py --only figure)",
+                        "img/fingertip_loads.png")]}
 
 
 def _cell(text: str) -> str:
@@ -63,10 +67,11 @@ def part_section(name: str, cls: type) -> str:
         "",
         f"![{name} at its defaults]({IMG.format(name=name)})",
         "",
+        *(f"![{cap}]({img})\n" for cap, img in EXTRA.get(name, [])),
         *(p + "\n" for p in about),
         " ".join(_paragraphs(cls.__doc__)),
         "",
-        f"Meshed for the FEM (at the defaults): {meshed}.",
+        f"Bodies offered for meshing (`mesh_bodies()`, at the defaults): {meshed}.",
         "",
         f"Set with `designlab export {name} --set NAME=VALUE` (or `predict`, `show`, a sweep "
         f"config's `[{name}]` table); list with `designlab params {name}` or "
