@@ -314,18 +314,21 @@ def run_rng(seed: int, location: str, rotation_deg: float) -> np.random.Generato
 
 
 def _eq1(seq, S):
-    """(paper, robust, zero_span) eq. 1 of one loop: mean over all three sensors / over the
-    sensors whose span is >= 10 % of the largest; ``zero_span``: whether a sensor had no span
-    but a loop (eq. 1 divides by zero: the paper's definition is then infinite)."""
-    lu, su, ld, sd = loop_from_steps(seq, S)
-    h = hysteresis_percent(lu, su, ld, sd)
-    span = np.abs(su[-1] - su[0])
-    keep = span >= 0.1 * span.max()
+    """(paper, robust, zero_span) eq. 1 of every loop at once, ``S`` (B, steps, 3) -> three (B,)
+    arrays: mean over all three sensors / over the sensors whose span is >= 10 % of the
+    largest; ``zero_span``: whether a sensor had no span but a loop (eq. 1 divides by zero:
+    the paper's definition is then infinite)."""
+    S = np.asarray(S, float)
+    B = S.shape[0]
+    lu, su, ld, sd = loop_from_steps(seq, S.transpose(1, 0, 2).reshape(S.shape[1], -1))
+    h = np.asarray(hysteresis_percent(lu, su, ld, sd), float).reshape(B, 3)
+    span = np.abs(su[-1] - su[0]).reshape(B, 3)
+    keep = span >= 0.1 * span.max(axis=1, keepdims=True)
     h = np.where((span == 0) & np.isnan(h), np.nan, h)   # no span, no loop: 0/0, left out
     with np.errstate(invalid="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        return (float(np.nanmean(h)), float(np.nanmean(h[keep])),
-                bool(np.any((span == 0) & np.isinf(h))))
+        return (np.nanmean(h, axis=1), np.nanmean(np.where(keep, h, np.nan), axis=1),
+                np.any((span == 0) & np.isinf(h), axis=1))
 
 
 #: why the paper's definition can be infinite (null in prediction.json)
@@ -451,10 +454,10 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
     zero_span = {v: {} for v in variants}       # rotations whose loop had a zero-span sensor
     for v, (which, S) in variants.items():
         per = {}
+        eq1 = _eq1(seq, S) if runs else ((), (), ())
         for b, (group, name, rot, d, w) in enumerate(runs):
-            e = _eq1(seq, S[b])
-            per.setdefault(name, []).append(e[which])
-            zero_span[v][name] = zero_span[v].get(name, 0) + int(which == 0 and e[2])
+            per.setdefault(name, []).append(float(eq1[which][b]))
+            zero_span[v][name] = zero_span[v].get(name, 0) + int(which == 0 and eq1[2][b])
         hyst[v] = {n: float(np.nanmean(x)) for n, x in per.items()}
 
     def group_stats(h):
