@@ -195,3 +195,23 @@ def test_a_bad_measured_file_is_one_line_and_exit_2(tmp_path, capsys):
         from designlab.sensors.predict import measured_materials
 
         measured_materials(PART, other)
+
+
+def test_a_tight_wrap_warns_once():
+    """A custom wrap at 50 % initial strain: 4.2 MPa in the band (neo-Hookean stand-in) against
+    its 4 MPa, one warning line although the error bar's coarse run repeats the run."""
+    import math
+
+    from designlab.sensors import strap_fit as sf
+    from designlab.sensors.predict import predict
+
+    L = sf.wrap_path(PART, 2 * math.pi * 9.0) / 1.5
+    p = predict("strap", {}, protocol=SHORT, settings={**CHEAP, "mesh_convergence": True,
+                                                        "wrap_length": round(L, 6)})
+    ws = p.metrics["prestrain"]["stress"]
+    assert ws["initial_strain"] == pytest.approx(0.5, rel=1e-5)
+    assert ws["min_safety_factor"] == pytest.approx(4.0 / (12 * (1.5 - 1.5 ** -2) / 3), rel=1e-4)
+    wrap = [w for w in p.warnings if "from the wrap alone" in w]
+    # the band (NinjaFlex) only: the traces have no documented strength
+    assert len(wrap) == 1 and "in strap (NinjaFlex)" in wrap[0]
+    assert len(set(p.warnings)) == len(p.warnings)

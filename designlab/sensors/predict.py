@@ -334,7 +334,9 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
     report["timings_s"]["total"] = float(sum(v for v in report["timings_s"].values()
                                              if isinstance(v, (int, float))))
     return Prediction(name, as_dict(part), proto, sett, report, result,
-                      [str(w.message) for w in caught] + stress_warn, cases, stresses)
+                      # once each: the coarse-mesh run of the error bar repeats the run's
+                      list(dict.fromkeys([str(w.message) for w in caught] + stress_warn)),
+                      cases, stresses)
 
 
 def measured_materials(part, measured) -> tuple[dict[str, Any], list]:

@@ -39,6 +39,11 @@ there share one solve. Unit-load step responses superposed over the protocol wer
 not taken: two separate histories in one march cost 1.3x the combined one on the default mesh
 (41.8k DOF, 60 steps: 13.9 vs 10.6 s CPU incl. the factorisation), and the default protocol
 (51 s) is shorter than the 7 tau_max (76 s) after which a step response could be cut.
+
+Stress (``Sensor.load_cases``, :func:`load_cases`): every vertex of the protocol's load envelope
+(:func:`load_envelope`: the exact maximum of von Mises over the history) from the FEM stage's
+long-time unit displacements; the wrap's prestress in closed form (:func:`wrap_stress`).
+Monte Carlo (``Sensor.uncertainty``): :mod:`designlab.sensors.montecarlo_strap`.
 """
 
 from __future__ import annotations
