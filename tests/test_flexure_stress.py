@@ -83,6 +83,21 @@ def test_chain_section_forces_are_the_statics_of_the_wrench():
     assert np.count_nonzero(~free) > 10
 
 
+def test_force_solve_with_one_factorisation_equals_the_active_set_solve():
+    """The stress cases' solver (one LU of the structure, contacts as a low-rank update) gives
+    the chain's own active-set solution."""
+    ch = Chain(as_built(VISIFLEX_CATALOG), ChainSettings())
+    rs = np.random.default_rng(4)
+    closed = 0
+    for _ in range(4):
+        f = np.r_[rs.uniform(-10, 10, 3), rs.uniform(-100, 100, 3)]
+        a, b = ch.solve(f_master=f), ch.solve_force(f)
+        assert np.array_equal(a["closed"], b["closed"])
+        assert b["q"] == pytest.approx(a["q"], rel=1e-8, abs=1e-9 * np.abs(a["q"]).max())
+        closed += int(a["closed"].sum())
+    assert closed > 0                          # contact was part of it
+
+
 def test_closed_form_agrees_with_the_beam_chain(catalogue_stress):
     """The independent check: the textbook helix (statics, Wahl factors) against the chain of
     the spring as built (bonded ground ends, dead-coil and seat contact), same stress formula.
@@ -100,11 +115,16 @@ def test_closed_form_agrees_with_the_beam_chain(catalogue_stress):
 
 def test_safety_factor_of_the_visiflex_spring(catalogue_stress):
     """Seed 002's spring at its 10 N working load: the lateral force is worst (the end coils
-    carry F L0/2 and F R), SF ~4.7 against the wire's torsional yield, no warning."""
+    carry F L0/2 and F R), SF ~4.6 against the wire's torsional yield, no warning. The worst
+    direction is 86 deg from the axis; the chain of the spring as built is worst at one
+    azimuth (where its wire ends sit), 3 % above the axisymmetric closed form."""
     r = catalogue_stress
-    assert r["min_safety_factor"] == pytest.approx(4.74, abs=0.05)
-    assert r["critical"]["load_case"] in ("f 10 N worst direction", "f_x +10 N", "f_x -10 N",
-                                          "f_y +10 N", "f_y -10 N")
+    assert r["min_safety_factor"] == pytest.approx(4.62, abs=0.05)
+    assert r["critical"]["load_case"] == "f 10 N worst direction"
+    assert r["critical"]["governed_by"] == "chain"
+    w = np.array(r["load_cases"]["f 10 N worst direction"]["wrench_at_centre"])
+    assert np.linalg.norm(w[3:]) == pytest.approx(10.0)
+    assert math.degrees(math.acos(w[5] / 10.0)) == pytest.approx(86.0, abs=1.0)
     ax = r["load_cases"]["f_z -10 N"]["bodies"]["spring"]
     assert ax["safety_factor"] == pytest.approx(6.30, abs=0.05)
     assert r["warnings"] == []
@@ -136,7 +156,7 @@ def test_prediction_carries_the_stress_and_warns():
         warnings.simplefilter("always")
         p = run(part)
     st = p.report["stress"]
-    assert st["min_safety_factor"] == pytest.approx(4.74, abs=0.05)
+    assert st["min_safety_factor"] == pytest.approx(4.62, abs=0.05)
     assert st["critical"]["body"] == "spring" and st["critical"]["material"] == "SS302"
     assert not [w for w in caught if "safety factor" in str(w.message)]
     with warnings.catch_warnings(record=True) as caught:

@@ -184,6 +184,8 @@ class ChainResult:
     coil: Coil
     settings: ChainSettings
     info: dict
+    #: the assembled chain (its solves and section forces, e.g. the wire stress)
+    chain: "Chain | None" = field(default=None, repr=False, compare=False)
 
     def at(self, point, loaded: bool = False) -> np.ndarray:
         K = self.K_loaded if loaded else self.K
@@ -256,6 +258,52 @@ class ActiveSet:
         reaction = (A @ q - b)[m] + (fext[m] if q_master is None else 0.0)
         return {"q": q.copy(), "closed": closed, "f_n": np.where(closed, -kn * np.minimum(g, 0), 0.0),
                 "reaction": reaction, "iterations": it + 1}
+
+    def solve_force(self, f_master) -> dict:
+        """The master loaded by ``f_master`` (f, m; free) from the open state, as :meth:`solve`
+        but with one factorisation of the structure for every call: each active set's
+        contacts enter as a low-rank update (Woodbury), so many load cases cost little."""
+        lu = getattr(self, "_lu_free", None)
+        if lu is None:
+            lu = self._lu_free = spla.splu(sp.csc_matrix(self.Kq))
+        nq, m, nc = self.nq, self.m, len(self.kn)
+        fext = np.zeros(nq)
+        fext[m] = f_master
+        N = self.N.tocsr()
+        kn, g0 = self.kn, self.g0
+        tol = 1e-6 * self.s.perturbation_mm
+        closed = np.zeros(nc, bool)
+        x0 = lu.solve(fext)
+        seen = set()
+        for it in range(self.s.max_iterations):
+            idx = np.nonzero(closed)[0]
+            if len(idx):
+                U = N[idx].T.toarray()                          # (nq, k)
+                KU = lu.solve(U)
+                w = kn[idx]
+                b = fext - U @ (w * g0[idx])
+                xb = lu.solve(b)
+                S = np.diag(1.0 / w) + U.T @ KU
+                q = xb - KU @ np.linalg.solve(S, U.T @ xb)
+            else:
+                q = x0
+            g = g0 + N @ q
+            new = np.where(g < -tol, True, np.where(g > tol, False, closed))
+            if np.array_equal(new, closed):
+                break
+            key = new.tobytes()
+            if key in seen:
+                bad = np.nonzero(new != closed)[0]
+                new = closed.copy()
+                k = bad[np.argmax(np.abs(g[bad]))]
+                new[k] = not closed[k]
+            seen.add(key)
+            closed = new
+        else:
+            raise ModelError(f"beam chain: contact active set did not settle in "
+                             f"{self.s.max_iterations} iterations")
+        return {"q": q.copy(), "closed": closed, "f_n": np.where(closed, -kn * np.minimum(g, 0), 0.0),
+                "iterations": it + 1}
 
     def stiffness(self, ref: dict | None = None) -> tuple[np.ndarray, list]:
         """6x6 (twist -> wrench order) by symmetric master perturbations around ``ref``."""
@@ -458,7 +506,7 @@ def chain_stiffness(spring, settings: ChainSettings | None = None, *,
             "length_mm": coil.length, "geometry": coil.label, "working_load": info_l,
             "seconds": time.perf_counter() - t0}
     return ChainResult(K, K_loaded, chain.master, np.array([0, 0, coil.length / 2]), coil,
-                       settings, info)
+                       settings, info, chain)
 
 
 def condensed_6x6(chain: "Chain", closed: np.ndarray, kt: np.ndarray | None = None

@@ -154,7 +154,7 @@ def load_cases(protocol=None) -> list[tuple[str, str, np.ndarray]]:
     return out
 
 
-def _force_von_mises(spring: HelicalSpring, forces: np.ndarray, phi_samples: int = 180
+def _force_von_mises(spring: HelicalSpring, forces: np.ndarray, phi_samples: int = PHI_SAMPLES
                      ) -> np.ndarray:
     """Largest closed-form von Mises stress (MPa) of each force (k, 3) at the spring centre
     (``phi_samples`` coil angles per end)."""
@@ -175,25 +175,21 @@ def _force_von_mises(spring: HelicalSpring, forces: np.ndarray, phi_samples: int
     return section_stress(N, V, T, M, d, C)["von_mises"].max(axis=0)
 
 
-def _directions(th_deg: np.ndarray, ph_deg: np.ndarray) -> np.ndarray:
-    th, ph = (np.radians(a).ravel() for a in np.meshgrid(th_deg, ph_deg))
-    return np.column_stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)])
+def worst_force_elevation(spring: HelicalSpring, force_N: float) -> float:
+    """Angle (rad) from the coil axis of the force of ``force_N`` at the spring centre with the
+    closed form's largest von Mises stress (1 degree steps; seed 002: the fingertip "can
+    generate approximately 10 N of force in any direction"). The closed form takes every coil
+    angle at both end heights, so it is axisymmetric: any azimuth is as bad."""
+    th = np.radians(np.arange(0.0, 180.5, 1.0))
+    forces = force_N * np.column_stack([np.sin(th), np.zeros_like(th), np.cos(th)])
+    return float(th[int(np.argmax(_force_von_mises(spring, forces)))])
 
 
-def worst_force_direction(spring: HelicalSpring, force_N: float) -> np.ndarray:
-    """The wrench of a force of ``force_N`` at the spring centre in the direction with the
-    closed form's largest von Mises stress (a 10 degree grid of the sphere, then 1 degree
-    around its best; seed 002: the fingertip "can generate approximately 10 N of force in any
-    direction")."""
-    th, ph = np.arange(0.0, 180.0 + 1e-9, 10.0), np.arange(0.0, 360.0, 10.0)
-    vm = _force_von_mises(spring, force_N * _directions(th, ph))
-    k = int(np.argmax(vm))
-    t0, p0 = np.meshgrid(th, ph)
-    t0, p0 = t0.ravel()[k], p0.ravel()[k]
-    fine = _directions(np.clip(t0 + np.arange(-10.0, 10.5, 1.0), 0.0, 180.0),
-                       p0 + np.arange(-10.0, 10.5, 1.0))
-    vm_f = _force_von_mises(spring, force_N * fine, PHI_SAMPLES)
-    return np.r_[0.0, 0.0, 0.0, force_N * fine[int(np.argmax(vm_f))]]
+#: azimuths (deg) at which the chain takes the worst-elevation force (the spring as built is
+#: not axisymmetric: its wire ends sit at one coil angle)
+AZIMUTHS_DEG = tuple(range(0, 360, 15))
+#: then these offsets (deg) around the largest of them
+AZIMUTH_REFINE_DEG = (-10, -5, 5, 10)
 
 
 def _chain_wrench(chain, wrench) -> np.ndarray:
@@ -204,50 +200,82 @@ def _chain_wrench(chain, wrench) -> np.ndarray:
 
 
 def case_sections(spring: HelicalSpring, protocol=None, chain_settings=None, *,
-                  chain: bool = True) -> list[dict[str, Any]]:
+                  chain=True) -> list[dict[str, Any]]:
     """The load cases (:func:`load_cases` plus the protocol's force in the worst direction)
     with their section forces: ``closed_form`` (:func:`closed_form_sections`) and, with
     ``chain``, the beam chain of ``spring`` as built (points about the spring centre, closed
-    contacts). The section forces of the closed form are statics (no wire diameter in them), so
-    a scattered wire re-uses them (:func:`stress_report`)."""
+    contacts; ``chain`` may be an assembled :class:`~designlab.sensors.flexure.beam_chain.Chain`
+    of the spring to re-use). The section forces of the closed form are statics (no wire
+    diameter in them), so a scattered wire re-uses them (:func:`stress_report`)."""
     from designlab.sensors.protocols import FlexureWrenchTest
 
     protocol = protocol or FlexureWrenchTest()
     cases = load_cases(protocol)
-    w_any = worst_force_direction(spring, protocol.max_force_N)
-    n = w_any[3:] / np.linalg.norm(w_any[3:])
-    cases.append((f"f {protocol.max_force_N:g} N worst direction",
-                  f"{protocol.max_force_N:g} N at the spring centre along ({n[0]:+.3f}, "
-                  f"{n[1]:+.3f}, {n[2]:+.3f}): the direction with the largest closed-form "
-                  "stress (seed 002: ~10 N fingertip force in any direction)", w_any))
-    ch = None
-    if chain:
+    F = protocol.max_force_N
+    th = worst_force_elevation(spring, F)
+    worst_name = f"f {F:g} N worst direction"
+    cases.append((worst_name, "", np.r_[0.0, 0.0, 0.0, F * math.sin(th), 0.0, F * math.cos(th)]))
+    ch = chain if not isinstance(chain, bool) else None
+    if chain is True:
         from designlab.sensors.flexure.beam_chain import Chain, ChainSettings, as_built
 
         ch = Chain(as_built(spring), chain_settings or ChainSettings())
+    d, C = 2 * spring.wire_radius, spring.mean_diameter / (2 * spring.wire_radius)
+
+    def chain_sections(w):
+        r = ch.solve_force(_chain_wrench(ch, w))
+        sf = ch.section_forces(r["q"])
+        # chain frame: base seat at z = 0; points about the spring centre like the closed form
+        sf["X"] = sf["X"] - np.array([0.0, 0.0, ch.coil.length / 2])
+        sf["closed_contacts"] = int(np.count_nonzero(r["closed"]))
+        return sf
+
     out = []
     for name, desc, w in cases:
         entry = {"name": name, "description": desc, "wrench": w,
                  "closed_form": closed_form_sections(spring, w), "chain": None}
-        if ch is not None:
-            r = ch.solve(f_master=_chain_wrench(ch, w))
-            sf = ch.section_forces(r["q"])
-            # chain frame: base seat at z = 0; points about the spring centre like the closed form
-            sf["X"] = sf["X"] - np.array([0.0, 0.0, ch.coil.length / 2])
-            sf["closed_contacts"] = int(np.count_nonzero(r["closed"]))
-            entry["chain"] = sf
+        if name == worst_name:
+            desc = (f"{F:g} N at the spring centre, {math.degrees(th):.0f} deg from the coil "
+                    "axis: the elevation with the largest closed-form stress (axisymmetric: "
+                    "any azimuth; seed 002: ~10 N fingertip force in any direction)")
+            if ch is not None:
+                best = None
+
+                def at(psi_deg, best):
+                    psi = math.radians(psi_deg)
+                    wp = np.r_[0.0, 0.0, 0.0, F * math.sin(th) * math.cos(psi),
+                               F * math.sin(th) * math.sin(psi), F * math.cos(th)]
+                    sf = chain_sections(wp)
+                    vm = section_stress(sf["N"], sf["V"], sf["T"], sf["M"], d, C)["von_mises"]
+                    return (vm.max(), psi_deg, wp, sf) if best is None or vm.max() > best[0] \
+                        else best
+
+                for psi_deg in AZIMUTHS_DEG:
+                    best = at(psi_deg, best)
+                coarse = best[1]
+                for step in AZIMUTH_REFINE_DEG:
+                    best = at((coarse + step) % 360, best)
+                _, psi_deg, w, entry["chain"] = best
+                entry["wrench"] = w
+                desc += (f"; the chain at azimuths every {AZIMUTHS_DEG[1]} deg and "
+                         f"{', '.join(f'{a:+d}' for a in AZIMUTH_REFINE_DEG)} deg around the "
+                         f"largest: the largest at {psi_deg:.0f} deg (the wrench given)")
+            entry["description"] = desc
+        elif ch is not None:
+            entry["chain"] = chain_sections(w)
         out.append(entry)
     return out
 
 
 def wire_stress(spring: HelicalSpring, protocol=None, chain_settings=None, *,
-                material: str = "SS302", chain: bool = True) -> dict[str, Any]:
+                material: str = "SS302", chain=True) -> dict[str, Any]:
     """The ``stress`` section of the flexure's prediction: per load case (:func:`case_sections`)
     the largest von Mises stress of the closed form and of the beam chain of the spring as
     built, where, the wire's strength and the safety factor (of the larger of the two); the
     smallest safety factor over the cases and the warnings below :data:`WARN_SAFETY_FACTOR`.
     ``spring``: the spring as built (:func:`designlab.sensors.flexure.virtual.spring_as_built`;
-    its moduli only matter to the chain's contact)."""
+    its moduli only matter to the chain's contact); ``chain``: True (assemble the chain), False
+    (closed form only) or an assembled chain of that spring to re-use."""
     return stress_report(case_sections(spring, protocol, chain_settings, chain=chain), spring,
                          material)
 

@@ -132,16 +132,20 @@ def chain_truth(part, settings: "FlexureModelSettings"):
     return chain_stiffness(spring_as_built(part), cs)
 
 
-def _wire_stress(part, protocol: FlexureWrenchTest, settings: "FlexureModelSettings") -> dict:
+def _wire_stress(part, protocol: FlexureWrenchTest, settings: "FlexureModelSettings",
+                 chain=None) -> dict:
     """Wire stress and safety factor of the spring as built under the protocol's load cases
     (:func:`designlab.sensors.flexure.stress.wire_stress`): the closed form, and the beam
-    chain beside it unless the truth is the Timoshenko column (no chain in that model)."""
+    chain beside it (the truth's own ``chain``, a ChainResult, when it ran) unless the truth is
+    the Timoshenko column (no chain in that model)."""
     from designlab.sensors.flexure.beam_chain import ChainSettings
     from designlab.sensors.flexure.stress import wire_stress
 
     cs = ChainSettings(seat=settings.seat, seat_material=getattr(part, "disc_material", "PLA"))
-    return wire_stress(spring_as_built(part), protocol, cs, material=part.material,
-                       chain=settings.truth != "timoshenko")
+    use = settings.truth != "timoshenko"
+    if use and chain is not None and chain.chain is not None:
+        use = chain.chain
+    return wire_stress(spring_as_built(part), protocol, cs, material=part.material, chain=use)
 
 
 def _fem_model(mesh, settings: FlexureModelSettings, centre, materials=None):
@@ -306,7 +310,7 @@ def run(part=None, protocol: FlexureWrenchTest | None = None,
     if wire_stress:
         t0 = time.perf_counter()
         say("wire stress")
-        report["stress"] = _wire_stress(part, protocol, settings)
+        report["stress"] = _wire_stress(part, protocol, settings, chain)
         timings["wire_stress"] = time.perf_counter() - t0
         for w in report["stress"]["warnings"]:
             warnings.warn(w, stacklevel=2)
