@@ -179,18 +179,20 @@ def test_every_part_parameter_has_a_meaning(capsys):
 
 
 @pytest.mark.slow
-def test_flexure_says_stress_is_not_computed_and_what_next(tmp_path, capsys):
-    """The flexure's models give stiffness only: predict and flexure say so (CLI and report),
-    and predict names deformed.vtu only when it wrote one."""
+def test_flexure_reports_the_wire_stress_and_what_next(tmp_path, capsys):
+    """The flexure's mesh-free models give the wire stress (Wahl): predict and flexure print it
+    (CLI, prediction.json, report), and predict names deformed.vtu only when it wrote one."""
     out = tmp_path / "p"
     rc, so, _ = _run(["predict", "flexure", "--out", out], capsys)
     assert rc == 0
     text = " ".join(so.split())
-    assert "not computed" in text
+    assert "not computed" not in text and "smallest safety factor" in text
     nxt = [ln for ln in so.splitlines() if ln.startswith("open next:")]
     assert nxt and "report.html" in nxt[0]
     assert ("deformed.vtu" in nxt[0]) == (out / "deformed.vtu").is_file()
-    assert "Not computed for this design" in (out / "report.html").read_text()
+    assert "Not computed for this design" not in (out / "report.html").read_text()
+    stress = json.loads((out / "prediction.json").read_text())["stress"]
+    assert 2 < stress["min_safety_factor"] < 10
     rc, so, _ = _run(["flexure", "--json", tmp_path / "k.json"], capsys)
     assert rc == 0
     text = " ".join(so.split())
