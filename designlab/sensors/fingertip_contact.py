@@ -249,12 +249,46 @@ def _problem(part, cf: CondensedFingertip, settings: ContactSettings) -> Contact
     return ContactProblem(cf.C, cf.L, contact_laws(part, settings, cf.k_sensor))
 
 
+#: tightenings already done in this process (the designs of an (h, r) sweep share one FEM,
+#: so one tightening): key -> (state, pair load, bolt tension); newest last
+_TIGHTENED: dict[str, tuple] = {}
+_TIGHTENED_SIZE = 8
+
+
+def _tighten_key(problem: ContactProblem, cf: CondensedFingertip,
+                 settings: ContactSettings) -> str:
+    """SHA-256 of everything :func:`tighten` reads: the contact problem (flexibility, maps,
+    interferences, laws), the bolt's load pattern and geometry, the preload settings."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for a in (problem.C, problem.L, cf.f_bolt, cf.axes,
+              np.zeros(0) if problem.gap0 is None else problem.gap0):
+        a = np.ascontiguousarray(a, float)
+        h.update(repr(a.shape).encode())
+        h.update(a.tobytes())
+    h.update(repr((problem.laws, problem.tol, problem.max_iter, settings.bolt_preload_N,
+                   settings.preload_increments)).encode())
+    return h.hexdigest()
+
+
 def tighten(problem: ContactProblem, cf: CondensedFingertip, settings: ContactSettings):
     """Assembly step: tighten the bolt (force pair of magnitude P on the ball and under the
     head, ramped in ``preload_increments``) until the bolt tension reaches
     ``bolt_preload_N``. The bolt tension is read from the ball's equilibrium: minus the z
     resultant of the contact forces on the ball (the ball carries nothing else). Returns
-    (state, pair load (24,), bolt tension N)."""
+    (state, pair load (24,), bolt tension N). The same inputs again (another design on the
+    same FEM) return the stored result (:data:`_TIGHTENED`), copies of the same numbers."""
+    key = _tighten_key(problem, cf, settings)
+    if key not in _TIGHTENED:
+        _TIGHTENED[key] = _tighten(problem, cf, settings)
+        while len(_TIGHTENED) > _TIGHTENED_SIZE:
+            _TIGHTENED.pop(next(iter(_TIGHTENED)))
+    st, f, tension = _TIGHTENED[key]
+    return st.copy(), f.copy(), tension
+
+
+def _tighten(problem: ContactProblem, cf: CondensedFingertip, settings: ContactSettings):
     target = settings.bolt_preload_N
     st0 = ContactState.zero(1, 3)
     if target == 0:
