@@ -98,6 +98,14 @@ def test_inputs_move_what_they_should(ctx):
     a = mc.build(slotted, NOMINAL, 0)
     b = mc.build(slotted, NOMINAL | {"finger_perimeter_scale": 1.05}, 0)
     assert b["initial_strain"] > a["initial_strain"] > 0
+    assert base["wrap_stress_MPa"] == 0.0
+    from designlab.sensors.strap_fit import neo_hooke
+
+    e = a["initial_strain"]
+    assert a["wrap_stress_MPa"] == pytest.approx(12.0 * e * neo_hooke(e)["stress_over_linear"])
+    stiff = mc.build(slotted, NOMINAL | {"tpu_modulus_scale": 1.1,
+                                         "tissue_stiffness": 0.022}, 0)
+    assert stiff["wrap_stress_MPa"] == pytest.approx(1.1 * a["wrap_stress_MPa"])
     assert mc.build(ctx, NOMINAL | {"finger_perimeter_scale": 1.05}, 0) == base
 
 

@@ -77,7 +77,7 @@ INPUTS = (
 METRICS = ("sensitivity.sum_F_n", "sensitivity.diff_F_x", "resistance_ohm", "initial_strain",
            "resolution_mN.F_n", "resolution_mN.F_x", "force_error_std.F_n",
            "force_error_std.F_x", "cross_talk.F_x_in_sum_per_N_percent",
-           "cross_talk.F_n_in_diff_per_N_percent")
+           "cross_talk.F_n_in_diff_per_N_percent", "wrap_stress_MPa")
 
 
 def elastic_materials(part) -> dict[str, Any]:
@@ -109,7 +109,8 @@ def fem_stage(part, settings: dict | None, protocol: dict | None, cache) -> dict
         r = run(part, proto, s, materials=mats, cache=cache).report["strain_per_N"]
         units.append([[r[c]["F_n"], r[c]["F_x"]] for c in ("Ch1", "Ch2")])
     return {"part": part, "settings": sett, "protocol": proto,
-            "unit": np.array(units, float), "trace_material": mats[GAUGE_REGIONS[0]]}
+            "unit": np.array(units, float), "trace_material": mats[GAUGE_REGIONS[0]],
+            "band_material": mats["strap"]}
 
 
 def unit_at(ctx: dict[str, Any], tissue_stiffness: float) -> np.ndarray:
@@ -176,7 +177,11 @@ def build(ctx: dict[str, Any], values: dict[str, Any], seed: int) -> dict[str, A
     test = run_strap_force_test(report, StrapForceTest(normal_N=float(proto.normal_N),
                                                        shear_N=float(proto.shear_N),
                                                        seed=int(seed) % 2 ** 32))
-    return {"sensitivity.sum_F_n": float(M_sd[0, 0]), "sensitivity.diff_F_x": float(M_sd[1, 1]),
+    # the wrap's membrane stress in the band (strap.wrap_stress: neo-Hookean stand-in, the
+    # build's instantaneous modulus); 0 without a slot or wrap_length
+    band = ctx["band_material"]
+    wrap = float(band.E * s_E * eps0 * sf.neo_hooke(eps0)["stress_over_linear"])
+    return {"wrap_stress_MPa": wrap, "sensitivity.sum_F_n": float(M_sd[0, 0]), "sensitivity.diff_F_x": float(M_sd[1, 1]),
             "resistance_ohm": float(R0), "initial_strain": float(eps0),
             "resolution_mN.F_n": rep["resolution_mN"]["F_n"],
             "resolution_mN.F_x": rep["resolution_mN"]["F_x"],
