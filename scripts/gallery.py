@@ -47,6 +47,9 @@ JOBS = {
     "fingertip": ("The seed 001 fingertip's virtual test",
                   "designlab predict fingertip --out OUT", ""),
     "flexure": ("The seed 002 flexure's virtual test", "designlab predict flexure --out OUT", ""),
+    "loop": ("The measured-data loop on the fingertip's example data",
+             "designlab loop --data examples/data/fingertip_card.toml --base load-arm --out OUT",
+             "the data: `python examples/loop_synthetic.py`"),
 }
 
 ENTRIES = [
@@ -79,6 +82,12 @@ ENTRIES = [
     Entry("flexure_wrench.png", "flexure", "flexure_wrench.png",
           "The flexure's virtual test: the wrench estimated from the pose with the closed-form "
           "K_f against the applied one (the beam chain of the spring as built is the truth)."),
+    Entry("loop_timeseries_sensor_1.png", "loop", "timeseries_sensor_1.png",
+          "Sensor 1 on the held-out data: measured, the base model, the base with the learned "
+          "effects (physics) and the NARX peer, with their residuals."),
+    Entry("loop_effect_friction_arm.png", "loop", "effect_sensor_1_1_friction_arm_weight_.png",
+          "The first effect the loop accepted for sensor 1, friction x moment arm: the residual "
+          "before against the effect's regressor and its fitted contribution."),
 ]
 
 
@@ -125,6 +134,10 @@ def run_job(job: str, out: Path) -> Path:
         return out / "o"
     elif job in ("fingertip", "flexure"):
         _designlab("predict", job, "--out", str(out / "o"), cwd=ROOT)
+        return out / "o"
+    elif job == "loop":
+        _designlab("loop", "--data", str(ROOT / "examples" / "data" / "fingertip_card.toml"),
+                   "--base", "load-arm", "--out", str(out / "o"), cwd=ROOT)
         return out / "o"
     else:
         raise SystemExit(f"unknown job {job!r}; one of {', '.join(JOBS)}")
