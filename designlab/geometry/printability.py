@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import hashlib
 import io
+import threading
 from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 from typing import Mapping
@@ -356,6 +357,8 @@ def overlaps(meshes: Mapping[str, trimesh.Trimesh]) -> dict[tuple[str, str], flo
 #: per-body reports (with their tessellation) kept in this process, newest last
 _BODY_CACHE: "OrderedDict[str, tuple[BodyReport, trimesh.Trimesh | None]]" = OrderedDict()
 _BODY_CACHE_SIZE = 24
+#: Dask's threaded workers may check parts at the same time
+_BODY_LOCK = threading.Lock()
 
 
 def _body_key(part: str, body: Body, nozzle: float, layer: float, min_wall: float) -> str:
@@ -377,7 +380,8 @@ def _body_key(part: str, body: Body, nozzle: float, layer: float, min_wall: floa
 
 def clear_cache() -> None:
     """Forget the per-body reports kept in this process."""
-    _BODY_CACHE.clear()
+    with _BODY_LOCK:
+        _BODY_CACHE.clear()
 
 
 def _checked(part: str, body: Body, nozzle: float, layer: float, min_wall: float,
@@ -387,9 +391,11 @@ def _checked(part: str, body: Body, nozzle: float, layer: float, min_wall: float
     key = None
     if mesh is None:
         key = _body_key(part, body, nozzle, layer, min_wall)
-        if key in _BODY_CACHE:
-            _BODY_CACHE.move_to_end(key)
-            return _BODY_CACHE[key]
+        with _BODY_LOCK:
+            hit = _BODY_CACHE.get(key)
+            if hit is not None:
+                _BODY_CACHE.move_to_end(key)
+                return hit
         try:
             mesh = tessellate(body.shape, check=False)
         except MeshingError:
@@ -398,10 +404,12 @@ def _checked(part: str, body: Body, nozzle: float, layer: float, min_wall: float
     if key is not None:
         # tessellating and checking a shape flip flags of its edges in OpenCascade's binary form:
         # the same body seen again after either is found under its second key
-        for k in {key, _body_key(part, body, nozzle, layer, min_wall)}:
-            _BODY_CACHE[k] = (report, mesh)
-        while len(_BODY_CACHE) > _BODY_CACHE_SIZE:
-            _BODY_CACHE.popitem(last=False)
+        keys = {key, _body_key(part, body, nozzle, layer, min_wall)}
+        with _BODY_LOCK:
+            for k in keys:
+                _BODY_CACHE[k] = (report, mesh)
+            while len(_BODY_CACHE) > _BODY_CACHE_SIZE:
+                _BODY_CACHE.popitem(last=False)
     return report, mesh
 
 

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import threading
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -253,6 +254,7 @@ def _problem(part, cf: CondensedFingertip, settings: ContactSettings) -> Contact
 #: so one tightening): key -> (state, pair load, bolt tension); newest last
 _TIGHTENED: dict[str, tuple] = {}
 _TIGHTENED_SIZE = 8
+_TIGHTENED_LOCK = threading.Lock()          # Dask's threaded workers
 
 
 def _tighten_key(problem: ContactProblem, cf: CondensedFingertip,
@@ -280,11 +282,15 @@ def tighten(problem: ContactProblem, cf: CondensedFingertip, settings: ContactSe
     (state, pair load (24,), bolt tension N). The same inputs again (another design on the
     same FEM) return the stored result (:data:`_TIGHTENED`), copies of the same numbers."""
     key = _tighten_key(problem, cf, settings)
-    if key not in _TIGHTENED:
-        _TIGHTENED[key] = _tighten(problem, cf, settings)
-        while len(_TIGHTENED) > _TIGHTENED_SIZE:
-            _TIGHTENED.pop(next(iter(_TIGHTENED)))
-    st, f, tension = _TIGHTENED[key]
+    with _TIGHTENED_LOCK:
+        done = _TIGHTENED.get(key)
+    if done is None:
+        done = _tighten(problem, cf, settings)
+        with _TIGHTENED_LOCK:
+            _TIGHTENED[key] = done
+            while len(_TIGHTENED) > _TIGHTENED_SIZE:
+                _TIGHTENED.pop(next(iter(_TIGHTENED)))
+    st, f, tension = done
     return st.copy(), f.copy(), tension
 
 
