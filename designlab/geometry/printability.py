@@ -9,8 +9,9 @@ Per printed body:
 * smallest features, measured by casting a ray from surface samples along the inward normal to the
   opposite wall (Embree through ``embreex`` where installed, all rays at once; else a VTK cell
   locator, one ray at a time: both find the hit triangle, the distance to its plane is computed
-  in float64, so the two agree to ~1e-14 mm except on rays through an edge): *walls* (samples whose normal is mostly horizontal) must be at
-  least the nozzle diameter wide, *skins* (normal mostly vertical) at least one layer thick.
+  in float64, so the two agree to ~1e-14 mm except on rays through an edge): *walls* (samples
+  whose normal is mostly horizontal) must be at least the nozzle diameter wide, *skins* (normal
+  mostly vertical) at least one layer thick.
   A conductive trace's thickness is thus governed by the layer height (0.2 mm = two 0.1 mm
   layers is fine) and its width by the nozzle. The thin surface area is measured over the area
   (points drawn uniformly over the surface with a fixed seed, ~50 per mm^2, each standing for
