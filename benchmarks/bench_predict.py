@@ -16,7 +16,9 @@ printed: both times and the largest nodal displacement difference (ccx prints 7 
 Each prediction runs in a fresh process (no FEM cache from an earlier one), so the times are
 what a user's first ``designlab predict PART`` costs, including the coarser mesh of the
 discretisation error bar (``mesh_convergence``). Goals (issue 11): fingertip <= 10 s, its mesh
-<= 2 s; strap <= 15 s.
+<= 2 s; strap <= 15 s. ``cpu`` counts the imports the prediction needs (OpenCascade, gmsh,
+scipy...); ``+ write`` is what ``designlab predict --out`` adds: ``write_prediction`` (the
+plots, the loop model, the design render, the report) into a temporary folder.
 """
 
 import json
@@ -40,8 +42,17 @@ def _one(part: str, settings: dict, conn) -> None:
     wall = time.perf_counter() - t0
     cpu = time.process_time()
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    import tempfile
+
+    from designlab.sensors.predict import write_prediction
+
+    w0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as d:
+        write_prediction(pred, d)
+    write_wall, write_cpu = time.perf_counter() - w0, time.process_time() - cpu
     m = pred.metrics
     conn.send({"wall": wall, "cpu": cpu, "peak_MB": peak, "timings": m["timings_s"],
+               "write_wall": write_wall, "write_cpu": write_cpu,
                "dofs": m.get("mesh", {}).get("dofs") or m.get("mesh", {}).get("dof"),
                "mesher": m.get("mesh", {}).get("mesher"), "solver": m.get("mesh", {}).get("solver"),
                "marks": [(s, t - t0, r) for s, t, r in marks],
@@ -73,6 +84,7 @@ def main(parts, peer: bool) -> None:
             r = run(part, settings)
             ts = r["timings"]
             print(f"{part:9s} {label:26s} wall {r['wall']:6.1f} s  cpu {r['cpu']:6.1f} s  "
+                  f"+ write wall {r['write_wall']:5.1f} s cpu {r['write_cpu']:5.1f} s  "
                   f"peak RSS {r['peak_MB']:6.0f} MB  dofs {r['dofs']}  "
                   f"mesher {r['mesher']}  solver {r['solver']}  "
                   + "  ".join(f"{k} {v:.2f}" for k, v in ts.items() if isinstance(v, float)),
