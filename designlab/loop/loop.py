@@ -60,6 +60,17 @@ from designlab.measured.dataset import Dataset
 
 FORMAT = "designlab-model"
 
+#: the memory and time budget of the fits: the selection, the effect fits and the base fit
+#: work on at most this many training samples; longer training data is low-passed
+#: (anti-alias) and decimated by a whole factor per run to fit (``budget`` in loop.json says
+#: when and by how much). Errors on the validation data always use every held-out sample
+#: (predictions of the whole record, the effects in their physical units: time constants in
+#: s, widths in input units).
+FIT_SAMPLES = 50_000
+#: training rows of the NARX peer: beyond it the network trains on every stride-th row of the
+#: training runs (each row with its full-rate history) and still predicts every sample
+PEER_ROWS = 50_000
+
 
 # --------------------------------------------------------------------------- the model
 
@@ -171,6 +182,43 @@ def cv_blocks(n: int, folds: int, gap: int) -> list[tuple[np.ndarray, np.ndarray
         rows[max(0, edges[k] - gap):min(n, edges[k + 1] + gap)] = False
         out.append((rows, held))
     return out
+
+
+def fit_samples(train: Dataset, max_samples: int = FIT_SAMPLES) -> tuple[Dataset, dict]:
+    """The training data the fits work on: ``train`` itself when it has at most
+    ``max_samples`` samples, else each run's training part low-passed (zero-phase Butterworth
+    at 0.4 x the new rate, as the card's ``rate`` does) and decimated by one whole factor
+    ``q``, the smallest that leaves at most ``max_samples`` samples (every run keeps its first
+    sample and at least 3). Deterministic. Returns the data and what was done (loop.json's
+    ``budget``)."""
+    from dataclasses import replace
+
+    from designlab.loop.effects.base import _segments
+    from designlab.measured.dataset import lowpass
+
+    n = len(train)
+    info: dict[str, Any] = {"max_fit_samples": int(max_samples), "train_samples": n}
+    if n <= max_samples:
+        return train, {**info, "fit_samples": n, "decimation": 1, "decimated": False}
+    parts = _segments(train.segment)
+    q = -(-n // max(max_samples - len(parts), 1))
+    rate = 1.0 / train.dt
+    idx, filt = [], {k: [] for k in (*train.inputs, *train.outputs)}
+    for sl in parts:
+        L = sl.stop - sl.start
+        i = np.arange(0, L, q)
+        if i.size < 3:
+            i = np.unique(np.linspace(0, L - 1, min(L, 3)).astype(int))
+        idx.append(sl.start + i)
+        for k in filt:
+            x = train.channel(k)[sl]
+            filt[k].append((lowpass(x, rate, 0.4 * rate / q) if L > 3 * q else x)[i])
+    rows = np.concatenate(idx)
+    out = replace(train, t=train.t[rows], segment=train.segment[rows], role=train.role[rows],
+                  inputs={k: np.concatenate(filt[k]) for k in train.inputs},
+                  outputs={k: np.concatenate(filt[k]) for k in train.outputs})
+    return out, {**info, "fit_samples": len(out), "decimation": int(q), "decimated": True,
+                 "anti_alias_hz": 0.4 * rate / q, "rate_hz": rate, "fit_rate_hz": rate / q}
 
 
 def cv_runs(data: Dataset) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -295,16 +343,17 @@ def residual_correlations(data: Dataset, residual: np.ndarray, yhat: np.ndarray,
                           lags_s: tuple[float, ...] = (0.5, 1.0, 2.0, 5.0, 10.0)) -> list[dict]:
     """Pearson correlation of a residual with the inputs, their rates, lagged inputs, time in
     the run and the prediction, strongest first."""
-    cands: dict[str, np.ndarray] = {}
-    for n, x in data.inputs.items():
-        cands[n] = x
-        cands[f"d{n}/dt"] = fx.rate(x, data.dt, data.segment)
-        for L in lags_s:
-            cands[f"{n}(t-{L:g}s)"] = fx.shift(x, L, data.t, data.segment)
-    cands["time in run"] = data.time_in_run()
-    cands["prediction"] = yhat
+    def cands():   # one variable at a time: a long record holds no table of them
+        for n, x in data.inputs.items():
+            yield n, x
+            yield f"d{n}/dt", fx.rate(x, data.dt, data.segment)
+            for L in lags_s:
+                yield f"{n}(t-{L:g}s)", fx.shift(x, L, data.t, data.segment)
+        yield "time in run", data.time_in_run()
+        yield "prediction", yhat
+
     out = []
-    for name, v in cands.items():
+    for name, v in cands():
         if np.std(v) > 0 and np.std(residual) > 0:
             out.append({"variable": name, "correlation": float(np.corrcoef(residual, v)[0, 1])})
     return sorted(out, key=lambda r: -abs(r["correlation"]))
@@ -328,15 +377,22 @@ Progress = Callable[[str, int, int, str], None]   # (output, done, total, what)
 def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[str] | None = None,
              folds: int = 10, max_effects: int = 8, n_se: float = 2.0,
              min_relative: float = 0.01, gap_s: float = 2.0,
-             progress: Progress | None = None, peer: bool = True) -> LoopResult:
+             progress: Progress | None = None, peer: bool = True,
+             max_fit_samples: int = FIT_SAMPLES) -> LoopResult:
     """Greedy forward selection of effects on top of ``base`` (see the module docstring).
 
     ``data`` must have training and validation samples (card roles or split). ``base`` is a
     base kind (``linear``, ``stretch-fem``, ...) fitted on the training data, or a loaded
     :class:`SensorModel` to continue from (its parameters are kept). ``peer``: also fit the
-    NARX peer and give the verdict against it."""
-    train, val = data.train(), data.validate()
+    NARX peer and give the verdict against it. ``max_fit_samples``: the fits' budget (see
+    :data:`FIT_SAMPLES`; more training samples are decimated, loop.json's ``budget``)."""
+    if isinstance(max_fit_samples, bool) or not isinstance(max_fit_samples, int) \
+            or max_fit_samples < 10 * folds:
+        raise DataError(f"max_fit_samples={max_fit_samples!r} is not allowed: an integer >= "
+                        f"{10 * folds} (10 x folds)")
+    val = data.validate()
     _check_runs(data, peer)
+    train, budget = fit_samples(data.train(), max_fit_samples)
     if len(train) < 10 * folds:
         raise DataError(f"{len(train)} training samples are too few for {folds}-fold "
                         "cross-validation; give more data or a larger [split] train")
@@ -376,7 +432,9 @@ def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[st
                                                     "over the held-out units (runs or blocks) "
                                                     "> min_relative, and > n_se standard "
                                                     "errors or > 0 on every unit"},
-                              "data": _data_summary(data)}
+                              "data": _data_summary(data),
+                              "budget": {**budget, "validation_samples": len(val),
+                                         "peer_rows": PEER_ROWS if peer else None}}
     series: dict[str, Any] = {}
     cache_tr: dict = {}
     for o in outs:
@@ -389,7 +447,7 @@ def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[st
         if peer:
             if progress:
                 progress(o, 0, 1, "NARX peer")
-            _add_peer(rep, ser, data, o)
+            _add_peer(rep, ser, data, o, PEER_ROWS)
         else:
             rep["peer"] = None
             rep["explained_of_learnable"] = None
@@ -682,11 +740,13 @@ def _check_runs(data: Dataset, peer: bool) -> None:
                             f"run (the longest lag: {why})")
 
 
-def fit_peer(data: Dataset, output: str) -> tuple[np.ndarray, dict]:
+def fit_peer(data: Dataset, output: str, max_rows: int | None = None
+             ) -> tuple[np.ndarray, dict]:
     """The black-box peer: seed 000's NARX network (:mod:`designlab.measured.narx`, defaults:
     10 tanh neurons, 50 input delays, seed 0) from every varying input to ``output``, trained
-    on the training runs (one record each) and run over each whole run; returns its prediction
-    of every sample of ``data`` and what it was."""
+    on the training runs (one record each; on every stride-th row beyond ``max_rows`` rows)
+    and run over each whole run; returns its prediction of every sample of ``data`` and what
+    it was."""
     import time
 
     from designlab.measured import narx
@@ -702,7 +762,8 @@ def fit_peer(data: Dataset, output: str) -> tuple[np.ndarray, dict]:
         m = train.segment == s
         recs_u.append(np.column_stack([train.inputs[n][m] for n in names]))
         recs_y.append(train.outputs[output][m][:, None])
-    model, fit_rep = narx.fit(recs_u, recs_y, params)
+    model, fit_rep = narx.fit(recs_u, recs_y, params, max_rows=max_rows)
+    del recs_u, recs_y, train
     pred = np.empty(len(data))
     for s in np.unique(data.segment):
         m = data.segment == s
@@ -710,7 +771,8 @@ def fit_peer(data: Dataset, output: str) -> tuple[np.ndarray, dict]:
     info = {"kind": "narx", "inputs": names, "hidden": params.hidden,
             "input_delays": params.input_delays, "delay_s": params.input_delays * data.dt,
             "seed": params.seed, "iterations": fit_rep.iterations,
-            "converged": fit_rep.converged, "time_s": time.perf_counter() - t0}
+            "converged": fit_rep.converged, "rows": fit_rep.rows, "stride": fit_rep.stride,
+            "time_s": time.perf_counter() - t0}
     return pred, info
 
 
@@ -728,9 +790,10 @@ def verdict_kind(base: float, after: float, peer: float | None) -> str:
     return "missing mechanism"
 
 
-def _add_peer(rep: dict, ser: dict, data: Dataset, o: str) -> None:
+def _add_peer(rep: dict, ser: dict, data: Dataset, o: str,
+              max_rows: int | None = None) -> None:
     vmask = data.role == "validate"
-    pred, info = fit_peer(data, o)
+    pred, info = fit_peer(data, o, max_rows)
     yv = data.outputs[o][vmask]
     err = rmse(yv, pred[vmask])
     info["error"] = err

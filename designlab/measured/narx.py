@@ -59,6 +59,7 @@ class NARXFitReport:
     features: int
     open_loop_rmse: tuple[float, ...]   # one-step-ahead training RMSE per output, output unit
     time_s: float
+    stride: int = 1         # trained on every stride-th row (a memory budget, ``max_rows``)
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,12 +86,20 @@ class NARXModel:
         return self.y_mean.size
 
     def _u_part(self, u: np.ndarray) -> np.ndarray:
-        """Hidden pre-activation from the input taps for every sample (edge-padded start)."""
+        """Hidden pre-activation from the input taps for every sample (edge-padded start),
+        (T, hidden). The lagged taps are built :data:`CHUNK` rows at a time: never the whole
+        (T, inputs x delays) matrix."""
         p = self.params
         us = (u - self.u_mean) / self.u_std
         us = np.concatenate([np.repeat(us[:1], p.input_delays, 0), us])
-        X = lagged(us, 0, p.input_delays, p.input_delays)
-        return X @ self.W1[:X.shape[1]] + self.b1
+        T = u.shape[0]
+        W = self.W1[:us.shape[1] * (p.input_delays + 1)]
+        out = np.empty((T, self.W1.shape[1]))
+        for a in range(0, T, CHUNK):
+            b = min(a + CHUNK, T)
+            X = lagged(us[a:b + p.input_delays], 0, p.input_delays, p.input_delays)
+            out[a:b] = X @ W + self.b1
+        return out
 
     def predict(self, u, *, y_init=None) -> np.ndarray:
         """Closed-loop (parallel) estimates (T, n_out) from inputs u (T, n_in).
@@ -149,19 +158,52 @@ def lagged(x: np.ndarray, first: int, last: int, start: int) -> np.ndarray:
     return win[i0:i0 + T - start].reshape(T - start, c * (L + 1))
 
 
-def features(u: np.ndarray, y: np.ndarray, params: NARXParams) -> np.ndarray:
-    """Series-parallel design matrix of one standardised record (rows with a full history)."""
+def lagged_rows(x: np.ndarray, first: int, last: int, start: int,
+                rows: np.ndarray) -> np.ndarray:
+    """:func:`lagged` at the rows ``rows`` (indices into its ``T - start`` rows) only: the
+    other rows are never copied."""
+    T, c = x.shape
+    L = last - first
+    win = sliding_window_view(x, L + 1, axis=0)
+    return win[start - last + np.asarray(rows, int)].reshape(len(rows), c * (L + 1))
+
+
+def features(u: np.ndarray, y: np.ndarray, params: NARXParams,
+             rows: np.ndarray | None = None) -> np.ndarray:
+    """Series-parallel design matrix of one standardised record (rows with a full history;
+    only the rows ``rows``, indices among them, when given)."""
     D = params.max_delay
-    X = [lagged(u, 0, params.input_delays, D)]
-    if params.output_delays:
-        X.append(lagged(y, 1, params.output_delays, D))
+    if rows is None:
+        X = [lagged(u, 0, params.input_delays, D)]
+        if params.output_delays:
+            X.append(lagged(y, 1, params.output_delays, D))
+    else:
+        X = [lagged_rows(u, 0, params.input_delays, D, rows)]
+        if params.output_delays:
+            X.append(lagged_rows(y, 1, params.output_delays, D, rows))
     return np.hstack(X)
 
 
-def fit(u, y, params: NARXParams = NARXParams()) -> tuple[NARXModel, NARXFitReport]:
+#: rows of lagged taps built at a time when a network is applied to a long record
+CHUNK = 65_536
+
+
+def row_stride(n_rows: int, max_rows: int | None) -> int:
+    """The stride of a deterministic subset of at most ``max_rows`` training rows out of
+    ``n_rows`` (every ``stride``-th row of each record; 1: all rows)."""
+    if max_rows is None or n_rows <= max_rows:
+        return 1
+    return -(-n_rows // max_rows)
+
+
+def fit(u, y, params: NARXParams = NARXParams(),
+        max_rows: int | None = None) -> tuple[NARXModel, NARXFitReport]:
     """Train the network series-parallel on inputs u (T, n_in) and targets y (T, n_out).
 
     ``u``/``y`` may be lists of records (each contributes its rows with a full history).
+    ``max_rows``: a memory budget; with more training rows than that the network trains on
+    every ``stride``-th row of each record (a deterministic subset, each row keeping its full
+    history; ``NARXFitReport.stride``), the scaling still from every sample.
     """
     from sklearn.exceptions import ConvergenceWarning
     from sklearn.neural_network import MLPRegressor
@@ -184,9 +226,13 @@ def fit(u, y, params: NARXParams = NARXParams()) -> tuple[NARXModel, NARXFitRepo
     U, Y = np.vstack(us), np.vstack(ys)
     u_mean, u_std = U.mean(0), _std(U)
     y_mean, y_std = Y.mean(0), _std(Y)
-    X = np.vstack([features((a - u_mean) / u_std, (b - y_mean) / y_std, params)
-                   for a, b in zip(us, ys)])
-    T = np.vstack([((b - y_mean) / y_std)[params.max_delay:] for b in ys])
+    D = params.max_delay
+    stride = row_stride(sum(a.shape[0] - D for a in us), max_rows)
+    sel = [None if stride == 1 else np.arange(0, a.shape[0] - D, stride) for a in us]
+    X = np.vstack([features((a - u_mean) / u_std, (b - y_mean) / y_std, params, r)
+                   for a, b, r in zip(us, ys, sel)])
+    T = np.vstack([((b - y_mean) / y_std)[D:] if r is None else ((b[D:][r] - y_mean) / y_std)
+                   for b, r in zip(ys, sel)])
     mlp = MLPRegressor(hidden_layer_sizes=(params.hidden,), activation="tanh", solver="lbfgs",
                        alpha=params.alpha, max_iter=params.max_iter, tol=1e-7,
                        random_state=params.seed)
@@ -203,7 +249,7 @@ def fit(u, y, params: NARXParams = NARXParams()) -> tuple[NARXModel, NARXFitRepo
     ol = np.sqrt(np.mean((pred - T) ** 2, axis=0)) * y_std
     report = NARXFitReport(iterations=int(mlp.n_iter_), converged=converged, rows=X.shape[0],
                            features=X.shape[1], open_loop_rmse=tuple(float(v) for v in ol),
-                           time_s=time.perf_counter() - t0)
+                           time_s=time.perf_counter() - t0, stride=stride)
     return model, report
 
 
