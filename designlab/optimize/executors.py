@@ -10,8 +10,12 @@ stop the sweep either. Local pool: a death fails every task still in that pool
 (``BrokenProcessPool``), so the pool is rebuilt and they are all run again (``MAX_RETRIES``
 times); if the pool breaks again, the tasks left run on a one-worker pool in order, where the
 design whose worker dies is known: that one is recorded failed with the reason, the others
-run on. Dask: the task is retried ``MAX_RETRIES`` times on another worker, then
-(``KilledWorker``) recorded failed with the reason.
+run on. Dask: the scheduler runs a task whose worker died again (up to its own
+``allowed-failures``, 3 by default, then ``KilledWorker``); each design counts its own tries
+in the scheduler's metadata (which workers started it and did not finish), so it is run
+``MAX_RETRIES`` times more and then recorded failed with the reason naming the workers that
+died, whatever the cluster's setting (a lower ``allowed-failures`` gives the ``KilledWorker``
+reason, which names the last worker).
 """
 
 from __future__ import annotations
@@ -115,6 +119,34 @@ class LocalExecutor:
             todo = sorted(died)
 
 
+#: the scheduler metadata under which a Dask run counts its designs' unfinished tries
+TRIES_KEY = "designlab-tries"
+
+
+def _dask_try(fn: Callable[[Any], Any], task: Any, key: list[str]) -> tuple[Any, str | None]:
+    """One try of a design on a Dask worker: the worker's address is added to the design's
+    list of unfinished tries (scheduler metadata ``key``) before it runs and removed when it
+    returns. A design that finds more than ``MAX_RETRIES`` unfinished tries (their workers died
+    while running it) is not run again: it is recorded failed, naming those workers."""
+    try:
+        from distributed import get_client, get_worker
+
+        client, me = get_client(), get_worker().address
+        died = list(client.get_metadata(key, default=None) or [])
+    except Exception:  # no bookkeeping (an old scheduler): the scheduler's own limit applies
+        return _guarded(fn, task)
+    if len(died) > MAX_RETRIES:
+        return None, (f"the Dask worker(s) running this design died {len(died)} times "
+                      f"({', '.join(died)}: killed, out of memory or a crash); not run again")
+    client.set_metadata(key, died + [me])
+    out = _guarded(fn, task)
+    try:
+        client.set_metadata(key, died)
+    except Exception:
+        pass
+    return out
+
+
 class DaskExecutor:
     """Tasks on a Dask distributed scheduler at ``address`` (e.g. ``tcp://10.0.0.5:8786``)."""
 
@@ -135,8 +167,11 @@ class DaskExecutor:
         except (OSError, TimeoutError) as exc:
             raise ParameterError("--scheduler", self.address,
                                  f"the address of a reachable Dask scheduler ({exc})") from None
+        import uuid
+
+        run = uuid.uuid4().hex
         try:
-            futures = {client.submit(_guarded, fn, t, pure=False, retries=MAX_RETRIES): i
+            futures = {client.submit(_dask_try, fn, t, [TRIES_KEY, run, str(i)], pure=False): i
                        for i, t in enumerate(tasks)}
             for fut in as_completed(futures):
                 try:
@@ -144,9 +179,13 @@ class DaskExecutor:
                 except (KeyboardInterrupt, SystemExit, GeneratorExit):
                     raise
                 except BaseException as exc:  # KilledWorker (after the retry), cancelled, lost
-                    yield (futures[fut], None, f"Dask could not run this design "
-                                               f"({MAX_RETRIES + 1} tries): {_one_line(exc)}")
+                    yield (futures[fut], None, f"Dask could not run this design: "
+                                               f"{_one_line(exc)}")
                     continue
                 yield (futures[fut], *res)
         finally:
+            try:
+                client.set_metadata([TRIES_KEY, run], None)   # this run's bookkeeping
+            except Exception:
+                pass
             client.close()
