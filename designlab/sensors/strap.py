@@ -103,6 +103,19 @@ class StrapModelSettings(FEMSettings):
     tissue_stiffness: float = field(default=0.02, metadata=rng(0, 10, unit="N/mm^3",
                                     doc="finger support under the strap outside the pad "
                                         "(Winkler springs normal to the inner face), 0 = none"))
+    finger_model: str = field(default="winkler", metadata=rng(
+        choices=("winkler", "solid"), doc="the finger under the strap: Winkler springs "
+        "(tissue_stiffness) or a solid pulp layer bonded to the inner face, its far face fixed "
+        "(strap_pulp)"))
+    pulp_depth: float = field(default=3.0, metadata=rng(0.5, 8, unit="mm",
+                              doc="solid pulp: layer depth to the bone (assumed)"))
+    pulp_modulus: float = field(default=0.06, metadata=rng(0.001, 10, unit="MPa",
+                                doc="solid pulp: Young's modulus (default: the Winkler "
+                                    "default's unconfined equivalent 0.02 N/mm^3 x 3 mm, not a "
+                                    "literature value)"))
+    pulp_poisson: float = field(default=0.49, metadata=rng(0.0, 0.499, doc="solid pulp: "
+                                "Poisson's ratio (nearly incompressible)"))
+    pulp_layers: int = field(default=2, metadata=rng(1, 20, doc="solid pulp: element layers"))
     read_fraction: float = field(default=0.2, metadata=rng(0, 1, lo_open=True,
                                  doc="end part of each staircase hold that is averaged"))
     slot: int = field(default=0, metadata=rng(0, 6, doc="engaged slot (1 = nearest the strap "
@@ -120,7 +133,7 @@ class StrapModelSettings(FEMSettings):
                                 doc="readout bandwidth (seed 000: 10 Hz low-pass)"))
 
     def __post_init__(self):
-        for name in ("slot", "adc_bits"):
+        for name in ("slot", "adc_bits", "pulp_layers"):
             v = getattr(self, name)
             if isinstance(v, float) and v.is_integer():
                 object.__setattr__(self, name, int(v))
@@ -236,9 +249,9 @@ def gauge_cells(part, flat_mesh, region: str) -> np.ndarray:
     return cells[np.abs(phi) < part.gauge_angles()["p0"]]
 
 
-def inner_face_nodes(part, flat_mesh) -> tuple[np.ndarray, np.ndarray]:
-    """Corner nodes of the inner (finger-side) face outside the pad contact and the tabs, and
-    their lumped areas (mm^2): where the finger supports the strap."""
+def inner_face_triangles(part, flat_mesh) -> np.ndarray:
+    """Corner triangles of the inner (finger-side) face outside the pad contact and the tabs:
+    where the finger supports the strap (the Winkler springs' nodes, the solid pulp's top)."""
     from designlab.mesh.facets import centroids_normals
 
     tri = flat_mesh.boundary_facets()
@@ -247,12 +260,28 @@ def inner_face_nodes(part, flat_mesh) -> tuple[np.ndarray, np.ndarray]:
     inner = (nrm[:, 2] < -0.9) & (np.abs(cen[:, 2]) < part.layer_height / 2)
     arch = np.abs(phi) < part.half_angle
     contact = np.abs(phi) * part.radius <= part.contact_length / 2
-    tri = tri[inner & arch & ~contact]
+    return tri[inner & arch & ~contact]
+
+
+def inner_face_nodes(part, flat_mesh) -> tuple[np.ndarray, np.ndarray]:
+    """Corner nodes of :func:`inner_face_triangles` and their lumped areas (mm^2)."""
+    tri = inner_face_triangles(part, flat_mesh)
     p = flat_mesh.points[tri]
     area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
     w = np.bincount(tri.ravel(), weights=np.repeat(area / 3.0, 3), minlength=flat_mesh.n_points)
     ids = np.nonzero(w > 0)[0]
     return ids, w[ids]
+
+
+def finger_materials(settings: StrapModelSettings, materials=None):
+    """The material overrides with the solid pulp's material when ``finger_model = "solid"``
+    (the pulp body is not a part body: its material comes from the settings)."""
+    if settings.finger_model != "solid":
+        return materials
+    from designlab.sensors.strap_pulp import PULP, pulp_material
+
+    return {**(materials or {}), PULP: pulp_material(settings.pulp_modulus,
+                                                     settings.pulp_poisson)}
 
 
 def build_model(part, flat_mesh, settings: StrapModelSettings, materials=None):
@@ -264,9 +293,19 @@ def build_model(part, flat_mesh, settings: StrapModelSettings, materials=None):
     from designlab.fem.transducers import StrainGauge
 
     worn = settings.configuration == "worn"
+    solid = settings.finger_model == "solid"
+    if solid:       # the pulp layer under the support triangles, far face fixed (strap_pulp)
+        from designlab.sensors.strap_pulp import strap_with_pulp
+
+        flat_mesh = strap_with_pulp(part, flat_mesh, settings)
+    materials = finger_materials(settings, materials)
     mesh = worn_mesh(part, flat_mesh, settings.finger_radius) if worn else flat_mesh
     model = Model(mesh, materials)
     model.fix("nail_plate")
+    if solid:
+        from designlab.sensors.strap_pulp import BONE
+
+        model.fix(BONE)
     frame = pad_frame(part, settings)
     if settings.load == "coupling":
         pad = model.distributing_coupling("pad", "finger_contact", ref_point=frame["centre"])
@@ -276,7 +315,7 @@ def build_model(part, flat_mesh, settings: StrapModelSettings, materials=None):
         area = float(area_weights(mesh, facet_basis(mesh, model.facets("finger_contact"))).sum())
         model.traction("finger_contact", frame["n"] / area, case="F_n")
         model.traction("finger_contact", frame["t"] / area, case="F_x")
-    if settings.tissue_stiffness > 0:
+    if settings.tissue_stiffness > 0 and not solid:
         ids, area = inner_face_nodes(part, flat_mesh)
         if worn:
             sa, ca = _cone(part, settings.finger_radius)
@@ -452,6 +491,12 @@ def solve_fem(part, protocol: StrapLoadTest, settings: StrapModelSettings, mater
         res_long = solve_static(long_model, solver=settings.solver)
         out["U_long"] = np.stack([res_long.displacement(c) for c in CASES], axis=-1)
     timings["solve"] = time.perf_counter() - t0
+    if settings.finger_model == "solid":
+        from designlab.sensors.strap_pulp import max_principal_strain
+
+        # the pulp's largest principal strain per newton of F_n (long-time: the largest)
+        out["pulp_strain_per_N"] = np.array(
+            max_principal_strain(model, out["U_long"][:, :, 0].reshape(-1)))
     names = [mesh.region_names[k] for k in sorted(mesh.region_names)]
     return {**out, "points": mesh.points, "cells": mesh.cells, "region": mesh.region,
             "region_names": np.array(names),
@@ -511,7 +556,7 @@ def run(part=None, protocol: StrapLoadTest | None = None,
     names = [str(n) for n in fem["region_names"]]
     mesh = TetMesh(fem["points"], fem["cells"], fem["region"], dict(enumerate(names)),
                    dict(zip(names, (str(m) for m in fem["region_materials"]))))
-    region_materials = Model(mesh, materials).region_materials
+    region_materials = Model(mesh, finger_materials(settings, materials)).region_materials
     frame = pad_frame(part, settings)
 
     t, fn, fx = protocol.time_history()
@@ -576,6 +621,19 @@ def run(part=None, protocol: StrapLoadTest | None = None,
                       "attempts": [str(a) for a in fem["mesh_attempts"]],
                       "solver": str(fem["solver"])}
     report["fem_reused"] = reused
+    report["finger"] = {"finger_model": settings.finger_model}
+    if settings.finger_model == "solid":
+        per_n = float(fem["pulp_strain_per_N"]) if "pulp_strain_per_N" in fem else None
+        report["finger"] |= {
+            "pulp_depth_mm": settings.pulp_depth, "pulp_E_MPa": settings.pulp_modulus,
+            "pulp_nu": settings.pulp_poisson, "pulp_layers": settings.pulp_layers,
+            "pulp_max_principal_strain_per_N": per_n,
+            "pulp_max_principal_strain_at_peak_F_n": None if per_n is None
+            else per_n * float(np.abs(fn).max()),
+            "note": "linear elastic pulp (a hyperelastic pulp linearised at rest, E = 3 mu); "
+                    "the pulp modulus is not a literature value (docs/strap.md)"}
+    else:
+        report["finger"]["tissue_stiffness_N_per_mm3"] = settings.tissue_stiffness
     report["fem_key"] = key[:16] if key is not None else None
     report["model"] = {
         "configuration": settings.configuration,
