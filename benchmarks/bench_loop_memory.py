@@ -6,12 +6,15 @@ one run, the loop's default settings, at most two effects (`--max-effects 2`), N
 
     python benchmarks/bench_loop_memory.py [N_SAMPLES]
 
-prints the command's peak RSS (MB) and CPU seconds (user + system) of the child process.
-The README's Limits line quotes it: the loop has no memory budget.
+prints the command's peak RSS (MB) and CPU seconds (user + system) of the child process, and
+the loop's memory budget as loop.json reports it (the fits on at most
+``designlab.loop.loop.FIT_SAMPLES`` training samples, decimated beyond; the NARX peer on at most
+``PEER_ROWS`` rows; validation on every held-out sample). The README's Limits line quotes it.
 """
 
 from __future__ import annotations
 
+import json
 import resource
 import subprocess
 import sys
@@ -53,9 +56,15 @@ def main(n: int = 1_000_000) -> None:
         rc = subprocess.run([str(exe), "loop", "--data", str(card), "--out", str(folder / "o"),
                              "--max-effects", "2"], capture_output=True, text=True).returncode
         wall = time.perf_counter() - t0
+        report = folder / "o" / "loop.json"
+        budget = json.loads(report.read_text()).get("budget") if report.is_file() else None
     ru = resource.getrusage(resource.RUSAGE_CHILDREN)
     print(f"loop on {n} samples ({size:.0f} MB CSV): exit {rc}, peak RSS "
           f"{ru.ru_maxrss / 1024:.0f} MB, CPU {ru.ru_utime + ru.ru_stime:.0f} s, wall {wall:.0f} s")
+    if budget:
+        print(f"budget: {budget['train_samples']} training samples, fits on "
+              f"{budget['fit_samples']} (decimation {budget['decimation']}), validation on "
+              f"{budget['validation_samples']}, NARX peer on at most {budget['peer_rows']} rows")
 
 
 if __name__ == "__main__":

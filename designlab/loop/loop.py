@@ -447,7 +447,7 @@ def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[st
         if peer:
             if progress:
                 progress(o, 0, 1, "NARX peer")
-            _add_peer(rep, ser, data, o, PEER_ROWS)
+            _add_peer(rep, ser, data, o)
         else:
             rep["peer"] = None
             rep["explained_of_learnable"] = None
@@ -740,7 +740,7 @@ def _check_runs(data: Dataset, peer: bool) -> None:
                             f"run (the longest lag: {why})")
 
 
-def fit_peer(data: Dataset, output: str, max_rows: int | None = None
+def fit_peer(data: Dataset, output: str, max_rows: int | None = PEER_ROWS
              ) -> tuple[np.ndarray, dict]:
     """The black-box peer: seed 000's NARX network (:mod:`designlab.measured.narx`, defaults:
     10 tanh neurons, 50 input delays, seed 0) from every varying input to ``output``, trained
@@ -790,10 +790,9 @@ def verdict_kind(base: float, after: float, peer: float | None) -> str:
     return "missing mechanism"
 
 
-def _add_peer(rep: dict, ser: dict, data: Dataset, o: str,
-              max_rows: int | None = None) -> None:
+def _add_peer(rep: dict, ser: dict, data: Dataset, o: str) -> None:
     vmask = data.role == "validate"
-    pred, info = fit_peer(data, o, max_rows)
+    pred, info = fit_peer(data, o)
     yv = data.outputs[o][vmask]
     err = rmse(yv, pred[vmask])
     info["error"] = err
