@@ -1,0 +1,122 @@
+"""The solid finger pulp under the strap (``finger_model = "solid"``, sensors/strap_pulp.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from designlab.errors import ParameterError
+from designlab.fem import Model
+from designlab.fem.static import solve_static
+from designlab.mesh.tetmesh import TetMesh, box_tet_mesh
+from designlab.sensors import strap_pulp as sp
+
+E, NU, DEPTH, P = 0.06, 0.49, 3.0, 0.01          # MPa, -, mm, MPa
+
+
+def _layer(order: int) -> TetMesh:
+    """A 6 x 6 mm surface (z = 0, structured triangles) extruded 3 mm down as the pulp."""
+    n = 4
+    xs = np.linspace(0, 6, n + 1)
+    X, Y = np.meshgrid(xs, xs, indexing="ij")
+    pts = np.column_stack([X.ravel(), Y.ravel(), np.zeros(X.size)])
+    nid = np.arange(len(pts)).reshape(n + 1, n + 1)
+    i, j = (a.ravel() for a in np.meshgrid(np.arange(n), np.arange(n), indexing="ij"))
+    tri = np.vstack([np.column_stack([nid[i, j], nid[i + 1, j], nid[i + 1, j + 1]]),
+                     np.column_stack([nid[i, j], nid[i + 1, j + 1], nid[i, j + 1]])])
+    new, cells, far = sp.extrude(pts, tri, DEPTH, 3)
+    mesh = TetMesh(np.vstack([pts, new]), cells, np.zeros(len(cells), np.int64), {0: "pulp"},
+                   {"pulp": "pulp"}, {"top": tri, "bone": far})
+    return mesh.quadratic() if order == 2 else mesh
+
+
+def _compress(mesh: TetMesh, confined: bool) -> float:
+    m = Model(mesh, {"pulp": sp.pulp_material(E, NU)})
+    x = mesh.points
+    m.fix("bone", "z")
+    if confined:                   # no lateral strain anywhere
+        m.fix(np.arange(mesh.n_points), "xy")
+    else:                          # frictionless faces: symmetry planes only
+        m.fix(np.nonzero(np.isclose(x[:, 0], 0))[0], "x")
+        m.fix(np.nonzero(np.isclose(x[:, 1], 0))[0], "y")
+    m.traction("top", (0.0, 0.0, -P))
+    u = solve_static(m).displacement()
+    top = np.unique(mesh.facet_sets["top"])
+    return float(-u[top, 2].mean())
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_layer_compression_matches_closed_form(order):
+    """Uniform pressure on the extruded layer: confined p d / M (M = 17.1 E at nu 0.49: the
+    bulk-dominated case where a locking element would read stiff) and frictionless unconfined
+    p d / E, to 1e-6 (uniform states are in every element's space)."""
+    ref = sp.layer_closed_form(E, NU, DEPTH, P)
+    mesh = _layer(order)
+    assert np.all(mesh.corner_volumes > 0)
+    assert _compress(mesh, True) == pytest.approx(ref["confined_mm"], rel=1e-6)
+    assert _compress(mesh, False) == pytest.approx(ref["unconfined_mm"], rel=1e-6)
+    assert ref["unconfined_mm"] / ref["confined_mm"] == pytest.approx(
+        (1 - NU) / ((1 + NU) * (1 - 2 * NU)), rel=1e-12)
+
+
+def test_add_pulp_is_conforming_on_a_tet10_body():
+    """A TET10 block with the pulp extruded from its bottom face: the shared face keeps the
+    block's mid-edge nodes (no duplicate nodes) and, both bodies of the pulp's material (the
+    same lateral strain: a bonded stiff block would restrain the pulp), the 5 mm column
+    compresses as one, p (h + d) / E (frictionless, uniaxial stress), to 1e-6."""
+    block = box_tet_mesh(4.0, 4.0, 2.0, 3, 3, 2, body="block", material="ABS").quadratic()
+    mesh = sp.add_pulp(block, block.facet_sets["zmin"][:, :3], DEPTH, 2)
+    assert mesh.order == 2 and np.all(mesh.corner_volumes > 0)
+    key = np.round(mesh.points, 9)
+    assert len(np.unique(key, axis=0)) == mesh.n_points
+    assert len(np.unique(mesh.cells)) == mesh.n_points          # every node used
+    m = Model(mesh, {"pulp": sp.pulp_material(E, NU), "block": sp.pulp_material(E, NU)})
+    x = mesh.points
+    m.fix(sp.BONE, "z")
+    m.fix(np.nonzero(np.isclose(x[:, 0], 0))[0], "x")
+    m.fix(np.nonzero(np.isclose(x[:, 1], 0))[0], "y")
+    m.traction("zmax", (0.0, 0.0, -P))
+    u = solve_static(m).displacement()
+    want = P * (2.0 + DEPTH) / E
+    assert float(-u[np.unique(mesh.facet_sets["zmax"]), 2].mean()) == pytest.approx(want,
+                                                                                    rel=1e-6)
+
+
+def test_bad_settings_are_one_line_errors():
+    from designlab.sensors.strap import StrapModelSettings
+
+    with pytest.raises(ParameterError, match="finger_model"):
+        StrapModelSettings(finger_model="gel")
+    with pytest.raises(ParameterError, match="pulp_poisson"):
+        StrapModelSettings(pulp_poisson=0.5)
+    with pytest.raises(ParameterError, match="pulp_layers"):
+        StrapModelSettings(pulp_layers=1.5)
+
+
+def test_solid_pulp_changes_the_strap_prediction():
+    """Coarse strap (2 mm TET4, elastic materials): the solid pulp replaces the springs (the
+    prediction moves, the report says which finger and the pulp's strain), and a very soft
+    pulp (0.001 MPa) reads like the unsupported strap (tissue_stiffness 0) within 5 %."""
+    from designlab.geometry.strap import ArchStrap
+    from designlab.sensors import strap as st
+    from designlab.sensors.montecarlo_strap import elastic_materials
+    from designlab.sensors.protocols import StrapLoadTest
+
+    part, proto = ArchStrap(), StrapLoadTest(n_steps=2, step_hold_s=1.0, dt_s=0.25, cycles=1,
+                                             cycle_period_s=1.0)
+    mats = elastic_materials(part)
+
+    def sum_sens(**kw):
+        s = st.StrapModelSettings(edge_length=2.0, order=1, mesh_convergence=False, **kw)
+        r = st.run(part, proto, s, materials=mats).report
+        return r["sensitivity"]["V_per_N"]["sum"]["F_n"], r["finger"]
+
+    w, fw = sum_sens()
+    s1, f1 = sum_sens(finger_model="solid")
+    soft, _ = sum_sens(finger_model="solid", pulp_modulus=0.001)
+    free, _ = sum_sens(tissue_stiffness=0.0)
+    assert fw == {"finger_model": "winkler", "tissue_stiffness_N_per_mm3": 0.02}
+    assert f1["finger_model"] == "solid" and f1["pulp_max_principal_strain_per_N"] > 0
+    assert abs(s1 / w - 1) > 0.01
+    assert soft == pytest.approx(free, rel=0.05)
+    assert abs(w / free - 1) > 0.05                  # the default support is not negligible
