@@ -752,18 +752,18 @@ def fit_peer(data: Dataset, output: str, max_rows: int | None = PEER_ROWS
     from designlab.measured import narx
 
     t0 = time.perf_counter()
-    train = data.train()
-    names = [n for n in data.inputs if np.ptp(train.inputs[n]) > 0]
+    tr = data.role == "train"
+    names = [n for n in data.inputs if np.ptp(data.inputs[n][tr]) > 0]
     if not names:
         raise DataError("no input varies in the training data: the peer has nothing to learn")
     params = narx.NARXParams()
     recs_u, recs_y = [], []
-    for s in np.unique(train.segment):
-        m = train.segment == s
-        recs_u.append(np.column_stack([train.inputs[n][m] for n in names]))
-        recs_y.append(train.outputs[output][m][:, None])
+    for s in np.unique(data.segment[tr]):
+        m = tr & (data.segment == s)
+        recs_u.append(np.column_stack([data.inputs[n][m] for n in names]))
+        recs_y.append(data.outputs[output][m][:, None])
     model, fit_rep = narx.fit(recs_u, recs_y, params, max_rows=max_rows)
-    del recs_u, recs_y, train
+    del recs_u, recs_y
     pred = np.empty(len(data))
     for s in np.unique(data.segment):
         m = data.segment == s

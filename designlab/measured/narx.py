@@ -89,17 +89,24 @@ class NARXModel:
         """Hidden pre-activation from the input taps for every sample (edge-padded start),
         (T, hidden). The lagged taps are built :data:`CHUNK` rows at a time: never the whole
         (T, inputs x delays) matrix."""
+        T = u.shape[0]
+        out = np.empty((T, self.W1.shape[1]))
+        for a, b, h in self._u_chunks(u):
+            out[a:b] = h
+        return out
+
+    def _u_chunks(self, u: np.ndarray):
+        """(first row, end row, hidden pre-activation of those rows), :data:`CHUNK` rows at a
+        time."""
         p = self.params
         us = (u - self.u_mean) / self.u_std
         us = np.concatenate([np.repeat(us[:1], p.input_delays, 0), us])
         T = u.shape[0]
         W = self.W1[:us.shape[1] * (p.input_delays + 1)]
-        out = np.empty((T, self.W1.shape[1]))
         for a in range(0, T, CHUNK):
             b = min(a + CHUNK, T)
             X = lagged(us[a:b + p.input_delays], 0, p.input_delays, p.input_delays)
-            out[a:b] = X @ W + self.b1
-        return out
+            yield a, b, X @ W + self.b1
 
     def predict(self, u, *, y_init=None) -> np.ndarray:
         """Closed-loop (parallel) estimates (T, n_out) from inputs u (T, n_in).
@@ -109,9 +116,12 @@ class NARXModel:
         """
         u = self._check_u(u)
         p = self.params
+        if p.output_delays == 0:   # no feedback: chunk by chunk, no (T, hidden) array kept
+            out = np.empty((u.shape[0], self.n_outputs))
+            for a, b, h in self._u_chunks(u):
+                out[a:b] = (np.tanh(h) @ self.W2 + self.b2) * self.y_std + self.y_mean
+            return out
         h_u = self._u_part(u)
-        if p.output_delays == 0:
-            return (np.tanh(h_u) @ self.W2 + self.b2) * self.y_std + self.y_mean
         na, T, c = p.output_delays, u.shape[0], self.n_outputs
         y0 = self.y_init if y_init is None else np.broadcast_to(np.asarray(y_init, float), (c,))
         buf = np.empty((na + T, c))
