@@ -248,6 +248,24 @@ class CantileverFingertip:
         axes, _ = self.sensor_axes()
         return -self.well_depth * axes
 
+    def named_faces(self, built: dict) -> dict[str, list]:
+        """The facet sets this part can name by B-rep face (``{set: [(body, face), ...]}``,
+        read by the gmsh mesher; :meth:`facet_sets` stays the fallback and names the rest): the
+        ball seat (the fingertip body's sphere of the ball's radius) and the three well floors
+        (the base's planes through each floor centre, facing along the sensor axis)."""
+        from build123d import GeomType
+
+        out = {"ball_seat": [("fingertip", f) for f in
+                             built["fingertip"].shape.faces().filter_by(GeomType.SPHERE)
+                             if abs(f.radius - self.ball_radius) < 1e-9]}
+        axes, _ = self.sensor_axes()
+        for k, (a, c) in enumerate(zip(axes, self.well_floor_centers())):
+            out[f"sensor_well_{k + 1}"] = [
+                ("base", f) for f in built["base"].shape.faces().filter_by(GeomType.PLANE)
+                if np.dot(tuple(f.normal_at()), a) > 0.95
+                and abs(np.dot(np.array(tuple(f.center())) - c, a)) < 1e-6]
+        return {k: v for k, v in out.items() if v}
+
     def facet_sets(self) -> dict[str, FacetSelector]:
         """``ball_seat`` (fingertip's spherical seat), ``sensor_well_1..3`` (well floors: the
         sensors' reaction on the base, outward normal along the sensor axis), ``bolt_head``

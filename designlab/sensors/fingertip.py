@@ -168,10 +168,13 @@ def mesh_fingertip(part, settings: FingertipModelSettings, detailed: bool = Fals
     names = [n for n in part.mesh_bodies() if settings.mesh_fingertip or n != "fingertip"]
     sets = {k: v for k, v in part.facet_sets().items()
             if settings.mesh_fingertip or not (k == "ball_seat" or k.startswith("load_"))}
+    named = {k: [(b, f) for b, f in v if b in names]
+             for k, v in part.named_faces(built).items() if k in sets}
     res = mesh_bodies_detailed([built[n] for n in names], sets, order=settings.order,
                                edge_length=settings.edge_length, quality=settings.mesh_quality,
                                mesher=settings.mesher,
-                               refinement=part.refinement() if settings.refine else ())
+                               refinement=part.refinement() if settings.refine else (),
+                               named_faces={k: v for k, v in named.items() if v})
     return res if detailed else res.mesh
 
 
