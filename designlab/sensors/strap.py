@@ -492,11 +492,12 @@ def solve_fem(part, protocol: StrapLoadTest, settings: StrapModelSettings, mater
         out["U_long"] = np.stack([res_long.displacement(c) for c in CASES], axis=-1)
     timings["solve"] = time.perf_counter() - t0
     if settings.finger_model == "solid":
-        from designlab.sensors.strap_pulp import max_principal_strain
+        from designlab.sensors.strap_pulp import principal_strain
 
-        # the pulp's largest principal strain per newton of F_n (long-time: the largest)
-        out["pulp_strain_per_N"] = np.array(
-            max_principal_strain(model, out["U_long"][:, :, 0].reshape(-1)))
+        # the pulp's principal strain per newton of F_n (long-time: the largest), max and p95
+        u_n = out["U_long"][:, :, 0].reshape(-1)
+        out["pulp_strain_per_N"] = np.array([principal_strain(model, u_n),
+                                             principal_strain(model, u_n, q=95.0)])
     names = [mesh.region_names[k] for k in sorted(mesh.region_names)]
     return {**out, "points": mesh.points, "cells": mesh.cells, "region": mesh.region,
             "region_names": np.array(names),
@@ -554,7 +555,18 @@ def run(part=None, protocol: StrapLoadTest | None = None,
                                  if reused else {"mesh": mesh_t, "assemble": assemble_t,
                                                  "solve": solve_t})
     names = [str(n) for n in fem["region_names"]]
-    mesh = TetMesh(fem["points"], fem["cells"], fem["region"], dict(enumerate(names)),
+    n_keep = len(fem["points"])
+    keep = np.ones(len(fem["cells"]), bool)
+    if settings.finger_model == "solid":
+        # the prediction's mesh (VTU, stress check) is the strap: the pulp's cells and nodes
+        # (appended after the strap's, strap_pulp.add_pulp) are left out; the pulp is no
+        # library material and has no strength. report["finger"] has its strain.
+        from designlab.sensors.strap_pulp import PULP
+
+        keep = np.asarray(fem["region"]) != names.index(PULP)
+        n_keep = int(np.asarray(fem["cells"])[keep].max()) + 1
+    mesh = TetMesh(np.asarray(fem["points"])[:n_keep], np.asarray(fem["cells"])[keep],
+                   np.asarray(fem["region"])[keep], dict(enumerate(names)),
                    dict(zip(names, (str(m) for m in fem["region_materials"]))))
     region_materials = Model(mesh, finger_materials(settings, materials)).region_materials
     frame = pad_frame(part, settings)
@@ -623,13 +635,14 @@ def run(part=None, protocol: StrapLoadTest | None = None,
     report["fem_reused"] = reused
     report["finger"] = {"finger_model": settings.finger_model}
     if settings.finger_model == "solid":
-        per_n = float(fem["pulp_strain_per_N"]) if "pulp_strain_per_N" in fem else None
+        per_n, p95 = (float(v) for v in fem["pulp_strain_per_N"])
+        peak = float(np.abs(fn).max())
         report["finger"] |= {
             "pulp_depth_mm": settings.pulp_depth, "pulp_E_MPa": settings.pulp_modulus,
             "pulp_nu": settings.pulp_poisson, "pulp_layers": settings.pulp_layers,
             "pulp_max_principal_strain_per_N": per_n,
-            "pulp_max_principal_strain_at_peak_F_n": None if per_n is None
-            else per_n * float(np.abs(fn).max()),
+            "pulp_max_principal_strain_at_peak_F_n": per_n * peak,
+            "pulp_p95_principal_strain_at_peak_F_n": p95 * peak,
             "note": "linear elastic pulp (a hyperelastic pulp linearised at rest, E = 3 mu); "
                     "the pulp modulus is not a literature value (docs/strap.md)"}
     else:
@@ -666,8 +679,8 @@ def run(part=None, protocol: StrapLoadTest | None = None,
         pre["stress"] = wrap_stress(region_materials, mesh, pre["initial_strain"])
         for w in wrap_stress_warnings(pre["stress"]):
             warnings.warn(w, stacklevel=2)
-    U_long = np.array(fem["U_long"], float) if "U_long" in fem else None
-    return StrapPrediction(t, fn, fx, strain, voltage, dV, report, mesh, u_peak, U_long)
+    U_long = np.array(fem["U_long"], float)[:n_keep] if "U_long" in fem else None
+    return StrapPrediction(t, fn, fx, strain, voltage, dV, report, mesh, u_peak[:n_keep], U_long)
 
 
 # ------------------------------------------------------------------------------------ stress

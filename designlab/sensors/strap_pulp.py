@@ -12,8 +12,8 @@ nail as a rigid mount. The side faces are free.
 
 Material: linear elastic, ``pulp_modulus`` (E, MPa) and ``pulp_poisson`` (default 0.49, nearly
 incompressible). A hyperelastic pulp linearised at the unloaded state has E = 3 mu (mu the
-neo-Hookean small-strain shear modulus) when incompressible; :func:`max_principal_strain`
-reports the largest principal strain in the pulp so whether the linearisation holds can be read
+neo-Hookean small-strain shear modulus) when incompressible; :func:`principal_strain`
+reports the largest principal strain in the pulp (and its 95th percentile) so whether the linearisation holds can be read
 off. TET10 cells with the full 4-point rule are used at nu = 0.49 (no mixed formulation exists
 in :mod:`designlab.fem`): the layer tests in ``tests/test_strap_pulp.py`` check the confined
 compression (bulk-dominated: where locking would show) against the closed form.
@@ -129,25 +129,28 @@ def strap_with_pulp(part, flat_mesh: TetMesh, settings) -> TetMesh:
     return add_pulp(flat_mesh, tri, settings.pulp_depth, settings.pulp_layers)
 
 
-def max_principal_strain(model, U: np.ndarray, body: str = PULP) -> float:
-    """Largest |principal strain| over the quadrature points of ``body``'s cells under the
-    displacement ``U`` (3 n_points,)."""
+def principal_strain(model, U: np.ndarray, body: str = PULP, q: float = 100.0) -> float:
+    """The ``q``-th percentile (100: the largest) over the quadrature points of ``body``'s
+    cells of the largest |principal strain| under the displacement ``U`` (3 n_points,). The
+    largest sits at the bonded edge next to the pad (a corner: it grows as the mesh is
+    refined); a percentile below 100 is the robust measure."""
     eps = np.asarray(model.B @ U).reshape(-1, 6)
     nq = len(eps) // model.mesh.n_cells
     rid = model.mesh.region_id(body)
     mask = np.repeat(model.mesh.region == rid, nq)
-    return _principal_abs_max(eps[mask])
+    a = _principal_abs(eps[mask])
+    return float(np.percentile(a, q)) if len(a) else 0.0
 
 
-def _principal_abs_max(e: np.ndarray) -> float:
-    """Largest |eigenvalue| of engineering-strain rows (xx, yy, zz, xy, xz, yz: the order of
-    :func:`designlab.fem.assembly.strain_operator`)."""
+def _principal_abs(e: np.ndarray) -> np.ndarray:
+    """Per row, the largest |eigenvalue| of engineering-strain rows (xx, yy, zz, xy, xz, yz:
+    the order of :func:`designlab.fem.assembly.strain_operator`)."""
     T = np.zeros((len(e), 3, 3))
     for k in range(3):
         T[:, k, k] = e[:, k]
     for col, (i, j) in zip(range(3, 6), ((0, 1), (0, 2), (1, 2))):
         T[:, i, j] = T[:, j, i] = 0.5 * e[:, col]
-    return float(np.abs(np.linalg.eigvalsh(T)).max()) if len(T) else 0.0
+    return np.abs(np.linalg.eigvalsh(T)).max(axis=1)
 
 
 def layer_closed_form(E: float, nu: float, depth: float, p: float) -> dict[str, Any]:
