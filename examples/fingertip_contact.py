@@ -61,6 +61,14 @@ def print_moment_sensitivity(part, cf, s) -> None:
           f"{ms['bolt_and_cap_axial_stiffness_N_per_mm']:.0f} N/mm (steel bolt alone EA/L "
           f"{ms['bolt_alone_axial_stiffness_N_per_mm']:.0f}), sensors vertically "
           f"{ms['sensors_vertical_stiffness_N_per_mm']:.0f} N/mm")
+    g = ms["gap_closure"]
+    print(f"  fingertip touching the base across its {g['gap_mm']:g} mm gap? heaviest weight "
+          f"{g['load_N']:.2f} N at h1 ({g['arm_mm']:g} mm): ball turns "
+          f"{1e3 * g['frictionless']['ball_rotation_rad']:.2f} mrad frictionless / "
+          f"{1e3 * g['stuck']['ball_rotation_rad']:.2f} stuck, the rim (r {g['rim_radius_mm']:g} "
+          f"mm) closes {g['frictionless']['closure_mm']:.4f} / {g['stuck']['closure_mm']:.4f} mm "
+          f"({100 * g['frictionless']['fraction_of_gap']:.1f} % of the gap): "
+          f"{'closes' if g['closes'] else 'does not close'}")
 
 
 def main(argv=None) -> int:

@@ -747,6 +747,40 @@ def moment_sensitivity(part, cf: CondensedFingertip, settings: ContactSettings |
     out["bolt_and_cap_axial_stiffness_N_per_mm"] = float(1.0 / cf.C[2, 2])
     out["bolt_alone_axial_stiffness_N_per_mm"] = float(K_hand[2, 2])
     out["sensors_vertical_stiffness_N_per_mm"] = float(kn * np.sum(axes[:, 2] ** 2))
+    out["gap_closure"] = gap_closure(part, cf, kn, kt)
+    return out
+
+
+def gap_closure(part, cf: CondensedFingertip, kn: float, kt: float) -> dict[str, Any]:
+    """Does the fingertip touch the base across its ``gap`` under the heaviest Table II weight
+    at h1 (a candidate for the rotational restraint the paper's 33.9 % needs)? The fingertip is
+    rigid on the ball: the rim of its underside (radius ``outer_radius``, at the gap's top)
+    moves by the ball's translation plus rotation, linearised at the preload (frictionless and
+    every contact stuck). ``closure_mm`` is the rim's largest downward motion plus the largest
+    well-floor motion (a bound for the base's own deflection); the gap closes when it reaches
+    ``gap_mm``. Units mm, N."""
+    from designlab.geometry.fingertip import TABLE_II_HEIGHTS
+    from designlab.sensors.protocols import G_ACC
+
+    test = HangingWeightTest()
+    F = (max(test.weights_g) + test.tray_g) * 1e-3 * G_ACC
+    w = wrench_at_ball(np.array([0.0, 0.0, TABLE_II_HEIGHTS[0]]), np.array([F, 0.0, 0.0]))
+    R = part.outer_radius
+    out: dict[str, Any] = {"load_N": F, "arm_mm": TABLE_II_HEIGHTS[0], "rim_radius_mm": R,
+                           "gap_mm": part.gap}
+    for label, stuck in (("frictionless", False), ("stuck", True)):
+        K = np.linalg.inv(cf.C)
+        for k in range(3):
+            K += kn * np.outer(cf.L[k, 0], cf.L[k, 0])
+            if stuck:
+                K += kt * (np.outer(cf.L[k, 1], cf.L[k, 1]) + np.outer(cf.L[k, 2], cf.L[k, 2]))
+        u = np.linalg.solve(K, cf.f_wrench.T @ w)
+        rim = R * float(np.hypot(u[3], u[4])) - float(u[2])   # largest downward rim motion
+        wells = float(np.max(np.linalg.norm(u[6:].reshape(3, 6)[:, :3], axis=1)))
+        out[label] = {"ball_rotation_rad": float(np.hypot(u[3], u[4])),
+                      "rim_down_mm": rim, "closure_mm": rim + wells,
+                      "fraction_of_gap": (rim + wells) / part.gap}
+    out["closes"] = any(out[k]["closure_mm"] >= part.gap for k in ("frictionless", "stuck"))
     return out
 
 
