@@ -159,3 +159,52 @@ def layer_closed_form(E: float, nu: float, depth: float, p: float) -> dict[str, 
     unconfined with frictionless faces (uniaxial stress, E)."""
     M = E * (1 - nu) / ((1 + nu) * (1 - 2 * nu))
     return {"confined_mm": p * depth / M, "unconfined_mm": p * depth / E, "M_MPa": M}
+
+
+#: the comparison of ``python -m designlab.sensors.strap_pulp``: (label, settings overrides)
+COMPARISON = (("winkler 0.02 N/mm^3", {}),
+              ("solid (defaults)", {"finger_model": "solid"}),
+              ("solid E 0.02 MPa", {"finger_model": "solid", "pulp_modulus": 0.02}),
+              ("solid E 0.3 MPa", {"finger_model": "solid", "pulp_modulus": 0.3}),
+              ("solid depth 5 mm", {"finger_model": "solid", "pulp_depth": 5.0}))
+
+
+def comparison(cases=COMPARISON, slots=(0, 1, 2, 3), **settings) -> list[dict[str, Any]]:
+    """Winkler against solid pulp on the default ArchStrap and protocol, elastic materials (the
+    small-signal strain per newton, as the Monte Carlo reads it): per case and slot the sum
+    and difference sensitivities (mV/N), the cross-talk (% per N) and the pulp's principal
+    strain at the protocol's peak F_n. One FEM per case (the slot acts after the FEM)."""
+    from designlab.geometry.strap import ArchStrap
+    from designlab.sensors import strap as st
+    from designlab.sensors.montecarlo_strap import elastic_materials
+    from designlab.sensors.protocols import StrapLoadTest
+
+    part, proto = ArchStrap(), StrapLoadTest()
+    mats = elastic_materials(part)
+    rows = []
+    for label, kw in cases:
+        for slot in slots:
+            s = st.StrapModelSettings(**{"mesh_convergence": False, **settings, **kw}, slot=slot)
+            r = st.run(part, proto, s, materials=mats).report
+            sens, ct, f = r["sensitivity"]["V_per_N"], r["cross_talk_percent"], r["finger"]
+            rows.append({"case": label, "slot": slot,
+                         "sum_mV_per_N": 1e3 * sens["sum"]["F_n"],
+                         "diff_mV_per_N": 1e3 * sens["diff"]["F_x"],
+                         "F_x_in_sum_percent": ct["F_x_in_sum_per_N_percent"],
+                         "F_n_in_diff_percent": ct["F_n_in_diff_per_N_percent"],
+                         "pulp_max_strain_at_peak": f.get("pulp_max_principal_strain_at_peak_F_n"),
+                         "pulp_p95_strain_at_peak": f.get("pulp_p95_principal_strain_at_peak_F_n"),
+                         "cells": r["mesh"]["cells"]})
+    return rows
+
+
+if __name__ == "__main__":          # python -m designlab.sensors.strap_pulp [edge_length]
+    import json
+    import sys
+    import warnings
+
+    warnings.simplefilter("ignore")
+    extra = {"edge_length": float(sys.argv[1])} if len(sys.argv) > 1 else {}
+    for row in comparison(**extra):
+        print(json.dumps({k: round(v, 4) if isinstance(v, float) else v
+                          for k, v in row.items()}), flush=True)
