@@ -198,13 +198,17 @@ def comparison(cases=COMPARISON, slots=(0, 1, 2, 3), **settings) -> list[dict[st
     return rows
 
 
-if __name__ == "__main__":          # python -m designlab.sensors.strap_pulp [edge_length]
+if __name__ == "__main__":      # python -m designlab.sensors.strap_pulp [NAME=VALUE ...]
     import json
     import sys
     import warnings
 
+    from designlab.sensors.predict import model_settings
+
     warnings.simplefilter("ignore")
-    extra = {"edge_length": float(sys.argv[1])} if len(sys.argv) > 1 else {}
+    extra = dict(a.split("=", 1) for a in sys.argv[1:])
+    base = model_settings("strap", extra)        # parses and checks NAME=VALUE as --setting
+    extra = {k: getattr(base, k) for k in extra}
     for row in comparison(**extra):
         print(json.dumps({k: round(v, 4) if isinstance(v, float) else v
                           for k, v in row.items()}), flush=True)
