@@ -120,3 +120,25 @@ def test_solid_pulp_changes_the_strap_prediction():
     assert abs(s1 / w - 1) > 0.01
     assert soft == pytest.approx(free, rel=0.05)
     assert abs(w / free - 1) > 0.05                  # the default support is not negligible
+
+
+def test_fem_key_holds_the_finger_model_it_uses():
+    """Winkler: the pulp's settings leave the key (the key it had before the option); solid:
+    the springs' stiffness leaves it and every pulp setting enters it."""
+    import dataclasses
+
+    from designlab.geometry.strap import ArchStrap
+    from designlab.sensors import strap as st
+    from designlab.sensors.protocols import StrapLoadTest
+
+    part, proto = ArchStrap(), StrapLoadTest()
+    w = st.StrapModelSettings()
+    key = st.fem_key(part, proto, w)
+    assert st.fem_key(part, proto, dataclasses.replace(w, pulp_modulus=0.3)) == key
+    s = dataclasses.replace(w, finger_model="solid")
+    ks = st.fem_key(part, proto, s)
+    assert ks != key
+    assert st.fem_key(part, proto, dataclasses.replace(s, tissue_stiffness=0.05)) == ks
+    other = {st.fem_key(part, proto, dataclasses.replace(s, **kw)) for kw in (
+        {"pulp_depth": 4.0}, {"pulp_modulus": 0.1}, {"pulp_poisson": 0.45}, {"pulp_layers": 3})}
+    assert len(other) == 4 and ks not in other

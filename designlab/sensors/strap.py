@@ -361,6 +361,9 @@ class StrapPrediction:
 READOUT_SETTINGS = ("read_fraction", "slot", "wrap_length", "contact_ohm", "divider_ohm",
                     "supply_V", "adc_bits", "bandwidth_hz")
 
+#: settings of the solid pulp (``finger_model = "solid"``, strap_pulp)
+PULP_SETTINGS = ("pulp_depth", "pulp_modulus", "pulp_poisson", "pulp_layers")
+
 #: part parameters the FEM does not depend on: they shape the nail plate, which is not meshed
 #: (its tabs are fixed: the ``nail_plate`` facets of the strap); the readout still uses them
 #: (tests/test_strap_test.py checks that the meshed bodies' B-rep does not change with them)
@@ -397,6 +400,10 @@ def fem_key(part, protocol: StrapLoadTest, settings: StrapModelSettings, materia
 
     params = {k: v for k, v in as_dict(part).items() if k not in LOAD_ONLY_PARAMS}
     skip = {"mesh_convergence", "coarse_factor", *READOUT_SETTINGS}
+    # the finger: the springs' stiffness or the pulp's settings, not both (a Winkler run keeps
+    # the key it had before the solid pulp existed)
+    skip |= {"tissue_stiffness"} if settings.finger_model == "solid" else {"finger_model",
+                                                                           *PULP_SETTINGS}
     sett = {k: v for k, v in as_dict(settings).items() if k not in skip}
     viscous = _viscous(part, materials)
     # stage 2: the stage also holds the long-time unit displacements (U_long) of the stress
