@@ -67,13 +67,16 @@ def triangulate(obj: Any, tolerance: float = 0.01,
         poly = BRep_Tool.Triangulation_s(face, loc)
         if poly is None:
             raise MeshingError("OpenCascade could not triangulate a face of the shape")
-        trsf = loc.Transformation()
         n = poly.NbNodes()
-        pts = np.empty((n, 3))
-        for i in range(n):
-            p = poly.Node(i + 1).Transformed(trsf)
-            pts[i] = (p.X(), p.Y(), p.Z())
-        tri = np.array([poly.Triangle(j + 1).Get() for j in range(poly.NbTriangles())],
+        node = poly.Node
+        if loc.IsIdentity():            # most faces: the nodes as stored, no transform call
+            pts = np.array([node(i).Coord() for i in range(1, n + 1)], float)
+        else:                           # OpenCascade's own transform (bit-identical to before)
+            trsf = loc.Transformation()
+            pts = np.array([node(i).Transformed(trsf).Coord() for i in range(1, n + 1)], float)
+        pts = pts.reshape(n, 3)
+        triangle = poly.Triangle
+        tri = np.array([triangle(j).Get() for j in range(1, poly.NbTriangles() + 1)],
                        dtype=np.int64).reshape(-1, 3) - 1
         if face.Orientation() == TopAbs_REVERSED:
             tri = tri[:, ::-1]

@@ -43,7 +43,6 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
-from scipy import ndimage, signal
 
 from designlab.errors import DataError
 from designlab.params import load_toml
@@ -399,6 +398,8 @@ def find_spikes(x: np.ndarray, k: float = 8.0, window: int = 7, max_run: int = 3
 
     The floor keeps sharp but real turns of a fast signal sampled slowly (whose median
     deviation is often exactly 0) from being taken for spikes."""
+    from scipy import ndimage  # scipy.ndimage/signal cost ~0.5 s: imported where used
+
     x = np.asarray(x, float)
     if x.size < window:
         return np.zeros(x.size, bool)
@@ -432,6 +433,8 @@ def interpolate_over(t: np.ndarray, x: np.ndarray, bad: np.ndarray) -> np.ndarra
 
 def lowpass(x: np.ndarray, rate: float, cutoff: float, order: int = 4) -> np.ndarray:
     """Zero-phase Butterworth low-pass (``sosfiltfilt``) of ``x`` sampled at ``rate`` Hz."""
+    from scipy import signal
+
     sos = signal.butter(order, cutoff, btype="low", fs=rate, output="sos")
     padlen = min(3 * (2 * len(sos) + 1), x.size - 1)
     return signal.sosfiltfilt(sos, x, padlen=max(padlen, 0))
