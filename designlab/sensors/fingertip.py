@@ -660,7 +660,10 @@ def gains(report: dict[str, Any], prediction: FingertipPrediction) -> tuple[dict
 
 
 def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path) -> list[Path]:
-    """Hysteresis loops, reading vs weight per location, applied vs estimated (seed 001 Fig. 9)."""
+    """Hysteresis loops, reading vs weight per location, applied vs estimated (seed 001 Fig. 9).
+    The first three on a fixed grid (:func:`~designlab.sensors.plotstyle.figure`: constrained
+    layout cost ~1.2 s CPU of the four figures), the paper comparison constrained (a legend
+    beside each of its panels)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -678,7 +681,7 @@ def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path) ->
     files = []
     loops = report["loops"]
     names = list(loops)
-    fig, axes = figure(1, 3, width=14, height=4.4)
+    fig, axes = figure(1, 3, width=14, height=4.4, fixed=True, top=0.84)
     for k, ax in enumerate(axes):
         for i, n in enumerate(names):
             w = np.array(loops[n]["weights_g"])
@@ -699,7 +702,7 @@ def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path) ->
                  "rotation 0")
     files.append(save(fig, "hysteresis_loops.png"))
 
-    fig, ax = figure(width=7, height=4)
+    fig, ax = figure(width=7, height=4, fixed=True, top=0.9)
     h = report["hysteresis_percent"]["by_location"]
     ax.bar(list(h), list(h.values()), color=[series_style(names.index(n))["color"]
                                              if n in names else "0.5" for n in h])
@@ -712,7 +715,7 @@ def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path) ->
 
     ae = report["applied_vs_estimated"]
     P, E = np.array(ae["applied_N"]), np.array(ae["estimated_N"])
-    fig, axes = figure(1, 3, width=13, height=4.2)
+    fig, axes = figure(1, 3, width=13, height=4.2, fixed=True, top=0.9)
     for i, ax in enumerate(axes):
         ax.plot(P[:, i], E[:, i], ls="", ms=4, label="calibration loads", **series_style(i))
         lim = [min(P[:, i].min(), E[:, i].min()), max(P[:, i].max(), E[:, i].max())]

@@ -1,6 +1,7 @@
-"""One look for every designlab figure: constrained layout, a distinct colour *and* marker per
-series (up to 20 before a pair repeats), loading solid/filled vs unloading dashed/open, legends
-outside the data with black text."""
+"""One look for every designlab figure: constrained layout (or a fixed grid where measuring the
+labels costs seconds), a distinct colour *and* marker per series (up to 20 before a pair
+repeats), loading solid/filled vs unloading dashed/open, legends outside the data with black
+text."""
 
 from __future__ import annotations
 
@@ -30,13 +31,27 @@ def unloading_style(i: int) -> dict[str, Any]:
     return {**s, "ls": "--", "ms": 5, "mfc": "white", "mec": s["color"]}
 
 
-def figure(nrows: int = 1, ncols: int = 1, *, width: float = 6.0, height: float = 4.0, **kw):
-    """``plt.subplots`` with constrained layout (labels never collide with the next panel)."""
+def figure(nrows: int = 1, ncols: int = 1, *, width: float = 6.0, height: float = 4.0,
+           fixed: bool = False, top: float = 0.86, wspace: float = 0.28, hspace: float = 0.35,
+           **kw):
+    """``plt.subplots`` with constrained layout (labels never collide with the next panel).
+
+    ``fixed``: a fixed grid instead (``top``: where the axes end, a fraction of the height,
+    room for a title and a ``suptitle``; ``wspace``/``hspace``: gaps between panels, fractions
+    of a panel). Constrained layout measures every tick label two more times per save (about
+    0.2-0.5 s CPU a figure); a fixed grid does not. Use it for panels whose tick labels and
+    titles are short and whose legends are figure legends or the last column's:
+    :func:`legend_outside` then anchors a figure legend just outside the right edge, and the
+    save (``bbox_inches="tight"``) takes the outer margins in."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    if fixed:
+        fig, ax = plt.subplots(nrows, ncols, figsize=(width, height), **kw)
+        fig.subplots_adjust(top=top, wspace=wspace, hspace=hspace)
+        return fig, ax
     return plt.subplots(nrows, ncols, figsize=(width, height), layout="constrained", **kw)
 
 
@@ -52,6 +67,13 @@ def legend_outside(fig_or_ax, handles=None, labels=None, *, title: str | None = 
         if labels is not None:
             kw["labels"] = labels
     if isinstance(fig_or_ax, matplotlib.figure.Figure):
+        if fig_or_ax.get_layout_engine() is None:       # a fixed grid: anchored outside
+            right = max(a.get_position().x1 for a in fig_or_ax.axes) if fig_or_ax.axes else 1.0
+            if where == "right":
+                return fig_or_ax.legend(loc="upper left", bbox_to_anchor=(right + 0.01, 0.98),
+                                        borderaxespad=0.0, **kw)
+            return fig_or_ax.legend(loc="upper center", bbox_to_anchor=(0.5, 0.0),
+                                    borderaxespad=0.0, **kw)
         loc = "outside right upper" if where == "right" else "outside lower center"
         return fig_or_ax.legend(loc=loc, **kw)
     return fig_or_ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0,
