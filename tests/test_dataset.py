@@ -360,3 +360,25 @@ resistance = {{ column = "Ri", unit = "ohm", sign = "auto" }}
             x = ds.inputs["displacement"][ds.segment == s]
             assert not find_dropouts(x).any()
             assert ds.dt == pytest.approx(1 / ds.report["rate_hz"])
+
+
+def test_a_card_holds_at_most_the_memory_budgets_samples(tmp_path, monkeypatch):
+    """All runs together on the common clock are capped (the loop's memory budget): the run that
+    crosses it is named with the count and the allowed total, one line; at the cap it loads."""
+    from designlab.errors import DesignlabError
+    from designlab.measured import dataset
+
+    assert dataset.MAX_CARD_SAMPLES == 2_000_000
+    t, P, F = signals(50)                      # 50 samples at 10 Hz per run
+    for k in (1, 2):
+        write_csv(tmp_path / f"run{k}.csv", {"t": t, "P": P, "F": F})
+    body = BASIC.format(punit="mm").replace(
+        '[[files]]\npath = "run.csv"\n', '[[files]]\npath = "run1.csv"\n[[files]]\npath = "run2.csv"\n')
+    monkeypatch.setattr(dataset, "MAX_CARD_SAMPLES", 100)
+    assert len(load_card(card(tmp_path, body))) == 100
+    monkeypatch.setattr(dataset, "MAX_CARD_SAMPLES", 99)
+    with pytest.raises(DesignlabError) as exc:
+        load_card(card(tmp_path, body))
+    msg = str(exc.value)
+    assert "run2.csv" in msg and "100 samples" in msg and "at most 99 in all" in msg
+    assert "\n" not in msg

@@ -163,6 +163,10 @@ def make_channel(name: str, spec: Any, where: str, time_spec: Any) -> Channel:
 
 MAX_FILE_BYTES = 2 * 1024 ** 3     # one data file
 MAX_SAMPLES = 20_000_000           # samples of one run on the common clock (rate x duration)
+#: samples of all a card's runs together on the common clock: the loop's memory budget (the
+#: fits are decimated to 50 000 samples, but the record is held whole; 2 000 000 samples of a
+#: two-channel card peak at 885 MB: benchmarks/bench_loop_memory.py)
+MAX_CARD_SAMPLES = 2_000_000
 MAX_RATE_HZ = 100_000.0
 
 _CARD_KEYS = ("files", "columns", "time", "inputs", "outputs", "split", "repair", "preprocess",
@@ -610,6 +614,7 @@ def load_card(path: str | Path, allow_outside: bool = False) -> Dataset:
 
     ts, segs, roles, chans = [], [], [], {n: [] for n in channels}
     seg_info, file_reports = [], []
+    total = 0
     for k, r in enumerate(raw):
         t0, t1 = r["t_start"], r["t_end"]
         skip = float(pre.get("skip_s", 0.0))
@@ -624,6 +629,11 @@ def load_card(path: str | Path, allow_outside: bool = False) -> Dataset:
                             f"{t1 - t0:.3g} s; at most {MAX_SAMPLES} per run (lower "
                             "[preprocess] rate)")
         n = int(n_f)
+        total += n
+        if total > MAX_CARD_SAMPLES:
+            raise DataError(f"{r['path']}: the card's runs hold {total} samples at {rate:g} "
+                            f"Hz so far; at most {MAX_CARD_SAMPLES} in all (the loop's memory "
+                            "budget: lower [preprocess] rate or split the card)")
         if n < 4:
             raise DataError(f"{r['path']}: the channels' clocks overlap for only "
                             f"{max(t1 - t0, 0):.3g} s; nothing to resample")
