@@ -652,6 +652,9 @@ def run(part=None, protocol: StrapLoadTest | None = None,
             "pulp_p95_principal_strain_at_peak_F_n": p95 * peak,
             "note": "linear elastic pulp (a hyperelastic pulp linearised at rest, E = 3 mu); "
                     "the pulp modulus is not a literature value (docs/strap.md)"}
+        if settings.order == 1:
+            report["finger"]["warning"] = ("TET4 cells lock the nearly incompressible pulp "
+                                           "(35 % too stiff on a bonded layer): use order 2")
     else:
         report["finger"]["tissue_stiffness_N_per_mm3"] = settings.tissue_stiffness
     report["fem_key"] = key[:16] if key is not None else None

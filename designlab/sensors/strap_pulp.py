@@ -14,9 +14,10 @@ Material: linear elastic, ``pulp_modulus`` (E, MPa) and ``pulp_poisson`` (defaul
 incompressible). A hyperelastic pulp linearised at the unloaded state has E = 3 mu (mu the
 neo-Hookean small-strain shear modulus) when incompressible; :func:`principal_strain`
 reports the largest principal strain in the pulp (and its 95th percentile): whether the
-linearisation holds can be read off. TET10 cells with the full 4-point rule at nu = 0.49 (no mixed formulation exists in
-:mod:`designlab.fem`): on a bonded layer they are within 0.6 % of a 4x finer mesh while TET4
-locks (35 % too stiff; ``tests/test_strap_pulp.py``): use ``order = 2`` with the solid pulp.
+linearisation holds can be read off. TET10 cells with the full 4-point rule at nu = 0.49 (no
+mixed formulation exists in :mod:`designlab.fem`): on a bonded layer they are within 0.6 % of
+a 4x finer mesh while TET4 locks (35 % too stiff; ``tests/test_strap_pulp.py``): use
+``order = 2`` with the solid pulp (the report's ``finger.warning`` says so otherwise).
 
 No readable literature value for the fingertip pulp's modulus was found in this session (see
 ``docs/strap.md``): the default E is **not** a literature number but the Winkler default's
