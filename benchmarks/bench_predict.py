@@ -18,7 +18,8 @@ what a user's first ``designlab predict PART`` costs, including the coarser mesh
 discretisation error bar (``mesh_convergence``). Goals (issue 11): fingertip <= 10 s, its mesh
 <= 2 s; strap <= 15 s. ``cpu`` counts the imports the prediction needs (OpenCascade, gmsh,
 scipy...); ``+ write`` is what ``designlab predict --out`` adds: ``write_prediction`` (the
-plots, the loop model, the design render, the report) into a temporary folder.
+plots, the loop model, the design render, the report) into a temporary folder; its stages are
+printed on the ``write`` line (wall / CPU s each).
 """
 
 import json
@@ -47,12 +48,13 @@ def _one(part: str, settings: dict, conn) -> None:
     from designlab.sensors.predict import write_prediction
 
     w0 = time.perf_counter()
+    write_stages: dict = {}
     with tempfile.TemporaryDirectory() as d:
-        write_prediction(pred, d)
+        write_prediction(pred, d, timings=write_stages)
     write_wall, write_cpu = time.perf_counter() - w0, time.process_time() - cpu
     m = pred.metrics
     conn.send({"wall": wall, "cpu": cpu, "peak_MB": peak, "timings": m["timings_s"],
-               "write_wall": write_wall, "write_cpu": write_cpu,
+               "write_wall": write_wall, "write_cpu": write_cpu, "write_stages": write_stages,
                "dofs": m.get("mesh", {}).get("dofs") or m.get("mesh", {}).get("dof"),
                "mesher": m.get("mesh", {}).get("mesher"), "solver": m.get("mesh", {}).get("solver"),
                "marks": [(s, t - t0, r) for s, t, r in marks],
@@ -91,6 +93,8 @@ def main(parts, peer: bool) -> None:
                   flush=True)
             print("    stages (s, peak MB): " + ", ".join(f"{s} @ {t:.1f} s {m:.0f} MB"
                                                        for s, t, m in r["marks"]))
+            print("    write (wall / cpu s): " + ", ".join(
+                f"{s} {w:.2f} / {c:.2f}" for s, (w, c) in r["write_stages"].items()))
             print(f"    condition number {r['cond']:.4g}, hysteresis {r['hyst']:.4g} %, "
                   f"mesh_convergence {json.dumps(r['mesh_convergence'])}", flush=True)
 

@@ -433,13 +433,16 @@ def sensor_model(name: str, design: dict[str, Any], report: dict[str, Any], resu
                                              "design": design, "designlab": __version__})
 
 
-def write_prediction(prediction: Prediction, out: str | Path) -> list[Path]:
+def write_prediction(prediction: Prediction, out: str | Path,
+                     timings: dict[str, tuple[float, float]] | None = None) -> list[Path]:
     """prediction.json, model.json (:func:`sensor_model`), the plots, and deformed.vtu
     (+ deformed.png) in ``out``, written as a set: every file goes to a hidden staging folder
     beside ``out`` first (a full disk or a kill then leaves ``out`` as it was); a new or empty
     ``out`` is that folder renamed, else the files are renamed into ``out`` with
     ``prediction.json`` removed first and renamed last (no ``prediction.json``: no complete
-    set). Staging folders of killed writers (their PID is in the name) are removed."""
+    set). Staging folders of killed writers (their PID is in the name) are removed.
+    ``timings``: a dict that gets ``{stage: (wall s, CPU s)}`` of the writing stages (plots,
+    deformed.vtu, deformed.png, model.json, design.png, report), for the benchmark."""
     import os
     import re
     import shutil
@@ -464,10 +467,12 @@ def write_prediction(prediction: Prediction, out: str | Path) -> list[Path]:
                                       dir=parent))
     except OSError as exc:
         raise os_error(final, exc) from None
+    clock = _StageClock(timings)
     try:
         result = prediction.result
         names: list[str] = [Path(f).name for f in
                             get_sensor(prediction.sensor).plots(result, prediction.metrics, stage)]
+        clock("plots")
         mesh, u = getattr(result, "mesh", None), getattr(result, "displacement", None)
         if mesh is not None and u is not None:
             from designlab.fem.output import write_png, write_vtu
@@ -487,6 +492,7 @@ def write_prediction(prediction: Prediction, out: str | Path) -> list[Path]:
                                   "load_cases": [f"{c.name}: {c.description}"
                                                  for c in prediction.load_cases if c.vtu]})
             names.append("deformed.vtu")
+            clock("deformed.vtu")
             try:
                 first = prediction.load_cases[0] if prediction.load_cases else None
                 if first is not None:
@@ -499,9 +505,12 @@ def write_prediction(prediction: Prediction, out: str | Path) -> list[Path]:
                 names.append("deformed.png")
             except Exception as exc:  # rendering is a convenience; the VTU is the result
                 prediction.warnings.append(f"deformed.png not rendered: {exc}")
+            clock("deformed.png")
         prediction.sensor_model().save(stage / "model.json")
         names.append("model.json")
+        clock("model.json")
         names += _design_render(prediction, stage)
+        clock("design.png")
         doc = prediction.to_json()
         atomic_write_json(stage / "run.json", run_manifest(f"predict {prediction.sensor}",
                                                            {"settings": doc["settings"],
@@ -512,6 +521,7 @@ def write_prediction(prediction: Prediction, out: str | Path) -> list[Path]:
         names.append("report.html")
         atomic_write_json(stage / "prediction.json", doc)
         names.append("prediction.json")
+        clock("report")
         os.chmod(stage, 0o777 & ~_umask())
         if not final.exists() or not any(final.iterdir()):
             if final.exists():
@@ -533,6 +543,22 @@ def write_prediction(prediction: Prediction, out: str | Path) -> list[Path]:
         shutil.rmtree(stage, ignore_errors=True)
         raise
     return [out / n for n in names]
+
+
+class _StageClock:
+    """Calls ``clock(stage)`` store the wall and CPU time since the previous call in
+    ``timings`` (None: nothing is measured)."""
+
+    def __init__(self, timings: dict[str, tuple[float, float]] | None):
+        self.timings = timings
+        self.last = (time.perf_counter(), time.process_time())
+
+    def __call__(self, stage: str) -> None:
+        if self.timings is None:
+            return
+        now = (time.perf_counter(), time.process_time())
+        self.timings[stage] = (now[0] - self.last[0], now[1] - self.last[1])
+        self.last = now
 
 
 def run_manifest(what: str, settings: dict[str, Any]) -> dict[str, Any]:
