@@ -150,3 +150,13 @@ def test_predict_strap_samples_runs_and_bad_input_is_one_line(tmp_path, capsys):
     rc, _, err = _cli(["predict", "strap", "--samples", 4, "--measured", cfg,
                        "--out", tmp_path / "bad2"], capsys)
     assert rc == 2 and "--measured" in err
+
+
+def test_the_solid_pulp_is_refused_before_any_fem(tmp_path):
+    """The Monte Carlo scatters the Winkler support; with ``finger_model = solid`` its
+    tissue_stiffness would do nothing: one line naming the setting, no FEM, no samples folder."""
+    from designlab.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="finger_model='solid'.*'winkler' with --samples"):
+        mc.fem_stage(ArchStrap(), {"finger_model": "solid"}, None, FEMCache(tmp_path / "fem"))
+    assert not (tmp_path / "fem").exists() or not any((tmp_path / "fem").iterdir())

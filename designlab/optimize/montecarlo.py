@@ -52,12 +52,12 @@ def monte_carlo(sensor: str, spec: UncertaintySpec, out: str | Path, *,
     params = as_dict(make_part(sensor, params or {}))
     executor = executor or LocalExecutor()
     with out_lock(out, "designlab predict --samples"):
-        ensure_dir(out / "samples")
         key = _run_key(spec, params, settings, protocol)
         fem_dir = str(out / "fem")
         t0 = time.perf_counter()
         _, parent_solves = _fem_stage(sensor, params, settings, protocol, fem_dir)
         t_fem = time.perf_counter() - t0
+        ensure_dir(out / "samples")            # after the FEM stage: a refused design writes none
         cols, V = draw(spec)
         n = len(V)
         batches = [list(range(i, min(i + spec.batch, n))) for i in range(0, n, spec.batch)]

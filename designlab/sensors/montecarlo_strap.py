@@ -100,6 +100,12 @@ def fem_stage(part, settings: dict | None, protocol: dict | None, cache) -> dict
     from designlab.sensors.strap import GAUGE_REGIONS, run
 
     sett = model_settings("strap", settings)
+    if getattr(sett, "finger_model", "winkler") != "winkler":
+        from designlab.errors import ParameterError
+
+        raise ParameterError("finger_model", sett.finger_model,
+                             "'winkler' with --samples (the Monte Carlo scatters the Winkler "
+                             "support's tissue_stiffness; the solid pulp has no scatter model)")
     proto = protocol_from("strap", None, protocol, design=part)
     mats = elastic_materials(part)
     units = []
