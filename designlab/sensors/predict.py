@@ -443,6 +443,7 @@ def write_prediction(prediction: Prediction, out: str | Path,
     set). Staging folders of killed writers (their PID is in the name) are removed.
     ``timings``: a dict that gets ``{stage: (wall s, CPU s)}`` of the writing stages (plots,
     deformed.vtu, deformed.png, model.json, design.png, report), for the benchmark."""
+    import gc
     import os
     import re
     import shutil
@@ -468,6 +469,10 @@ def write_prediction(prediction: Prediction, out: str | Path,
     except OSError as exc:
         raise os_error(final, exc) from None
     clock = _StageClock(timings)
+    # the prediction leaves ~500k objects the collector tracks (CAD, mesher, FEM modules and
+    # results); the figures and renders allocate many short-lived ones, and each full
+    # collection would walk them all again (~0.9 s CPU of the writing): freeze them until done
+    gc.freeze()
     try:
         result = prediction.result
         names: list[str] = [Path(f).name for f in
@@ -542,6 +547,8 @@ def write_prediction(prediction: Prediction, out: str | Path,
     except BaseException:
         shutil.rmtree(stage, ignore_errors=True)
         raise
+    finally:
+        gc.unfreeze()
     return [out / n for n in names]
 
 
