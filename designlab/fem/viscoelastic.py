@@ -118,6 +118,19 @@ class _Prony:
         return G, K
 
 
+def _by_tau(terms, base: np.ndarray, nqp: int) -> tuple[list[float], np.ndarray]:
+    """Prony terms ``(qp ids, weight, tau)`` grouped by tau: the distinct taus (in order of
+    first appearance) and per tau the per-qp modulus ``base * weight`` (0 where no term)."""
+    taus: list[float] = []
+    rows: list[np.ndarray] = []
+    for q, w, tau in terms:
+        if tau not in taus:
+            taus.append(tau)
+            rows.append(np.zeros(nqp))
+        rows[taus.index(tau)][q] += base[q] * w
+    return taus, np.array(rows).reshape(len(taus), nqp)
+
+
 def _gamma(dt: float, tau: float) -> float:
     return 1.0 if dt <= 0 else -np.expm1(-dt / tau) * tau / dt
 
@@ -231,15 +244,24 @@ def solve_history(model: Model, history: History, solver: str = "auto",
     nb = F_all.shape[1]
     n3 = 3 * model.n_points
     B, dx = model.B, model.basis.dx.ravel()
+    Bt = B.T.tocsr()
     pr = _Prony(model)
     nqp = len(dx)
     nq = model.basis.dx.shape[1]
-    h = [np.zeros((len(q), 6, nb)) for q, _, _ in pr.dev]
-    m = [np.zeros((len(q), nb)) for q, _, _ in pr.vol]
+    # Prony terms grouped by time constant (the update of h depends on tau alone): one state
+    # array per distinct tau over every qp, weighted per qp (0 outside the term's regions)
+    dev, vol = _by_tau(pr.dev, pr.G0, nqp), _by_tau(pr.vol, pr.K0, nqp)
+    H = np.zeros((len(dev[0]), nqp, 6, nb))
+    M = np.zeros((len(vol[0]), nqp, nb))
     e_old = np.zeros((nqp, 6, nb))              # deviatoric (engineering) strain
     th_old = np.zeros((nqp, nb))
-    one = _ONE[None, :, None]
-    cvo = _VOIGT_C[None, :, None]
+    cvo = (dx[:, None] * _VOIGT_C)[:, :, None]  # dx * tensor -> engineering Voigt stress
+    Winf = (pr.G0 * pr.ginf)[:, None, None] * cvo            # long-term part of the stress
+    Kinf = (dx * pr.K0 * pr.kinf)[:, None]
+    Wdev = dev[1][:, :, None, None] * cvo[None]              # (n_tau, nqp, 6, 1)
+    Wvol = (vol[1] * dx[None])[:, :, None]                   # (n_tau_k, nqp, 1)
+    coef: dict[float, tuple] = {}
+    has_G = bool(np.any(G_all))
     cache: dict[float, tuple[LinearSolver, object]] = {}
     U = np.zeros((system.n_dofs, nb, nsteps))
     F_int = np.zeros((n3, nb, nsteps))
@@ -280,42 +302,56 @@ def solve_history(model: Model, history: History, solver: str = "auto",
                 lin = _Preconditioned(Kr, main[0])
             cache[key] = (lin, K)
         lin, K = cache[key]
-        # history stress sigma_h (per qp, engineering Voigt)
-        s_h = np.zeros((nqp, 6, nb))
-        p_h = np.zeros((nqp, nb))
-        for (q, g, tau), hi in zip(pr.dev, h):
-            a, gam = np.exp(-dt / tau), _gamma(dt, tau)
-            s_h[q] += (pr.G0[q] * g)[:, None, None] * (a * hi - gam * e_old[q])
-        for (q, k, tau), mi in zip(pr.vol, m):
-            a, gam = np.exp(-dt / tau), _gamma(dt, tau)
-            p_h[q] += (pr.K0[q] * k)[:, None] * (a * mi - gam * th_old[q])
-        sig_h = s_h * cvo + p_h[:, None] * one
+        if dt not in coef:
+            a_d = np.array([np.exp(-dt / tau) for tau in dev[0]])
+            g_d = np.array([_gamma(dt, tau) for tau in dev[0]])
+            a_v = np.array([np.exp(-dt / tau) for tau in vol[0]])
+            g_v = np.array([_gamma(dt, tau) for tau in vol[0]])
+            coef[dt] = (a_d[:, None, None, None], g_d[:, None, None, None],
+                        a_v[:, None, None], g_v[:, None, None],
+                        a_d[:, None, None, None] * Wdev, np.tensordot(g_d, Wdev, 1),
+                        a_v[:, None, None] * Wvol, np.tensordot(g_v, Wvol, 1))
+        a_d, g_d, a_v, g_v, aW, gW, aWv, gWv = coef[dt]
+        # history stress sigma_h (per qp, engineering Voigt, times dx)
+        sig_h = -gW * e_old
+        for i in range(len(aW)):
+            sig_h += aW[i] * H[i]
+        if len(aWv):
+            p_h = -gWv * th_old
+            for i in range(len(aWv)):
+                p_h += aWv[i] * M[i]
+            sig_h[:, :3] += p_h[:, None]
         f_h = np.zeros((system.n_dofs, nb))
-        f_h[:n3] = B.T @ (dx[:, None, None] * sig_h).reshape(nqp * 6, nb)
-        rhs = Tt @ (F_all[..., n] - f_h - K @ G_all[..., n])
-        q = lin.solve(rhs, x0=q_prev)
+        f_h[:n3] = Bt @ sig_h.reshape(nqp * 6, nb)
+        r = F_all[..., n] - f_h
+        if has_G:
+            r -= K @ G_all[..., n]
+        q = lin.solve(Tt @ r, x0=q_prev)
         q_prev = q
-        u = T @ q + G_all[..., n]
+        u = T @ q
+        if has_G:
+            u += G_all[..., n]
         U[..., n] = u
-        eps = (B @ u[:n3]).reshape(nqp, 6, nb)
-        th = eps[:, :3].sum(1)
-        e = eps - (th / 3.0)[:, None] * one
-        for i, (q_, g, tau) in enumerate(pr.dev):
-            a, gam = np.exp(-dt / tau), _gamma(dt, tau)
-            h[i] = a * h[i] + gam * (e[q_] - e_old[q_])
-        for i, (q_, k, tau) in enumerate(pr.vol):
-            a, gam = np.exp(-dt / tau), _gamma(dt, tau)
-            m[i] = a * m[i] + gam * (th[q_] - th_old[q_])
+        e = (B @ u[:n3]).reshape(nqp, 6, nb)
+        th = e[:, :3].sum(1)
+        e[:, :3] -= (th / 3.0)[:, None]
+        if len(H):
+            de = e - e_old
+            H *= a_d
+            H += g_d * de[None]
+        if len(M):
+            M *= a_v
+            M += g_v * (th - th_old)[None]
         e_old, th_old = e, th
         # full stress -> internal forces
-        s_ = (pr.G0 * pr.ginf)[:, None, None] * e
-        p = (pr.K0 * pr.kinf)[:, None] * th
-        for (q_, g, tau), hi in zip(pr.dev, h):
-            s_[q_] += (pr.G0[q_] * g)[:, None, None] * hi
-        for (q_, k, tau), mi in zip(pr.vol, m):
-            p[q_] += (pr.K0[q_] * k)[:, None] * mi
-        sig = s_ * cvo + p[:, None] * one
-        F_int[..., n] = B.T @ (dx[:, None, None] * sig).reshape(nqp * 6, nb)
+        sig = Winf * e
+        for i in range(len(H)):
+            sig += Wdev[i] * H[i]
+        p = Kinf * th
+        for i in range(len(M)):
+            p += Wvol[i] * M[i]
+        sig[:, :3] += p[:, None]
+        F_int[..., n] = Bt @ sig.reshape(nqp * 6, nb)
     F_ext = Fx[:n3]
     if not batch:
         U, F_int, F_ext = U[:, 0], F_int[:, 0], F_ext[:, 0]
