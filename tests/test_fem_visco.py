@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from designlab.errors import ParameterError
+from designlab.errors import ModelError, ParameterError
 from designlab.fem import Material, Model
 from designlab.fem.prony import Prony
 from designlab.fem.viscoelastic import History, solve_history
@@ -140,3 +140,16 @@ def test_batch_history_equals_separate_histories():
         np.testing.assert_allclose(both.U[:, i], one.U, rtol=1e-10, atol=1e-14)
         np.testing.assert_allclose(both.wrench("xmin")[i], one.wrench("xmin"), atol=1e-12)
         np.testing.assert_allclose(both.displacement(5)[i], one.displacement(5), atol=1e-14)
+
+
+def test_history_without_forces_same_displacements():
+    model = bar(PR2)
+    model.traction("xmax", (0.2, 0.0, 0.0), case="pull")
+    t = np.linspace(0.0, 4.0, 21)
+    hist = History(t, {"pull": np.minimum(t, 1.0)})
+    full = solve_history(model, hist)
+    lean = solve_history(model, hist, forces=False)
+    np.testing.assert_array_equal(lean.U, full.U)
+    assert lean.F_int is None
+    with pytest.raises(ModelError, match="forces=False"):
+        lean.wrench("xmin")

@@ -138,7 +138,8 @@ def _gamma(dt: float, tau: float) -> float:
 @dataclass(frozen=True, eq=False)
 class HistoryResult:
     """Response to a :class:`History`: ``U`` (n_dofs, n_steps) displacements and ``F_int``,
-    ``F_ext`` (3 n_points, n_steps) internal / applied nodal forces. In batch mode
+    ``F_ext`` (3 n_points, n_steps) internal / applied nodal forces (``F_int`` None when
+    solved with ``forces=False``). In batch mode
     (``solve_history(..., batch=True)``) every load case is its own history with its own
     amplitude: ``U`` is (n_dofs, n_cases, n_steps) and every output gains a leading case axis
     (order ``cases``). Methods mirror StaticResult with a time axis."""
@@ -172,7 +173,7 @@ class HistoryResult:
     def reactions(self, step: int = -1) -> np.ndarray:
         """(n_points, 3) forces of supports/couplings/springs on the body at ``step``, N
         (batch: (n_cases, n_points, 3))."""
-        r = self.F_int[..., step] - self.F_ext[..., step]
+        r = self._f_int()[..., step] - self.F_ext[..., step]
         return np.moveaxis(r.reshape(-1, 3, *r.shape[1:]), (0, 1), (-2, -1))
 
     def wrench(self, where, about=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -180,9 +181,14 @@ class HistoryResult:
         (batch: (n_cases, n_steps, 6))."""
         ids = self.model.nodes(where)
         d = 3 * ids[:, None] + np.arange(3)
-        r = np.moveaxis(self.F_int[d] - self.F_ext[d], (0, 1), (-2, -1))   # (..., steps, k, 3)
+        r = np.moveaxis(self._f_int()[d] - self.F_ext[d], (0, 1), (-2, -1))   # (..., steps, k, 3)
         arm = self.model.mesh.points[ids] - np.asarray(about, float)
         return np.concatenate([np.cross(arm, r).sum(-2), r.sum(-2)], axis=-1)
+
+    def _f_int(self) -> np.ndarray:
+        if self.F_int is None:
+            raise ModelError("no internal forces: the history was solved with forces=False")
+        return self.F_int
 
     def _apply(self, L) -> np.ndarray:
         """Linear map (k, n_dofs) of every column: (..., n_steps, k)."""
@@ -219,10 +225,13 @@ class HistoryResult:
 
 
 def solve_history(model: Model, history: History, solver: str = "auto",
-                  check: bool = True, batch: bool = False) -> HistoryResult:
+                  check: bool = True, batch: bool = False, forces: bool = True
+                  ) -> HistoryResult:
     """March ``history`` with the exact exponential update (see module docstring).
     ``batch=True`` runs every load case as a separate history (amplitude ``a_c(t)`` on case c
-    alone) in the same march: one factorisation, multi-column solves."""
+    alone) in the same march: one factorisation, multi-column solves. ``forces=False`` skips
+    the internal forces (``F_int`` is None: no reactions, wrenches; one stress evaluation and
+    one sparse product per step less)."""
     system = model.build()
     if check:
         check_constrained(system)
@@ -264,7 +273,7 @@ def solve_history(model: Model, history: History, solver: str = "auto",
     has_G = bool(np.any(G_all))
     cache: dict[float, tuple[LinearSolver, object]] = {}
     U = np.zeros((system.n_dofs, nb, nsteps))
-    F_int = np.zeros((n3, nb, nsteps))
+    F_int = np.zeros((n3, nb, nsteps)) if forces else None
     T = system.T
     Tt = T.T.tocsr()
     t_prev = t[0]
@@ -343,6 +352,8 @@ def solve_history(model: Model, history: History, solver: str = "auto",
             M *= a_v
             M += g_v * (th - th_old)[None]
         e_old, th_old = e, th
+        if not forces:
+            continue
         # full stress -> internal forces
         sig = Winf * e
         for i in range(len(H)):
@@ -354,7 +365,8 @@ def solve_history(model: Model, history: History, solver: str = "auto",
         F_int[..., n] = Bt @ sig.reshape(nqp * 6, nb)
     F_ext = Fx[:n3]
     if not batch:
-        U, F_int, F_ext = U[:, 0], F_int[:, 0], F_ext[:, 0]
+        U, F_ext = U[:, 0], F_ext[:, 0]
+        F_int = None if F_int is None else F_int[:, 0]
     solvers = tuple(v[0] for v in cache.values())
     return HistoryResult(system, history, U, F_int, F_ext,
                          sum(not isinstance(x, _Preconditioned) for x in solvers), solvers, batch)

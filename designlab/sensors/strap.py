@@ -474,7 +474,8 @@ def solve_fem(part, protocol: StrapLoadTest, settings: StrapModelSettings, mater
     out: dict[str, Any] = {}
     if viscous:
         say("viscoelastic history")
-        res = solve_history(model, History(t, {"F_n": fn, "F_x": fx}), solver=settings.solver)
+        res = solve_history(model, History(t, {"F_n": fn, "F_x": fx}), solver=settings.solver,
+                            forces=False)
         out["strain"] = np.column_stack([gauges[c].strain(res.U) for c in CHANNELS])
         out["u_peak"] = res.displacement(int(np.argmax(fn)))
         solver = res.solvers[0].kind
