@@ -13,6 +13,7 @@ else amg.
 from __future__ import annotations
 
 import abc
+import os
 import time
 
 import numpy as np
@@ -134,6 +135,11 @@ class PardisoSolver(LinearSolver):
         t = time.perf_counter()
         _mkl_single_thread()
         self._s = pypardiso.PyPardisoSolver(mtype=11)
+        # pypardiso searches sys.prefix for libmkl_rt on every solver (~2 s CPU): name the
+        # library it found once for the rest of the process (and its children)
+        name = getattr(self._s.libmkl, "_name", None)
+        if name and os.path.isfile(name):
+            os.environ.setdefault("PYPARDISO_MKL_RT", name)
         self._s.set_statistical_info_off()
         self._K = sp.csr_matrix(K)
         self._K.sort_indices()
