@@ -213,6 +213,29 @@ class ActiveSet:
     condensed solid FEM (:mod:`designlab.sensors.flexure.helix_fem`)."""
 
     # ------------------------------------------------------------------ solves
+    def _settle(self, closed: np.ndarray, step) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+        """The active-set iteration: ``step(closed) -> (q, g)`` solves the structure with the
+        contacts ``closed``; repeat until the set keeps its state (a band of +-tol around zero
+        gap: no chatter at g ~ 0); on a cycle change only the contact that violates its state
+        most. Returns (q, g, closed, iterations)."""
+        tol = 1e-6 * self.s.perturbation_mm
+        seen = set()
+        for it in range(self.s.max_iterations):
+            q, g = step(closed)
+            new = np.where(g < -tol, True, np.where(g > tol, False, closed))
+            if np.array_equal(new, closed):
+                return q, g, closed, it + 1
+            key = new.tobytes()
+            if key in seen:
+                bad = np.nonzero(new != closed)[0]
+                new = closed.copy()
+                k = bad[np.argmax(np.abs(g[bad]))]
+                new[k] = not closed[k]
+            seen.add(key)
+            closed = new
+        raise ModelError(f"beam chain: contact active set did not settle in "
+                         f"{self.s.max_iterations} iterations")
+
     def solve(self, q_master=None, f_master=None, ref: dict | None = None) -> dict:
         """Active-set solve with the master displaced to ``q_master`` (u, th) or loaded by
         ``f_master`` (f, m; the master free), starting from the active set of ``ref``."""
@@ -227,9 +250,9 @@ class ActiveSet:
         if q_master is not None:
             q[m] = q_master
         N, kn, g0 = self.N, self.kn, self.g0
-        tol = 1e-6 * self.s.perturbation_mm
-        seen = set()
-        for it in range(self.s.max_iterations):
+        system = {}
+
+        def step(closed):
             w = kn * closed
             A = (self.Kq + N.T @ sp.diags(w) @ N).tocsc()
             b = fext - N.T @ (w * g0)
@@ -238,26 +261,13 @@ class ActiveSet:
                 q[free] = spla.splu(A[free][:, free]).solve(rhs)
             except RuntimeError:
                 raise ModelError("beam chain: singular stiffness (a spring end is not held)") from None
-            g = g0 + N @ q
-            # a band of +-tol around zero gap keeps the current state (no chatter at g ~ 0)
-            new = np.where(g < -tol, True, np.where(g > tol, False, closed))
-            if np.array_equal(new, closed):
-                break
-            key = new.tobytes()
-            if key in seen:
-                # a cycle: change only the contact that violates its state most
-                bad = np.nonzero(new != closed)[0]
-                new = closed.copy()
-                k = bad[np.argmax(np.abs(g[bad]))]
-                new[k] = not closed[k]
-            seen.add(key)
-            closed = new
-        else:
-            raise ModelError(f"beam chain: contact active set did not settle in "
-                             f"{self.s.max_iterations} iterations")
-        reaction = (A @ q - b)[m] + (fext[m] if q_master is None else 0.0)
+            system.update(A=A, b=b)
+            return q, g0 + N @ q
+
+        q, g, closed, its = self._settle(closed, step)
+        reaction = (system["A"] @ q - system["b"])[m] + (fext[m] if q_master is None else 0.0)
         return {"q": q.copy(), "closed": closed, "f_n": np.where(closed, -kn * np.minimum(g, 0), 0.0),
-                "reaction": reaction, "iterations": it + 1}
+                "reaction": reaction, "iterations": its}
 
     def solve_force(self, f_master) -> dict:
         """The master loaded by ``f_master`` (f, m; free) from the open state, as :meth:`solve`
@@ -266,44 +276,27 @@ class ActiveSet:
         lu = getattr(self, "_lu_free", None)
         if lu is None:
             lu = self._lu_free = spla.splu(sp.csc_matrix(self.Kq))
-        nq, m, nc = self.nq, self.m, len(self.kn)
-        fext = np.zeros(nq)
-        fext[m] = f_master
+        fext = np.zeros(self.nq)
+        fext[self.m] = f_master
         N = self.N.tocsr()
         kn, g0 = self.kn, self.g0
-        tol = 1e-6 * self.s.perturbation_mm
-        closed = np.zeros(nc, bool)
         x0 = lu.solve(fext)
-        seen = set()
-        for it in range(self.s.max_iterations):
+
+        def step(closed):
             idx = np.nonzero(closed)[0]
-            if len(idx):
-                U = N[idx].T.toarray()                          # (nq, k)
-                KU = lu.solve(U)
-                w = kn[idx]
-                b = fext - U @ (w * g0[idx])
-                xb = lu.solve(b)
-                S = np.diag(1.0 / w) + U.T @ KU
-                q = xb - KU @ np.linalg.solve(S, U.T @ xb)
-            else:
-                q = x0
-            g = g0 + N @ q
-            new = np.where(g < -tol, True, np.where(g > tol, False, closed))
-            if np.array_equal(new, closed):
-                break
-            key = new.tobytes()
-            if key in seen:
-                bad = np.nonzero(new != closed)[0]
-                new = closed.copy()
-                k = bad[np.argmax(np.abs(g[bad]))]
-                new[k] = not closed[k]
-            seen.add(key)
-            closed = new
-        else:
-            raise ModelError(f"beam chain: contact active set did not settle in "
-                             f"{self.s.max_iterations} iterations")
+            if not len(idx):
+                return x0, g0 + N @ x0
+            U = N[idx].T.toarray()                          # (nq, k)
+            KU = lu.solve(U)
+            w = kn[idx]
+            xb = lu.solve(fext - U @ (w * g0[idx]))
+            S = np.diag(1.0 / w) + U.T @ KU
+            q = xb - KU @ np.linalg.solve(S, U.T @ xb)
+            return q, g0 + N @ q
+
+        q, g, closed, its = self._settle(np.zeros(len(kn), bool), step)
         return {"q": q.copy(), "closed": closed, "f_n": np.where(closed, -kn * np.minimum(g, 0), 0.0),
-                "iterations": it + 1}
+                "iterations": its}
 
     def stiffness(self, ref: dict | None = None) -> tuple[np.ndarray, list]:
         """6x6 (twist -> wrench order) by symmetric master perturbations around ``ref``."""
