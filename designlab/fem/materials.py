@@ -47,6 +47,9 @@ class Material:
     strength_basis: str = field(default="", compare=False, repr=False)
     #: where ``strength`` comes from
     strength_source: str = field(default="", compare=False, repr=False)
+    #: the fields set from measured printed-material records (:func:`with_measured`): a model
+    #: that otherwise derives a value (the strap's back-calculated resistivity) takes these
+    measured: tuple[str, ...] = field(default=(), compare=False, repr=False)
 
     def __post_init__(self):
         if not (self.E > 0):
@@ -232,8 +235,10 @@ def load_measured(path) -> list[MeasuredProperty]:
 
 def with_measured(material: Material, records) -> Material:
     """``material`` with the measured properties of ``records`` that name it; those
-    properties leave its ``stand_ins`` and its ``source`` says where they come from."""
+    properties leave its ``stand_ins``, are listed in its ``measured`` and its ``source`` says
+    where they come from."""
     import dataclasses
+    import math
 
     mine = [r for r in records if r.material == material.name]
     if not mine:
@@ -254,11 +259,17 @@ def with_measured(material: Material, records) -> Material:
             except (TypeError, ValueError):
                 raise ParameterError(f"{material.name}.{r.quantity}", r.value,
                                      "a number") from None
+            if r.quantity == "resistivity" and not (math.isfinite(kw[r.quantity])
+                                                    and kw[r.quantity] > 0):
+                raise ParameterError(f"{material.name}.resistivity", r.value,
+                                     "a finite number > 0 ohm*mm (printed trace, along the "
+                                     "raster)")
     measured = {r.quantity for r in mine if r.quantity not in STORED_ONLY}
     src = "; ".join(f"{r.quantity}: {r.source} ({r.date})" for r in mine)
     return dataclasses.replace(material, **kw,
                                stand_ins=tuple(q for q in material.stand_ins
                                                if q not in measured),
+                               measured=tuple(sorted(set(material.measured) | measured)),
                                source=f"{material.source}; measured: {src}")
 
 

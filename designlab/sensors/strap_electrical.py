@@ -11,7 +11,11 @@ heating, noise and resolution.
   melted in and gives no contact resistance). Table I's "< 800 ohm*cm" is the filament's
   upper bound, not the printed trace's value: on the same meander it would give ~2 MOhm,
   1100x the measured 1.8 kOhm. By construction the paper's geometry gives 1.8 kOhm; any other
-  geometry follows R = rho L / A.
+  geometry follows R = rho L / A. **A measured resistivity replaces it**: a trace material
+  whose ``resistivity`` comes from a measured printed-material record
+  (:func:`~designlab.fem.materials.with_measured`, ``--measured FILE.json``; the value is
+  the printed trace's, ohm*mm along the raster) is used as rho instead, and the report says
+  which one is in use (``resistivity_source``).
 * **Divider** (seed 000 Fig. 3: gauge + 2.2 kOhm on 5 V, the voltage across the gauge read):
   dV/dR = V_s R_f / (R + R_f)^2, and the fixed resistor that maximises the voltage per unit
   dR/R is R_f = R (:func:`~designlab.fem.transducers.optimal_divider_resistor`).
@@ -71,10 +75,29 @@ def effective_resistivity(contact_ohm: float = 0.0) -> float:
                             paper.trace_squares()["total"], paper.trace_thickness)
 
 
-def gauge_resistance(part, contact_ohm: float = 0.0) -> dict[str, float]:
+def measured_resistivity(material) -> float | None:
+    """The trace material's resistivity (ohm*mm) when it comes from a measured record
+    (``material.measured`` lists ``resistivity``), else None (the library value is the
+    filament's Table I bound, not the printed trace's: never used for the resistance)."""
+    if material is None or "resistivity" not in getattr(material, "measured", ()):
+        return None
+    return float(material.resistivity)
+
+
+def resistivity_in_use(contact_ohm: float = 0.0, material=None) -> tuple[float, str]:
+    """(rho ohm*mm, source): the measured resistivity of ``material`` when it has one, else
+    the back-calculated rho_eff (``"measured"`` / ``"back-calculated"``)."""
+    rho = measured_resistivity(material)
+    if rho is not None:
+        return rho, "measured"
+    return effective_resistivity(contact_ohm), "back-calculated"
+
+
+def gauge_resistance(part, contact_ohm: float = 0.0, material=None) -> dict[str, float]:
     """Resistance of one meander of ``part`` (ohm) and its parts: legs, turns, leads, pads,
-    contacts (2 x ``contact_ohm``), total; with the back-calculated rho_eff."""
-    rho = effective_resistivity(contact_ohm)
+    contacts (2 x ``contact_ohm``), total; with the measured resistivity of ``material``
+    when it has one (:func:`measured_resistivity`), else the back-calculated rho_eff."""
+    rho, _ = resistivity_in_use(contact_ohm, material)
     rs = sheet_resistance(rho, part.trace_thickness)
     sq = part.trace_squares()
     out = {k: rs * v for k, v in sq.items() if k != "total"}
@@ -110,7 +133,7 @@ def electrical_report(part, material, sens_sum_Fn: float, sens_diff_Fx: float, *
     """The electrical design of ``part``: resistance, divider, self-heating, noise and the
     F_n / F_x resolution (mN) from the sum/difference sensitivities (V per N). ``R_rest``: the
     gauge resistance at the worn operating point (default: unstrained)."""
-    Rg = gauge_resistance(part, contact_ohm)
+    Rg = gauge_resistance(part, contact_ohm, material)
     R0 = Rg["total"]
     R = R0 if R_rest is None else float(R_rest)
     slope = float(divider_slope(R, R_fixed, V_s))
@@ -127,7 +150,8 @@ def electrical_report(part, material, sens_sum_Fn: float, sens_diff_Fx: float, *
     v_q = quantization_noise_vrms(adc_full_scale_V, adc_bits)
     v_ch = math.hypot(v_j, v_q)
     v_sd = math.sqrt(2.0) * v_ch                          # sum and difference of 2 channels
-    rho = effective_resistivity(contact_ohm)
+    rho, rho_source = resistivity_in_use(contact_ohm, material)
+    rho_back = effective_resistivity(contact_ohm)
 
     def mN(v, s):
         return float(1e3 * v / abs(s)) if s else None
@@ -137,7 +161,14 @@ def electrical_report(part, material, sens_sum_Fn: float, sens_diff_Fx: float, *
         "resistance_at_rest_ohm": R,
         "squares": part.trace_squares(),
         "effective_resistivity_ohm_mm": rho,
+        "resistivity_source": rho_source,
+        "back_calculated_resistivity_ohm_mm": rho_back,
         "effective_resistivity_note": (
+            f"rho = {rho:.4g} ohm*mm ({rho / 10:.4g} ohm*cm) MEASURED on the printed material "
+            f"({_measured_source(material)}); it replaces the rho_eff back-calculated from seed "
+            f"000's 1.8 kOhm ({rho_back:.3g} ohm*mm), which would give "
+            f"{gauge_resistance(part, contact_ohm)['total']:.4g} ohm on this meander"
+            if rho_source == "measured" else
             f"rho_eff = {rho:.3g} ohm*mm ({rho / 10:.3g} ohm*cm) back-calculated from seed 000's "
             "'around 1.8 kOhm' between the pads on its gauge geometry (the default ArchStrap, "
             "our estimate of the paper's meander), printed and annealed PI-ETPU along the "
@@ -176,6 +207,13 @@ def electrical_report(part, material, sens_sum_Fn: float, sens_diff_Fx: float, *
     }
 
 
+def _measured_source(material) -> str:
+    """The measured-records part of a material's source line (who measured what, when)."""
+    src = str(getattr(material, "source", ""))
+    i = src.find("measured: ")
+    return src[i + len("measured: "):] if i >= 0 else "source not given"
+
+
 def scale_sensitivity(sens: float, R0_old: float, R0_new: float, R_fixed: float) -> float:
     """Sensitivity (V per N) of the same strain response read through a gauge of rest
     resistance ``R0_new`` instead of ``R0_old`` (the divider gain R dV/dR changes only)."""
@@ -190,7 +228,7 @@ def trade_off(part, strain_per_N: dict[str, dict[str, float]], material, **kw) -
     sensitivities through this geometry's divider gain."""
     R_fixed = kw.get("R_fixed", DIVIDER_OHM)
     V_s = kw.get("V_s", SUPPLY_V)
-    R = gauge_resistance(part, kw.get("contact_ohm", 0.0))["total"]
+    R = gauge_resistance(part, kw.get("contact_ohm", 0.0), material)["total"]
     gain = R * float(divider_slope(R, R_fixed, V_s)) * float(material.gauge_factor)
     e = strain_per_N
     s_sum = gain * (e["Ch1"]["F_n"] + e["Ch2"]["F_n"])
@@ -204,5 +242,6 @@ def trade_off(part, strain_per_N: dict[str, dict[str, float]], material, **kw) -
             "F_n_equivalent_per_K_mN": rep["self_heating"]["F_n_equivalent_per_K_mN"]}
 
 
-__all__ = ["PAPER_GAUGE_OHM", "effective_resistivity", "gauge_resistance", "electrical_report",
-           "self_heating", "trade_off", "scale_sensitivity"]
+__all__ = ["PAPER_GAUGE_OHM", "effective_resistivity", "measured_resistivity",
+           "resistivity_in_use", "gauge_resistance", "electrical_report", "self_heating",
+           "trade_off", "scale_sensitivity"]
