@@ -128,7 +128,7 @@ def test_fit_part_hits_the_target_and_bad_input_is_one_line():
 
 def test_size_table_slots_vs_personalised():
     t = sf.size_table(np.arange(40.0, 75.0, 5.0), ETPU, 1800.0, 2200.0, 0.06,
-                      sf.default_target())
+                      sf.default_target(), measurement_sd_mm=0.5)
     assert t["slots_strain_cv_percent"] > 30
     assert t["personalised_sum_sensitivity_cv_percent"] < 1e-6
     # one spread definition: cv = population std / mean
@@ -335,3 +335,39 @@ def test_fit_strap_writes_3mf_and_fit_json_under_60_s(tmp_path):
     assert data["measured_materials"][0]["value"] == 5.0
     assert "ellipse" in data["finger_mm"]["perimeter_source"]
     assert data["size_table"]["goal_met"] is False
+
+
+def test_personalised_spread_from_the_cited_measurement_errors():
+    """The personalised strap's strain cv from the cited caliper %TEM range and the cited
+    scan error (designlab/data/finger_measurement_error.json), both reported; the headline
+    is the caliper at the upper end of its range."""
+    P = np.arange(40.0, 75.0, 5.0)
+    target = sf.default_target()
+    src = sf.measurement_errors()
+    assert src["caliper"]["rel_tem_percent"] == [2.25, 4.90]
+    assert "10.1038/s41598-020-68457-6" in src["scan"]["source"]
+    sp = sf.personalised_spread(P, target)
+    inp = sp["inputs"]
+    lo, hi = inp["caliper_tem_2.25_percent"], inp["caliper_tem_4.9_percent"]
+    # the strain sd is linear in the relative caliper error
+    assert hi["strain_cv_percent"] == pytest.approx(lo["strain_cv_percent"] * 4.90 / 2.25)
+    # by hand on the largest finger: sd_P = r P / sqrt(2), sd_eps = sd_P (1 + t) / path
+    path = sf.wrap_path(PAPER, 70.0)
+    assert hi["strain_cv_percent"] == pytest.approx(
+        100 * 0.049 * 70 / math.sqrt(2) * (1 + target) / path / target)
+    # the scan: sd = MAE sqrt(pi / 2) on the perimeter itself; the smallest finger is worst
+    sc = inp["scan_circumference_abs_error_0.58_mm"]
+    assert sc["strain_cv_percent"] == pytest.approx(
+        100 * 0.58 * math.sqrt(math.pi / 2) * (1 + target) / sf.wrap_path(PAPER, 40.0) / target)
+    assert sc["strain_cv_percent_per_perimeter"][0] == sc["strain_cv_percent"]
+    # what the cited numbers give against the 10 % goal (not tuned)
+    assert lo["goal_met"] and not hi["goal_met"] and sc["goal_met"]
+    assert inp["scan_mean_abs_error_0.3_mm"]["strain_cv_percent"] < sc["strain_cv_percent"]
+    r = sp["caliper_relative_sd_percent_for_goal"]
+    assert 2.25 < r < 4.90
+    assert hi["strain_cv_percent"] * r / 4.90 == pytest.approx(sf.GOAL_CV_PERCENT)
+    t = sf.size_table(P, ETPU, 1800.0, 2200.0, 0.06, target)
+    assert t["measurement_sd_cited"] and not t["goal_met"]
+    assert t["personalised_strain_cv_percent"] == pytest.approx(hi["strain_cv_percent"])
+    assert t["measurement_sd_mm"] == pytest.approx(0.049 * 70 / math.pi)
+    assert t["measurement_spread"]["inputs"] == inp

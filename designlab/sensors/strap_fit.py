@@ -25,6 +25,15 @@ its length; the section is an ellipse (Ramanujan's perimeter). The accepted rang
 range the wrap model is built for (a cylinder-like fingertip from a small little finger to a
 large thumb), not anthropometric percentiles: no cited fingertip-breadth survey could be
 checked while this was written (docs/strap.md).
+
+**Personalised strap's spread.** Sized to the *measured* perimeter, the strap's strain differs
+from the target by the perimeter error over the strap length, d eps = (1 + eps) dP / path:
+what varies over the fingers is the measurement (and what the model of fit leaves out).
+The cited measurement errors (``designlab/data/finger_measurement_error.json``, read from the
+abstracts): caliper %TEM 2.25-4.90 % for finger breadths < 25 mm, a structured-light scan's
+mean absolute error 0.30 mm (0.53-0.58 mm on finger circumferences); :func:`personalised_spread`
+reports the strain cv for each, and the sensitivities to a 1 % perimeter-model error and to
+0.1 mm of printed length.
 """
 
 from __future__ import annotations
@@ -351,18 +360,108 @@ def required_measurement_sd(target: float, perimeters, base=None,
     return goal_cv_percent / 100 * target * L * math.sqrt(2) / math.pi
 
 
-def size_table(perimeters, material, R0: float, R_fixed: float, sens_sum_Fn: float,
-               target: float, measurement_sd_mm: float = 0.5) -> dict[str, Any]:
-    """Initial strain and sum sensitivity over finger perimeters: the paper's three slots (the
-    best slot per finger, i.e. the one closest to the target) vs one personalised strap per
-    finger. The personalised strap's strain error comes from the finger measurement:
-    ``measurement_sd_mm`` per caliper reading of width and depth (our assumption for soft
-    tissue), propagated to the perimeter. Spreads: :data:`SPREAD_DEFINITION`."""
+#: the cited finger-measurement errors (caliper %TEM, scan absolute error)
+MEASUREMENT_ERROR_JSON = "finger_measurement_error.json"
+
+
+def measurement_errors() -> dict[str, Any]:
+    """The cited measurement errors of a finger's size (``designlab/data/
+    finger_measurement_error.json``: each value with its source, read from an abstract)."""
+    import json
+    from importlib import resources
+
+    return json.loads((resources.files("designlab") / "data" / MEASUREMENT_ERROR_JSON)
+                      .read_text())
+
+
+def perimeter_sd_caliper(perimeter: float, rel_sd: float) -> float:
+    """sd (mm) of the ellipse perimeter of a circular section of ``perimeter`` when width and
+    depth are each read with a relative error ``rel_sd`` (independent): dP/dw = dP/dd = pi / 2
+    at a circle, so sd_P = pi / 2 x sqrt(2) x rel_sd x P / pi = rel_sd P / sqrt(2)."""
+    return rel_sd * perimeter / math.sqrt(2)
+
+
+def strain_sd(perimeter: float, target: float, perimeter_sd: float, base=None) -> float:
+    """sd of the personalised strap's initial strain from a perimeter error: the strap is cut
+    to L = path(P_measured) / (1 + target), so eps = path(P_true) / L - 1 and d eps / dP =
+    1 / L."""
     from designlab.geometry.strap import ArchStrap
 
-    if not measurement_sd_mm > 0:
+    base = base or ArchStrap()
+    return perimeter_sd * (1 + target) / wrap_path(base, perimeter)
+
+
+def personalised_spread(perimeters, target: float, base=None) -> dict[str, Any]:
+    """The personalised strap's initial-strain cv (percent of the target; the largest over
+    ``perimeters``, i.e. the smallest finger) for each cited measurement input: caliper width
+    and depth at both ends of the cited %TEM range, and a scan's perimeter at its mean
+    absolute error and at the largest circumference error the source names. What else moves
+    the strain (not in these numbers): the ellipse as the caliper's section model, the
+    printed length, the pulp's compression (docs/strap.md)."""
+    from designlab.geometry.strap import ArchStrap
+
+    base = base or ArchStrap()
+    src = measurement_errors()
+    cal, scan = src["caliper"], src["scan"]
+    k_mad = math.sqrt(math.pi / 2)                 # normal: sd = mean absolute error x this
+    inputs = {}
+    for tem in cal["rel_tem_percent"]:
+        inputs[f"caliper_tem_{tem:g}_percent"] = (
+            "caliper", lambda P, r=tem / 100: perimeter_sd_caliper(P, r),
+            f"caliper width and depth, relative sd {tem:g} % each (= %TEM, {cal['to_sd']})")
+    for name, mae in (("scan_mean_abs_error", scan["mean_absolute_error_mm"]),
+                      ("scan_circumference_abs_error", max(
+                          scan["circumference_absolute_error_mm"]))):
+        inputs[f"{name}_{mae:g}_mm"] = (
+            "scan", lambda P, m=mae: k_mad * m,
+            f"scan perimeter, mean absolute error {mae:g} mm -> sd {k_mad * mae:.3g} mm "
+            "(normal errors)")
+    out = {}
+    for key, (kind, sd_P, how) in inputs.items():
+        cvs = [100 * strain_sd(P, target, sd_P(P), base) / target for P in perimeters]
+        cv = float(max(cvs))
+        out[key] = {"kind": kind, "how": how, "strain_cv_percent": cv,
+                    "strain_cv_percent_per_perimeter": [float(c) for c in cvs],
+                    "goal_met": bool(cv < GOAL_CV_PERCENT)}
+    # the caliper's relative sd (each reading) at which the goal is just met
+    cv_per_rel = max(100 * strain_sd(P, target, perimeter_sd_caliper(P, 1.0), base) / target
+                     for P in perimeters)
+    # 1 % of the perimeter wrong (e.g. the ellipse model of a caliper's section): its cv
+    P0 = float(min(perimeters))
+    per_pct = 100 * strain_sd(P0, target, 0.01 * P0, base) / target
+    # the printed length: d eps = (1 + eps) dL / L
+    L0 = wrap_path(base, P0) / (1 + target)
+    per_01mm = 100 * (1 + target) * 0.1 / L0 / target
+    return {"inputs": out,
+            "caliper_relative_sd_percent_for_goal": 100 * GOAL_CV_PERCENT / cv_per_rel,
+            "sources": {"caliper": cal["source"], "scan": scan["source"]},
+            "not_included_cv_percent": {
+                "per_1_percent_perimeter_model_error": per_pct,
+                "per_0.1_mm_printed_length_error": per_01mm,
+                "note": "sensitivities on the smallest finger, not errors: no cited value for "
+                        "how far a fingertip section's perimeter departs from the ellipse of "
+                        "its width and depth, nor for the printed TPU strap's length "
+                        "accuracy; the pulp's compression under the band is not modelled "
+                        "(rigid finger)"}}
+
+
+def size_table(perimeters, material, R0: float, R_fixed: float, sens_sum_Fn: float,
+               target: float, measurement_sd_mm: float | None = None) -> dict[str, Any]:
+    """Initial strain and sum sensitivity over finger perimeters: the paper's three slots (the
+    best slot per finger, i.e. the one closest to the target) vs one personalised strap per
+    finger. The personalised strap's strain error comes from the finger measurement
+    (:func:`personalised_spread`: the cited caliper and scan errors, both reported). The
+    headline ``personalised_strain_cv_percent`` / ``goal_met``: the caliper at the upper end
+    of its cited %TEM range (the fingertip is one of the "< 25 mm" breadths), or, when
+    ``measurement_sd_mm`` is given, that sd per caliper reading (a what-if). Spreads:
+    :data:`SPREAD_DEFINITION`."""
+    from designlab.geometry.strap import ArchStrap
+
+    if measurement_sd_mm is not None and not measurement_sd_mm > 0:
         raise ParameterError("measurement_sd_mm", measurement_sd_mm, "> 0 mm")
     base = ArchStrap()
+    spread = personalised_spread(perimeters, target, base)
+    tem_hi = max(measurement_errors()["caliper"]["rel_tem_percent"]) / 100
     rows = []
     for P in perimeters:
         eps = [initial_strain(base, P, slot=k) for k in range(1, base.slot_count + 1)]
@@ -370,19 +469,24 @@ def size_table(perimeters, material, R0: float, R_fixed: float, sens_sum_Fn: flo
         st = prestrain_state(base, P, material, R0, R_fixed, slot=k + 1) if eps[k] >= 0 \
             else None
         # personalised: eps = path / L - 1 with L fitted to the *measured* P;
-        # d eps / dP = 1 / L, sd_P ~ pi / sqrt(2) * sd(width) for an ellipse near a circle
+        # d eps / dP = 1 / L, sd_P = pi / sqrt(2) x sd(width) at a circle
         L = wrap_path(base, P) / (1 + target)
-        sd_eps = math.pi / math.sqrt(2) * measurement_sd_mm / L
+        sd_reading = (measurement_sd_mm if measurement_sd_mm is not None
+                      else tem_hi * P / math.pi)
+        sd_eps = strain_sd(P, target, math.pi / math.sqrt(2) * sd_reading, base)
         fp = prestrain_state(base, P, material, R0, R_fixed, length=L)
         rows.append({"perimeter_mm": float(P), "slot_strains": eps, "best_slot": k + 1,
                      "best_slot_strain": eps[k],
                      "best_slot_sum_F_n_V_per_N": sens_sum_Fn * st["sensitivity_factor"]
                      if st else None,
                      "personalised_strain": target, "personalised_strain_sd": sd_eps,
+                     "caliper_sd_mm": float(sd_reading),
                      "personalised_sum_F_n_V_per_N": sens_sum_Fn * fp["sensitivity_factor"]})
 
-    pers_cv = float(100 * max(r["personalised_strain_sd"] for r in rows) / target)
+    worst = max(rows, key=lambda r: r["personalised_strain_sd"])
+    pers_cv = float(100 * worst["personalised_strain_sd"] / target)
     need = required_measurement_sd(target, [r["perimeter_mm"] for r in rows], base)
+    cited = measurement_sd_mm is None
     return {"rows": rows, "target_strain": target,
             "slots_strain_cv_percent": spread_percent(r["best_slot_strain"] for r in rows),
             "personalised_strain_cv_percent": pers_cv,
@@ -390,9 +494,15 @@ def size_table(perimeters, material, R0: float, R_fixed: float, sens_sum_Fn: flo
                 spread_percent(r["best_slot_sum_F_n_V_per_N"] for r in rows),
             "personalised_sum_sensitivity_cv_percent":
                 spread_percent(r["personalised_sum_F_n_V_per_N"] for r in rows),
-            "measurement_sd_mm": float(measurement_sd_mm),
-            "measurement_sd_note": "per caliper reading of width and depth: our assumption for "
-                                   "soft tissue, not a measured repeatability",
+            "measurement_sd_mm": float(worst["caliper_sd_mm"]),
+            "measurement_sd_note": (
+                f"caliper sd per reading of width and depth on the finger with the largest "
+                f"strain sd: {100 * tem_hi:g} % of its breadth, the upper end of the cited "
+                "%TEM range (measurement_spread.sources.caliper)" if cited else
+                "per caliper reading of width and depth: given (a what-if, not a cited "
+                "value)"),
+            "measurement_sd_cited": cited,
+            "measurement_spread": spread,
             "goal_cv_percent": GOAL_CV_PERCENT,
             "required_measurement_sd_mm_for_goal": need,
             "goal_met": bool(pers_cv < GOAL_CV_PERCENT),
