@@ -205,7 +205,9 @@ class OutLock:
     start time). The kernel drops the lock when the holder ends, however it ends, so the lock of
     a killed run is stale at once and the next run takes it over. POSIX record locks are not
     inherited by forked children, so a child left running cannot keep it. Nested holders in
-    one process (the CLI, then the library under it) share the one lock."""
+    one process (the CLI, then the library under it) share the one lock. Released, the file is
+    removed (while still held; a taker checks it locked the file that is there), and a folder
+    the lock made is removed again when nothing else was written in it (a refused input)."""
 
     _held: dict[str, list] = {}  # real path -> [fd, holders] of the locks this process holds
 
@@ -221,28 +223,28 @@ class OutLock:
         import socket
         import sys
 
+        self.created = not self.folder.exists()
         ensure_dir(self.folder)
         key = os.path.realpath(self.path)
         if key in OutLock._held:
             OutLock._held[key][1] += 1
             self.fd = OutLock._held[key][0]
             return self
-        try:
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError as exc:
-            raise os_error(self.path, exc) from None
-        try:
-            fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
+        while True:
             try:
-                holder = json.loads(os.pread(fd, 4096, 0).decode() or "{}")
-            except (ValueError, UnicodeDecodeError):
-                holder = {}
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as exc:
+                raise os_error(self.path, exc) from None
+            try:
+                fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                self._refuse(fd)
+            try:  # a holder removes the file as it releases it: lock the file that is there
+                if os.fstat(fd).st_ino == os.stat(self.path).st_ino:
+                    break
+            except FileNotFoundError:
+                pass
             os.close(fd)
-            who = (f"pid {holder.get('pid')} on {holder.get('host')} ({holder.get('command')}, "
-                   f"started {holder.get('started')})" if holder else "another process")
-            raise DesignlabError(f"--out {self.folder} is in use by {who}; wait for it to "
-                                 "finish or choose another --out") from None
         info = {"pid": os.getpid(), "host": socket.gethostname(),
                 "command": self.command or " ".join(["designlab", *sys.argv[1:]])[:200],
                 "started": datetime.datetime.now().isoformat(timespec="seconds")}
@@ -251,6 +253,19 @@ class OutLock:
         self.fd = fd
         OutLock._held[key] = [fd, 1]
         return self
+
+    def _refuse(self, fd: int) -> None:
+        import json
+
+        try:
+            holder = json.loads(os.pread(fd, 4096, 0).decode() or "{}")
+        except (ValueError, UnicodeDecodeError):
+            holder = {}
+        os.close(fd)
+        who = (f"pid {holder.get('pid')} on {holder.get('host')} ({holder.get('command')}, "
+               f"started {holder.get('started')})" if holder else "another process")
+        raise DesignlabError(f"--out {self.folder} is in use by {who}; wait for it to "
+                             "finish or choose another --out") from None
 
     def release(self) -> None:
         if self.fd is None:
@@ -265,13 +280,21 @@ class OutLock:
             if held[1] > 0:
                 return
             del OutLock._held[key]
+        try:  # removed while still held: the folder keeps no trace of its writer
+            os.unlink(self.path)
+        except OSError:
+            pass
         try:
-            os.ftruncate(fd, 0)
             fcntl.lockf(fd, fcntl.LOCK_UN)
         except OSError:
             pass
         finally:
             os.close(fd)
+        if self.created:  # a folder this lock made and nothing filled (a refused input)
+            try:
+                self.folder.rmdir()
+            except OSError:
+                pass
 
     def __enter__(self) -> "OutLock":
         return self.acquire()
