@@ -69,7 +69,8 @@ def cross_talk_percent(P_applied: np.ndarray, P_estimated: np.ndarray) -> np.nda
     """Per applied axis j: the largest |M_ij| (i != j) as % of |M_jj| (M = transfer matrix)."""
     M = np.abs(transfer_matrix(P_applied, P_estimated))
     off = M - np.diag(np.diag(M))
-    return 100.0 * off.max(axis=0) / np.diag(M)
+    with np.errstate(divide="ignore", invalid="ignore"):  # an axis not seen at all: inf (nan if 0/0)
+        return 100.0 * off.max(axis=0) / np.diag(M)
 
 
 def linearity_percent(load: np.ndarray, reading: np.ndarray) -> float:
