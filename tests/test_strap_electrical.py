@@ -371,3 +371,5 @@ def test_personalised_spread_from_the_cited_measurement_errors():
     assert t["personalised_strain_cv_percent"] == pytest.approx(hi["strain_cv_percent"])
     assert t["measurement_sd_mm"] == pytest.approx(0.049 * 70 / math.pi)
     assert t["measurement_spread"]["inputs"] == inp
+    # the caliper sd that meets the goal, on the headline's (largest) finger: r_goal x breadth
+    assert t["required_measurement_sd_mm_for_goal"] == pytest.approx(r / 100 * 70 / math.pi)
