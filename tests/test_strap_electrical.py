@@ -373,3 +373,21 @@ def test_personalised_spread_from_the_cited_measurement_errors():
     assert t["measurement_spread"]["inputs"] == inp
     # the caliper sd that meets the goal, on the headline's (largest) finger: r_goal x breadth
     assert t["required_measurement_sd_mm_for_goal"] == pytest.approx(r / 100 * 70 / math.pi)
+
+
+def test_this_fingers_spread_follows_how_it_was_measured():
+    target = sf.default_target()
+    cal = sf.finger_spread(sf.Finger(16.0, 16.0, 25.0), target)
+    assert cal["input"] == "caliper"
+    # a circle: the ellipse gradient gives the circle's r P / sqrt(2)
+    P = cal["perimeter_mm"]
+    assert P == pytest.approx(16 * math.pi)
+    assert cal["strain_cv_percent"]["caliper_tem_4.9_percent"] == pytest.approx(
+        100 * sf.strain_sd(P, target, 0.049 * P / math.sqrt(2)) / target, rel=1e-6)
+    assert not cal["goal_met"]["caliper_tem_4.9_percent"]
+    e = sf.Finger(16.0, 14.0, 25.0).ellipse_perimeter
+    scan = sf.finger_spread(sf.Finger(16.0, 14.0, 25.0, section_perimeter=round(e, 3)),
+                            target)
+    assert scan["input"] == "scan" and all(scan["goal_met"].values())
+    assert scan["strain_cv_percent"]["scan_circumference_abs_error_0.58_mm"] == pytest.approx(
+        100 * sf.strain_sd(round(e, 3), target, 0.58 * math.sqrt(math.pi / 2)) / target)

@@ -445,6 +445,40 @@ def personalised_spread(perimeters, target: float, base=None) -> dict[str, Any]:
                         "(rigid finger)"}}
 
 
+def finger_spread(finger: Finger, target: float, base=None) -> dict[str, Any]:
+    """The personalised strap's initial-strain cv (percent of the target) for *this* finger
+    from the cited error of the way it was measured: a scan's perimeter (both cited scan
+    figures) or a caliper's width and depth (both ends of the cited %TEM range; the
+    ellipse's gradient, not the circle's)."""
+    from designlab.geometry.strap import ArchStrap
+
+    base = base or ArchStrap()
+    src = measurement_errors()
+    P = finger.perimeter
+    out: dict[str, Any] = {"perimeter_mm": P}
+    if finger.section_perimeter:
+        sc = src["scan"]
+        k = math.sqrt(math.pi / 2)
+        maes = {"scan_mean_abs_error": sc["mean_absolute_error_mm"],
+                "scan_circumference_abs_error": max(sc["circumference_absolute_error_mm"])}
+        out["input"] = "scan"
+        out["strain_cv_percent"] = {
+            f"{n}_{m:g}_mm": 100 * strain_sd(P, target, k * m, base) / target
+            for n, m in maes.items()}
+    else:
+        a, b = finger.width / 2, finger.depth / 2
+        h = 1e-4
+        da = (ellipse_perimeter(a + h, b) - ellipse_perimeter(a - h, b)) / (2 * h) / 2
+        db = (ellipse_perimeter(a, b + h) - ellipse_perimeter(a, b - h)) / (2 * h) / 2
+        out["input"] = "caliper"
+        out["strain_cv_percent"] = {
+            f"caliper_tem_{t:g}_percent": 100 * strain_sd(
+                P, target, t / 100 * math.hypot(da * finger.width, db * finger.depth), base)
+            / target for t in src["caliper"]["rel_tem_percent"]}
+    out["goal_met"] = {k: bool(v < GOAL_CV_PERCENT) for k, v in out["strain_cv_percent"].items()}
+    return out
+
+
 def size_table(perimeters, material, R0: float, R_fixed: float, sens_sum_Fn: float,
                target: float, measurement_sd_mm: float | None = None) -> dict[str, Any]:
     """Initial strain and sum sensitivity over finger perimeters: the paper's three slots (the
@@ -654,6 +688,7 @@ def fit_strap(finger: Finger, out, *, target_strain: float | None = None, slots:
         "paper_slots_on_this_finger": paper["slots"] | {
             "paper_strap_slots_sensitivity_from": "same FEM, the paper's strap"},
         "size_table": table,
+        "this_finger_strain_spread": finger_spread(finger, target),
         "material_stand_ins": rep["material_stand_ins"],
         "measured_materials": [dataclasses.asdict(m) for m in records],
         "model": "elastic (no Prony stand-ins), static FEM of the worn strap on a rigid-finger "
