@@ -391,3 +391,32 @@ def test_this_fingers_spread_follows_how_it_was_measured():
     assert scan["input"] == "scan" and all(scan["goal_met"].values())
     assert scan["strain_cv_percent"]["scan_circumference_abs_error_0.58_mm"] == pytest.approx(
         100 * sf.strain_sd(round(e, 3), target, 0.58 * math.sqrt(math.pi / 2)) / target)
+
+
+def test_pulp_compliance_lowers_the_worn_strain_by_its_closed_form():
+    """The band's tension compresses a confined pulp layer (M = E (1 - nu) / ((1 + nu)
+    (1 - 2 nu))): the equilibrium strain satisfies the wrap equation with the shrunken skin
+    perimeter; a stiff pulp gives the rigid finger's strain; the estimate is reported."""
+    P = 2 * math.pi * 9.0
+    assert sf.confined_modulus(1.0, 0.49) == pytest.approx(0.51 / (1.49 * 0.02))
+    r = sf.compliant_initial_strain(PAPER, P, ETPU, slot=2, pulp_E=0.06)
+    e = r["initial_strain"]
+    lam = 1 + e
+    sigma = ETPU.E * (lam - lam ** -2) / 3
+    R = P / (2 * math.pi) + PAPER.thickness / 2
+    dr = sigma * PAPER.thickness * 3.0 / (R * sf.confined_modulus(0.06, 0.49))
+    assert r["pulp_compression_mm"] == pytest.approx(dr, rel=1e-9)
+    assert sf.wrap_path(PAPER, P - 2 * math.pi * dr) / PAPER.engaged_length(2) - 1 == \
+        pytest.approx(e, abs=1e-12)
+    assert 0 < e < r["rigid_finger_strain"] == pytest.approx(sf.initial_strain(PAPER, P, 2))
+    stiff = sf.compliant_initial_strain(PAPER, P, ETPU, slot=2, pulp_E=1e6)
+    assert stiff["initial_strain"] == pytest.approx(stiff["rigid_finger_strain"], abs=1e-6)
+    c = sf.pulp_compliance(np.arange(40.0, 75.0, 5.0), sf.default_target(), ETPU, 1800.0,
+                           2200.0, moduli=(0.02, 0.06, 0.3, 1e6))
+    cv = [b["personalised_strain_cv_percent"] for b in c["by_modulus"]]
+    assert cv[0] > cv[1] > cv[2] > cv[3] and cv[3] < 1e-3
+    # a stiff pulp gives back the rigid finger's slot spread (slot_table)
+    rigid = sf.slot_table(PAPER, P, ETPU, 1800.0, 2200.0, 0.05, 0.03)
+    assert c["by_modulus"][3]["slots_sum_sensitivity_cv_percent"] == pytest.approx(
+        rigid["sum_sensitivity_cv_percent"], rel=1e-4)
+    assert "NOT a literature value" in c["pulp_modulus_note"]

@@ -283,6 +283,104 @@ def slot_table(part, perimeter: float, material, R0: float, R_fixed: float,
                           "factor"}
 
 
+# ------------------------------------------------------------------ the pulp under the band
+
+#: pulp moduli (MPa) of the compliance estimate: strap_pulp's default 0.06 (the Winkler
+#: default's equivalent, NOT a literature value) and its sweep's ends
+PULP_MODULI = (0.02, 0.06, 0.3)
+
+
+def confined_modulus(E: float, nu: float) -> float:
+    """Constrained (oedometric) modulus M = E (1 - nu) / ((1 + nu) (1 - 2 nu)): a thin layer
+    bonded to a rigid base and loaded by a uniform pressure with no lateral strain."""
+    return E * (1 - nu) / ((1 + nu) * (1 - 2 * nu))
+
+
+def compliant_initial_strain(part, perimeter: float, material, *, slot: int | None = None,
+                             length: float | None = None, pulp_E: float = 0.06,
+                             pulp_depth: float = 3.0, pulp_nu: float = 0.49) -> dict[str, Any]:
+    """Initial strain of the worn strap when the pulp under it gives: the band's tension
+    T = sigma0 b t (the neo-Hookean stand-in of :func:`stress_stiffening`) presses the finger
+    with p = T / (R b), a pulp layer of ``pulp_depth`` on a rigid bone compresses by
+    dr = p d / M (confined: :func:`confined_modulus`), the skin perimeter shrinks by
+    2 pi dr and the strain falls; solved for the equilibrium by bisection (the residual is
+    monotone in eps). Confined is the stiffest a bonded layer can be under a uniform
+    pressure (any axial flow from under the band softens it): for a given E the drop is a
+    lower bound."""
+    L = part.engaged_length(slot) if length is None else float(length)
+    E_t, t = float(material.E), float(part.thickness)
+    M = confined_modulus(pulp_E, pulp_nu)
+    R = perimeter / (2 * math.pi) + t / 2
+
+    def dr(e):
+        lam = 1.0 + e
+        sigma = E_t * (lam - lam ** -2) / 3.0 if e > 0 else 0.0
+        return sigma * t * pulp_depth / (R * M)
+
+    def resid(e):
+        return wrap_path(part, perimeter - 2 * math.pi * dr(e)) / L - 1.0 - e
+
+    rigid = wrap_path(part, perimeter) / L - 1.0
+    lo, hi = 0.0, max(rigid, 0.0)
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if resid(mid) > 0 else (lo, mid)
+    eps = 0.5 * (lo + hi) if rigid > 0 else rigid
+    return {"initial_strain": float(eps), "rigid_finger_strain": float(rigid),
+            "pulp_compression_mm": float(dr(max(eps, 0.0))), "confined_modulus_MPa": M}
+
+
+def pulp_compliance(perimeters, target: float, material, R0: float, R_fixed: float,
+                    slot_perimeter: float = 2 * math.pi * REFERENCE_RADIUS,
+                    moduli=PULP_MODULI, pulp_depth: float = 3.0,
+                    pulp_nu: float = 0.49) -> dict[str, Any]:
+    """What the finger's compliance does to the initial strain (:func:`compliant_initial_
+    strain`): per pulp modulus, the personalised strap (cut for the target on a rigid finger)
+    over ``perimeters`` -- its strain, their cv and the mean drop -- and the paper's slots on
+    the reference finger with the sum-sensitivity cv between them (prestrain factors as in
+    :func:`slot_table`). A size-dependent, predictable drop: a fit that knew the pulp could
+    cut for it; with no cited pulp modulus it is an error of the fit."""
+    from designlab.geometry.strap import ArchStrap
+
+    base = ArchStrap()
+    out = []
+    for E in moduli:
+        kw = dict(pulp_E=E, pulp_depth=pulp_depth, pulp_nu=pulp_nu)
+        pers = [compliant_initial_strain(base, P, material,
+                                         length=wrap_path(base, P) / (1 + target), **kw)
+                for P in perimeters]
+        eps = [r["initial_strain"] for r in pers]
+        slots = []
+        for k in range(1, base.slot_count + 1):
+            e = compliant_initial_strain(base, slot_perimeter, material, slot=k, **kw)
+            e0 = max(e["initial_strain"], 0.0)
+            op = operating_point(e0, R0, material.gauge_factor, material.gauge_quadratic,
+                                 R_fixed)
+            slots.append({"slot": k, "initial_strain": e["initial_strain"],
+                          "rigid_finger_strain": e["rigid_finger_strain"],
+                          "pulp_compression_mm": e["pulp_compression_mm"],
+                          "sensitivity_factor": op["electrical_factor"]
+                          / neo_hooke(e0)["tangent_over_E"]})
+        out.append({"pulp_E_MPa": E,
+                    "personalised_strain": eps,
+                    "personalised_strain_cv_percent": spread_percent(eps),
+                    "personalised_mean_drop_percent": float(100 * (1 - np.mean(eps) / target)),
+                    "pulp_compression_mm": [float(r["pulp_compression_mm"]) for r in pers],
+                    "slots": slots,
+                    "slots_sum_sensitivity_cv_percent": spread_percent(
+                        r["sensitivity_factor"] for r in slots)})
+    return {"perimeters_mm": [float(P) for P in perimeters], "target_strain": target,
+            "slot_perimeter_mm": slot_perimeter, "pulp_depth_mm": pulp_depth,
+            "pulp_nu": pulp_nu, "by_modulus": out,
+            "model": "confined linear pulp layer on a rigid bone under the band's pressure "
+                     "T / (R b) (T: neo-Hookean stand-in of the TPU), equilibrium eps by "
+                     "bisection; the stiffest a bonded layer can be, so the drops are lower "
+                     "bounds for each E",
+            "pulp_modulus_note": "0.06 MPa is strap_pulp's default, the Winkler default's "
+                                 "equivalent, NOT a literature value (none could be read: "
+                                 "docs/strap.md); 0.02 and 0.3 MPa its sweep's ends"}
+
+
 # ------------------------------------------------------------------------- personalised strap
 
 def fit_part(finger: Finger, target_strain: float, slots: int = 1, base=None):
@@ -551,6 +649,7 @@ def size_table(perimeters, material, R0: float, R_fixed: float, sens_sum_Fn: flo
                                  "closest to the target per finger; personalised strain: the "
                                  "strain sd from the finger measurement error over the target, "
                                  "the largest over the perimeters, i.e. the smallest finger)",
+            "pulp_compliance": pulp_compliance(perimeters, target, material, R0, R_fixed),
             "population": "a uniform grid of perimeters over the accepted finger range, NOT "
                           "anthropometric percentiles (no fingertip-size survey could be "
                           "checked: docs/strap.md)"}
