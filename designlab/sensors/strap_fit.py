@@ -8,7 +8,8 @@ therefore the finger's perimeter at the strap's mid-plane plus the lug spacing, 
 membrane strain is ``eps0 = path / L_engaged - 1`` with ``L_engaged`` the unstretched length
 between the engaged slots (:meth:`ArchStrap.engaged_length`). Friction on the skin and the
 nail plate's thickness are neglected; the finger is rigid here (the pulp's compression under
-the strap's tension lowers eps0: the pulp-as-solid model is not built yet, see docs/strap.md),
+the strap's tension lowers eps0: :func:`compliant_initial_strain` estimates it in closed form,
+not applied; see docs/strap.md),
 so eps0 is an upper bound. The wrap's bending strain (t/2 / r at the faces) is zero on average
 over the gauges, which straddle the mid-plane.
 
@@ -209,7 +210,7 @@ def prestrain_state(part, perimeter: float, material, R0: float, R_fixed: float,
             "stress_stiffening": stress_stiffening(part, perimeter, material, max(eps0, 0.0),
                                                    mech),
             "notes": ["rigid finger: an upper bound on eps0 (the pulp compresses under the "
-                      "tension; pulp-as-solid model not built)",
+                      "tension: strap_fit.compliant_initial_strain estimates it, not applied)",
                       "mechanical_factor = E / tangent of an incompressible neo-Hookean law at "
                       "eps0: a stand-in for the printed TPU's unmeasured stress-strain curve",
                       "a slack strap (eps0 < 0) reads with the stress-free factors"]}
