@@ -230,6 +230,28 @@ def contact_candidates(mesh: TetMesh, flexure, stations_per_turn: int = 36,
             "station_u": (np.arange(n_st) + 0.5) / stations_per_turn}
 
 
+#: share of the contact FEM's wall time per stage (progress units of 1/1000 of the run), so the
+#: progress bar's ETA is a time estimate: `designlab flexure --fem` on the Visiflex catalogue
+#: spring (timings_s of its JSON, two runs on 2026-11-25: mesh 11-14 %, assembly 4 %,
+#: factorisation 11-20 %, back-substitutions 62-73 %, contact < 1 %; docs/flexure.md)
+_STAGES = (("mesh", 120), ("assemble", 40), ("factorise", 150), ("condense", 680),
+           ("contact", 10))
+_PROGRESS_TOTAL = sum(w for _, w in _STAGES)
+#: back-substitution calls of the condensation (progress granularity: every call streams the
+#: whole factor once more, ~1.3 s CPU each for the Visiflex helix)
+_CHUNKS = 4
+
+
+def _at(stage: str, fraction: float = 0.0) -> tuple[int, int]:
+    """(done, total) progress units at ``fraction`` of ``stage``."""
+    done = 0
+    for name, w in _STAGES:
+        if name == stage:
+            return int(done + fraction * w), _PROGRESS_TOTAL
+        done += w
+    raise KeyError(stage)
+
+
 def fem_contact_stiffness(spring, edge_length: float | None = None, order: int = 2,
                           quality: str = "default", solver: str = "auto",
                           gaps: str = "as_built", stations_per_turn: int = 36,
@@ -283,11 +305,11 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
         raise ParameterError("gaps", gaps, "as_built or meshed")
     L, N = float(flexure.length), flexure.total_coils
     timings = {}
-    step("meshing the helix (gmsh)", 0, 5)
+    step("meshing the helix (gmsh)", *_at("mesh"))
     if mesh is None:
         mesh = mesh_part(flexure, order=order, edge_length=h_mesh, quality=quality, mesher="gmsh")
     timings["mesh"] = time.perf_counter() - t0
-    step("contact lines and assembly", 1, 5)
+    step("contact lines and assembly", *_at("assemble"))
     t1 = time.perf_counter()
     model = Model(mesh, materials={"spring": mat} if isinstance(spring, HelicalSpring) else None)
     model.fix("flexure_base")
@@ -342,17 +364,27 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     K_full = system.K()
     Kr = system.reduce(K_full)
     timings["assemble"] = time.perf_counter() - t1
-    step(f"factorising ({Kr.shape[0]} dofs), {len(keep)} condensed dofs", 2, 5)
+    step(f"factorising ({Kr.shape[0]} dofs)", *_at("factorise"))
     t1 = time.perf_counter()
     lin = factorize(Kr, solver, n_rhs=len(keep))
-    X = lin.solve(np.asarray(Lmap.T.todense()))
+    timings["factorise"] = time.perf_counter() - t1
+    # the condensation's back-substitutions in chunks, so the bar (and its ETA) moves
+    t2 = time.perf_counter()
+    B = np.asarray(Lmap.T.todense())
+    X = np.empty_like(B)
+    chunks = np.array_split(np.arange(len(keep)), min(_CHUNKS, len(keep)))
+    for c, cols in enumerate(chunks):
+        step(f"condensing on {len(keep)} dofs ({cols[0]}/{len(keep)})",
+             *_at("condense", c / len(chunks)))
+        X[:, cols] = lin.solve(B[:, cols])
     C = np.asarray(Lmap @ X)
+    timings["back_substitution"] = time.perf_counter() - t2
     asym = float(np.abs(C - C.T).max() / np.abs(C).max())
     C = (C + C.T) / 2
     Kc = np.linalg.inv(C)
     Kc = (Kc + Kc.T) / 2
     timings["condense"] = time.perf_counter() - t1
-    step("contact active sets", 3, 5)
+    step("contact active sets", *_at("contact"))
     t1 = time.perf_counter()
     n_keep = len(keep)
     pos = {n: a for a, n in enumerate(nodes)}
@@ -409,7 +441,7 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
                   "closed_during_perturbations": [min(closed_l), max(closed_l)]}
     timings["contact"] = time.perf_counter() - t1
     timings["total"] = time.perf_counter() - t0
-    step("done", 5, 5)
+    step("done", _PROGRESS_TOTAL, _PROGRESS_TOTAL)
     info = {"n_nodes": int(mesh.n_points), "n_cells": int(mesh.n_cells),
             "cell_nodes": int(mesh.cells.shape[1]), "dofs": int(Kr.shape[0]),
             "condensed_dofs": n_keep, "coil_pairs": kinds.count("coil"),
