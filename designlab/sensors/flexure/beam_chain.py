@@ -69,6 +69,19 @@ GRIND = 0.1
 #: printed seat discs (seed 002: PLA housings): the default ``ChainSettings.seat_material``,
 #: E and nu from designlab.fem.materials
 SEAT_MATERIAL = "PLA"
+#: Coulomb coefficient of the wire's coil contacts (steel on steel, dry, kinetic: the contacts
+#: slide under the perturbations): 0.3 in S. A. Hill's table "Coefficients of Friction"
+#: (howwhy.nfshost.com/new/book1/motion/coefficients.html, 2023), which gives dry steel on
+#: steel static 0.6 / kinetic 0.3 and oiled 0.05 / 0.03. No value is published for the spring.
+MU_STEEL = 0.3
+
+
+def mindlin_ratio(nu: float) -> float:
+    """Mindlin's tangential / normal contact stiffness of two like elastic bodies,
+    ``2 (1 - nu) / (2 - nu)`` (Johnson, *Contact Mechanics*, 1985, sec. 7.2)."""
+    return 2 * (1 - nu) / (2 - nu)
+
+
 #: master order (u_x, u_y, u_z, th_x, th_y, th_z) -> twist/wrench order (w, v) / (m, f)
 _PERM = np.array([3, 4, 5, 0, 1, 2])
 
@@ -88,6 +101,11 @@ class ChainSettings:
         "10 N)")))
     seat_material: str = field(default=SEAT_MATERIAL, metadata=rng(
         choices=("PLA", "ABS"), doc="material of the printed discs (contact modulus of the seats)"))
+    mu: float = field(default=MU_STEEL, metadata=rng(0, 1e6, doc=(
+        "Coulomb friction coefficient at the coil and seat contacts (friction_stiffness, "
+        "loop_stiffness; chain_stiffness is frictionless). Default 0.3: dry steel on steel, "
+        "kinetic (S. A. Hill, 'Coefficients of Friction', howwhy.nfshost.com, 2023: static 0.6, "
+        "kinetic 0.3; oiled 0.05 / 0.03)")))
     perturbation_rad: float = field(default=2e-3, metadata=rng(0, 0.1, lo_open=True, unit="rad"))
     perturbation_mm: float = field(default=0.02, metadata=rng(0, 1, lo_open=True, unit="mm"))
     max_iterations: int = field(default=60, metadata=rng(2, 1000))
@@ -204,6 +222,15 @@ class ChainResult:
         return None if self.K_loaded is None else to_si(self.at(self.centre, loaded=True))
 
 
+def _block_diag(blocks: np.ndarray) -> np.ndarray:
+    """Dense block-diagonal matrix of ``blocks`` (k, a, b) -> (k a, k b)."""
+    k, a, b = blocks.shape
+    out = np.zeros((k * a, k * b))
+    for i in range(k):
+        out[i * a:(i + 1) * a, i * b:(i + 1) * b] = blocks[i]
+    return out
+
+
 class ActiveSet:
     """Unilateral penalty contacts on a linear structure with a 6-dof master (u, th), solved by
     an active-set iteration. A subclass sets ``Kq`` (sparse, n_q square: the structure),
@@ -257,10 +284,13 @@ class ActiveSet:
             A = (self.Kq + N.T @ sp.diags(w) @ N).tocsc()
             b = fext - N.T @ (w * g0)
             rhs = b[free] - (A[free][:, m] @ q[m] if q_master is not None else 0.0)
+            Aff = A[free][:, free]
             try:
-                q[free] = spla.splu(A[free][:, free]).solve(rhs)
+                lu = spla.splu(Aff)
             except RuntimeError:
                 raise ModelError("beam chain: singular stiffness (a spring end is not held)") from None
+            x = lu.solve(rhs)
+            q[free] = x + lu.solve(rhs - Aff @ x)     # one refinement step (stiff penalties)
             system.update(A=A, b=b)
             return q, g0 + N @ q
 
@@ -313,6 +343,183 @@ class ActiveSet:
             Kq[:, j] = (res[0]["reaction"] - res[1]["reaction"]) / (2 * amp[j])
         K = Kq[np.ix_(_PERM, _PERM)]
         return (K + K.T) / 2, closed
+
+    # ------------------------------------------------------------------ Coulomb friction
+    def rest_state(self) -> dict:
+        """The unloaded, undeformed state: no contact force, no tangential traction."""
+        nc = len(self.kn)
+        return {"q": np.zeros(self.nq), "closed": np.zeros(nc, bool), "t": np.zeros((nc, 2)),
+                "fext": np.zeros(self.nq), "reaction": np.zeros(6), "stick": np.zeros(nc, bool)}
+
+    def solve_friction(self, mu: float, kt, q_master=None, f_master=None, ref: dict | None = None,
+                       steps: int = 1) -> dict:
+        """Frictional contact solved incrementally from the state ``ref`` (default: at rest) to
+        the master displaced to ``q_master`` (u, th; the other dofs free) or loaded by
+        ``f_master`` (f, m; the master free), in ``steps`` equal increments.
+
+        Each closed contact carries, besides its normal penalty force ``f_n``, a tangential
+        traction ``t`` (2 components, the contact's ``rt`` directions) by a penalty ``kt`` (N/mm
+        per contact) and Coulomb's law, integrated by the return map (Simo & Hughes,
+        *Computational Inelasticity*, 1998, sec. 1.2 and 2.7 for the 1-D/plasticity form; Wriggers,
+        *Computational Contact Mechanics*, 2006, sec. 5.2 for contact): the trial
+        ``t_tr = t_n + kt * (slip increment)``; stick if ``|t_tr| <= mu f_n``, else slip with
+        ``t = mu f_n t_tr / |t_tr|``. Each increment is a Newton iteration with the consistent
+        (unsymmetric) tangent, the normal active set updated as in :meth:`_settle`; an increment
+        that does not converge is halved (up to 12 times). A contact that opens loses its
+        traction. ``mu = 0`` is the frictionless :meth:`solve` (to round-off).
+        Returns ``q``, ``closed``, ``t`` (nc, 2), ``f_n``, ``stick``, ``reaction`` (the master's
+        load, master order f, m), ``fext`` and ``iterations``."""
+        st = self.rest_state() if ref is None else ref
+        kt = np.broadcast_to(np.asarray(kt, float), self.kn.shape)
+        if q_master is not None:
+            q1 = np.asarray(q_master, float)
+            q0 = st["q"][self.m]
+            target = lambda a: (q0 + a * (q1 - q0), np.zeros(self.nq))       # noqa: E731
+        else:
+            f1 = np.zeros(self.nq)
+            f1[self.m] = f_master
+            f0 = st["fext"] if "fext" in st else np.zeros(self.nq)
+            target = lambda a: (None, f0 + a * (f1 - f0))                     # noqa: E731
+        its = 0
+        todo = [(k / steps, (k + 1) / steps, 0) for k in range(steps)][::-1]
+        while todo:
+            a0, a1, depth = todo.pop()
+            qm, fext = target(a1)
+            new = self._friction_increment(st, qm, fext, mu, kt)
+            if new is None:
+                if depth >= 12:
+                    raise ModelError("beam chain: frictional contact did not converge (the "
+                                     "increment was halved 12 times)")
+                mid = (a0 + a1) / 2
+                todo += [(mid, a1, depth + 1), (a0, mid, depth + 1)]
+                continue
+            its += new["iterations"]
+            st = new
+        return dict(st, iterations=its)
+
+    def _free_parts(self, master_free: bool):
+        """Structure, gap and slip operators on the free dofs (the master free or prescribed),
+        cached."""
+        cache = self.__dict__.setdefault("_free_cache", {})
+        if master_free not in cache:
+            free = (np.arange(self.nq) if master_free
+                    else np.setdiff1d(np.arange(self.nq), self.m))
+            Kq = sp.csr_matrix(self.Kq)
+            cache[master_free] = (Kq[free][:, free].tocsc(), sp.csr_matrix(self.N)[:, free],
+                                  sp.csr_matrix(self.Rt)[:, free])
+        return cache[master_free]
+
+    def _friction_increment(self, st: dict, q_m, fext, mu: float, kt) -> dict | None:
+        """One increment from the converged state ``st``: Newton on the equilibrium with the
+        return-mapped tractions; None when it does not converge (the caller halves it)."""
+        nq, m = self.nq, self.m
+        N, kn, g0 = self.N, self.kn, self.g0
+        Rt = self.Rt
+        nc = len(kn)
+        free = np.arange(nq) if q_m is None else np.setdiff1d(np.arange(nq), m)
+        q = st["q"].copy()
+        if q_m is not None:
+            q[m] = q_m
+        qn, tn = st["q"], np.where(st["closed"][:, None], st["t"], 0.0)
+        closed = st["closed"].copy()
+        tol = 1e-6 * self.s.perturbation_mm
+        seen = set()
+
+        def state(q, closed):
+            g = g0 + N @ q
+            w = kn * closed
+            fn = np.maximum(-w * g, 0.0)
+            ttr = np.where(closed[:, None], tn + kt[:, None] * (Rt @ (q - qn)).reshape(nc, 2), 0.0)
+            nt = np.linalg.norm(ttr, axis=1)
+            lim = mu * fn
+            stick = closed & (nt <= lim) & (lim > 0)
+            scale = np.where(stick, 1.0, np.where(nt > 0, lim / np.where(nt > 0, nt, 1.0), 0.0))
+            t = ttr * scale[:, None]
+            fi = self.Kq @ q + N.T @ (w * g) + Rt.T @ t.ravel()
+            return g, w, fn, ttr, nt, stick, t, fi
+
+        for it in range(self.s.max_iterations):
+            g, w, fn, ttr, nt, stick, t, fi = state(q, closed)
+            # consistent tangent of the tractions: stick kt I; slip kt (mu f_n / |t_tr|)
+            # (I - n n^T) on the slip and -mu k_n n on the normal gap
+            D = np.zeros((nc, 2, 2))
+            Cn = np.zeros((nc, 2))
+            slip = closed & ~stick & (nt > 0)
+            D[stick] = kt[stick, None, None] * np.eye(2)
+            if slip.any():
+                n = ttr[slip] / nt[slip, None]
+                sc = kt[slip] * mu * fn[slip] / nt[slip]
+                D[slip] = sc[:, None, None] * (np.eye(2) - n[:, :, None] * n[:, None, :])
+                Cn[slip] = np.where((fn[slip] > 0)[:, None], -mu * kn[slip, None] * n, 0.0)
+            # the tangent on the free dofs: the structure plus the closed contacts' terms
+            idx = np.nonzero(closed)[0]
+            Kff, Nf, Rf = self._free_parts(q_m is None)
+            A = Kff
+            if len(idx):
+                Nc = Nf[idx]
+                Rc = Rf[np.ravel(np.column_stack([2 * idx, 2 * idx + 1]))]
+                Db = sp.csr_matrix(_block_diag(D[idx]))
+                Cb = sp.csr_matrix(_block_diag(Cn[idx][:, :, None]))
+                A = A + Nc.T @ sp.diags(kn[idx]) @ Nc + Rc.T @ (Db @ Rc + Cb @ Nc)
+            r = fi - fext
+            try:
+                lu = spla.splu(sp.csc_matrix(A))
+                dq = lu.solve(-r[free])
+                dq += lu.solve(-r[free] - A @ dq)       # one refinement step (stiff penalties)
+            except RuntimeError:
+                raise ModelError("beam chain: singular stiffness (a spring end is not held)") from None
+            # backtracking on the residual (slip directions turn: a full Newton step can cycle)
+            r0, alpha = np.linalg.norm(r[free]), 1.0
+            for _ in range(30):
+                qt = q.copy()
+                qt[free] += alpha * dq
+                if np.linalg.norm((state(qt, closed)[-1] - fext)[free]) < r0:
+                    break
+                alpha /= 2
+            q = qt
+            g_new = g0 + N @ q
+            new = np.where(g_new < -tol, True, np.where(g_new > tol, False, closed))
+            if not np.array_equal(new, closed):
+                key = new.tobytes()
+                if key in seen:
+                    bad = np.nonzero(new != closed)[0]
+                    new = closed.copy()
+                    k = bad[np.argmax(np.abs(g_new[bad]))]
+                    new[k] = not closed[k]
+                seen.add(key)
+                closed = new
+                continue
+            # same normal set: converged when the residual is round-off and the stick/slip
+            # split of the new state is the one the step was taken with
+            g2, w2, fn2, ttr2, nt2, stick2, t2, fi2 = state(q, closed)
+            res = np.linalg.norm((fi2 - fext)[free])
+            ref_scale = max(np.linalg.norm(fi2), np.linalg.norm(fext), 1e-12)
+            if res <= 1e-9 * ref_scale:      # (the return map is continuous at |t_tr| = mu f_n)
+                return {"q": q.copy(), "closed": closed, "t": t2, "f_n": fn2, "stick": stick2,
+                        "fext": np.asarray(fext, float).copy(), "reaction": fi2[m].copy(),
+                        "iterations": it + 1}
+        return None
+
+    def friction_stiffness(self, mu: float, kt, ref: dict | None = None, steps: int = 1,
+                           amplitude: float = 1.0) -> tuple[np.ndarray, list]:
+        """6x6 (twist -> wrench order) by symmetric master perturbations around the frictional
+        state ``ref`` (each solved from ``ref`` with its tractions by :meth:`solve_friction`),
+        perturbations ``amplitude`` times the settings' (0.02 mm, 2 mrad). With friction this
+        is the secant of the two one-sided paths, which depends on the amplitude (a sliding
+        contact adds up to ``2 mu f_n`` across the two) and need not be symmetric (returned as
+        computed, with the (closed, stuck) contact counts of every path)."""
+        amp = amplitude * np.r_[[self.s.perturbation_mm] * 3, [self.s.perturbation_rad] * 3]
+        st = self.rest_state() if ref is None else ref
+        q0 = st["q"][self.m]
+        Kq = np.zeros((6, 6))
+        info = []
+        for j in range(6):
+            res = [self.solve_friction(mu, kt, q_master=q0 + sgn * amp[j] * np.eye(6)[j],
+                                       ref=st, steps=steps) for sgn in (1.0, -1.0)]
+            info += [(int(np.count_nonzero(r["closed"])), int(np.count_nonzero(r["stick"])))
+                     for r in res]
+            Kq[:, j] = (res[0]["reaction"] - res[1]["reaction"]) / (2 * amp[j])
+        return Kq[np.ix_(_PERM, _PERM)], info
 
 
 class Chain(ActiveSet):
@@ -377,12 +584,15 @@ class Chain(ActiveSet):
         seat = get_material(settings.seat_material)
         E_seat = 1.0 / ((1 - nu ** 2) / coil.E + (1 - seat.nu ** 2) / seat.E)
         self.contacts: list[_Contact] = []
+        # line contact of one node spacing along the wire, mm (self.h is in turns)
+        self.spacing = float(np.linalg.norm(np.diff(X, axis=0), axis=1).mean())
         if settings.contact and coil.ends == "closed_ground":
-            self._coil_contacts(E_ss * self.h)
-            self._seat_contacts(E_seat * self.h, c_base, c_tip)
+            self._coil_contacts(E_ss * self.spacing)
+            self._seat_contacts(E_seat * self.spacing, c_base, c_tip)
         self.N = sp.csr_matrix(np.array([c.row for c in self.contacts]).reshape(-1, nq))
         self.kn = np.array([c.k_n for c in self.contacts])
         self.g0 = np.array([c.g0 for c in self.contacts])
+        self.Rt = sp.csr_matrix(np.array([c.rt for c in self.contacts]).reshape(-1, nq))
         self.bonded_turns = (len(base_bond) + len(tip_bond)) * self.h / 2
 
     # ------------------------------------------------------------------ section forces
@@ -581,7 +791,7 @@ def friction_bounds(spring: HelicalSpring, settings: ChainSettings | None = None
     pre = chain.solve(f_master=np.r_[0.0, 0.0, -settings.working_load_N, 0.0, 0.0, 0.0])
     closed, fn = pre["closed"], pre["f_n"]
     nu = chain.coil.E / (2 * chain.coil.G) - 1
-    kt = np.where(closed, chain.kn * 2 * (1 - nu) / (2 - nu), 0.0)
+    kt = np.where(closed, chain.kn * mindlin_ratio(nu), 0.0)
     K_slip = condensed_6x6(chain, closed)
     K_stick = condensed_6x6(chain, closed, kt)
     K_pert, _ = chain.stiffness(ref=pre)
@@ -604,6 +814,115 @@ def friction_bounds(spring: HelicalSpring, settings: ChainSettings | None = None
             "max_stick_displacement_mm": float(stick_disp.max()) if closed.any() else 0.0,
             "tip_friction_band": band,
             "k_t_over_k_n": float(2 * (1 - nu) / (2 - nu))}
+
+
+def _friction_setup(spring: HelicalSpring, settings: ChainSettings | None, mu: float | None):
+    settings = settings or ChainSettings()
+    mu = settings.mu if mu is None else mu
+    if not (isinstance(mu, (int, float)) and 0 <= mu <= 1e6):
+        raise ParameterError("mu", mu, "a friction coefficient 0 <= mu <= 1e6")
+    if not settings.contact:
+        raise ParameterError("contact", settings.contact, "True (friction acts at the contacts)")
+    if settings.working_load_N > 0:
+        check_working_load(spring, settings.working_load_N)
+    chain = Chain(as_built(spring), settings)
+    nu = chain.coil.E / (2 * chain.coil.G) - 1
+    return settings, float(mu), chain, chain.kn * mindlin_ratio(nu)
+
+
+def friction_stiffness(spring: HelicalSpring, settings: ChainSettings | None = None, *,
+                       mu: float | None = None, amplitude: float = 1.0,
+                       preload_steps: int = 10) -> ChainResult:
+    """The chain's 6x6 with Coulomb friction at the coil and seat contacts, unloaded and at the
+    axial working load: the working load applied in ``preload_steps`` force increments from rest
+    (each contact's traction follows its slip history), then symmetric perturbations of the tip
+    master (``amplitude`` x the settings' 0.02 mm / 2 mrad), each solved incrementally from that
+    state (:meth:`ActiveSet.solve_friction`: return map, tangential penalty
+    ``k_t = k_n 2 (1 - nu) / (2 - nu)``). ``mu``: default ``settings.mu`` (0.3, dry steel on
+    steel). ``mu = 0`` is :func:`chain_stiffness`; ``mu -> inf`` the stuck bound of
+    :func:`friction_bounds`. With ``0 < mu < inf`` the result is a secant: it depends on the
+    amplitude. ``K`` and ``K_loaded`` are symmetrised; the raw ones and their asymmetry are in
+    ``info``."""
+    t0 = time.perf_counter()
+    settings, mu, chain, kt = _friction_setup(spring, settings, mu)
+    K_raw, paths = chain.friction_stiffness(mu, kt, amplitude=amplitude)
+    K_loaded = K_l_raw = None
+    info_l = None
+    if settings.working_load_N > 0:
+        pre = chain.solve_friction(mu, kt, f_master=np.r_[0.0, 0.0, -settings.working_load_N,
+                                                          0.0, 0.0, 0.0], steps=preload_steps)
+        K_l_raw, paths_l = chain.friction_stiffness(mu, kt, ref=pre, amplitude=amplitude)
+        K_loaded = (K_l_raw + K_l_raw.T) / 2
+        c = pre["closed"]
+        info_l = {"axial_deflection_mm": float(-pre["q"][chain.m][2]),
+                  "closed_contacts": int(np.count_nonzero(c)),
+                  "stuck_contacts": int(np.count_nonzero(pre["stick"])),
+                  "normal_force_N": float(pre["f_n"].sum()),
+                  "traction_over_limit": [float(x) for x in
+                                          np.linalg.norm(pre["t"][c], axis=1)
+                                          / np.maximum(mu * pre["f_n"][c], 1e-300)],
+                  "paths_closed_stuck": paths_l,
+                  "asymmetry": float(np.abs(K_l_raw - K_l_raw.T).max() / np.abs(K_l_raw).max()),
+                  "K_raw": K_l_raw.tolist()}
+    info = {"mu": mu, "k_t_over_k_n": float(kt[0] / chain.kn[0]) if len(kt) else None,
+            "amplitude_mm_rad": [amplitude * settings.perturbation_mm,
+                                 amplitude * settings.perturbation_rad],
+            "paths_closed_stuck": paths,
+            "asymmetry": float(np.abs(K_raw - K_raw.T).max() / np.abs(K_raw).max()),
+            "K_raw": K_raw.tolist(), "working_load": info_l, "contacts": len(chain.contacts),
+            "seconds": time.perf_counter() - t0}
+    return ChainResult((K_raw + K_raw.T) / 2, K_loaded, chain.master,
+                       np.array([0, 0, chain.coil.length / 2]), chain.coil, settings, info, chain)
+
+
+def loop_stiffness(spring: HelicalSpring, settings: ChainSettings | None = None, *,
+                   mu: float | None = None, amplitude_mm: float = 1.0,
+                   amplitude_rad: float = 0.05, points: int = 8, preload_N: float = 0.0) -> dict:
+    """The 6x6 as seed 002 fitted it: hysteresis loops about the relaxed configuration (Sec.
+    V-B: each axis cycled between its largest positive and negative displacement), ``F = K X``
+    by least squares. Per master axis (at the tip seat, global axes): 0 -> +A -> -A -> +A in
+    ``points`` increments per quarter, each by :meth:`ActiveSet.solve_friction`; the last full
+    cycle (+A -> -A -> +A) gives the column ``K[:, j] = sum(F x) / sum(x^2)`` (no intercept, as
+    the paper's fit) and the loop's half-width along the axis (half the largest difference of
+    the two branches at the same displacement). The paper's 21-entry fit is symmetric: ``K`` is symmetrised, the
+    raw columns are ``K_raw``. ``A``: ``amplitude_mm`` for translations, ``amplitude_rad`` for
+    rotations (the paper does not print its loop amplitudes: its random poses span 1 mm in x, y
+    and 4 mm in z). ``preload_N``: an axial load held before the loops (0: relaxed).
+    Geometrically linear, the contacts' normal forces follow the motion."""
+    t0 = time.perf_counter()
+    settings, mu, chain, kt = _friction_setup(spring, settings, mu)
+    if not (amplitude_mm > 0 and amplitude_rad > 0 and isinstance(points, int) and points >= 2):
+        raise ParameterError("amplitude", (amplitude_mm, amplitude_rad, points),
+                             "amplitudes > 0 and points >= 2")
+    ref = chain.rest_state()
+    if preload_N > 0:
+        ref = chain.solve_friction(mu, kt, f_master=np.r_[0.0, 0.0, -preload_N, 0, 0, 0],
+                                   steps=10)
+    q0 = ref["q"][chain.m]
+    amp = np.r_[[amplitude_mm] * 3, [amplitude_rad] * 3]
+    path = np.concatenate([np.linspace(0, 1, points + 1)[1:], np.linspace(1, -1, 2 * points + 1)[1:],
+                           np.linspace(-1, 1, 2 * points + 1)[1:]])
+    Kq = np.zeros((6, 6))
+    half = np.zeros(6)
+    loops = []
+    for j in range(6):
+        st, xs, Fs = ref, [], []
+        for a in path:
+            st = chain.solve_friction(mu, kt, q_master=q0 + a * amp[j] * np.eye(6)[j], ref=st)
+            xs.append(a * amp[j])
+            Fs.append(st["reaction"] - ref["reaction"])
+        xs, Fs = np.array(xs[points:]), np.array(Fs[points:])          # the last full cycle
+        Kq[:, j] = Fs.T @ xs / (xs @ xs)
+        # the two branches at the same x: descending k <-> ascending 2 points - 2 - k
+        k = np.arange(2 * points - 1)
+        half[j] = float(np.abs(Fs[k, j] - Fs[4 * points - 2 - k, j]).max() / 2)
+        loops.append({"x": xs.tolist(), "F": Fs[:, j].tolist()})
+    K_raw = Kq[np.ix_(_PERM, _PERM)]
+    return {"K": (K_raw + K_raw.T) / 2, "K_raw": K_raw, "master": chain.master,
+            "centre": np.array([0.0, 0.0, chain.coil.length / 2]), "mu": mu,
+            "half_width": dict(zip(("u_x", "u_y", "u_z", "th_x", "th_y", "th_z"), half.tolist())),
+            "amplitude_mm_rad": [amplitude_mm, amplitude_rad], "preload_N": preload_N,
+            "loops": loops, "seconds": time.perf_counter() - t0}
 
 
 def with_settings(base: ChainSettings | None = None, **kw) -> ChainSettings:
