@@ -948,9 +948,13 @@ def fit_strap(finger: Optional[str] = typer.Option(None, "--finger", metavar="WI
     t.add_row("paper slots: strains", ", ".join(f"{r['initial_strain']:.3g}" for r in sl["slots"]))
     t.add_row("paper slots: sum sensitivity cv %", f"{sl['sum_sensitivity_cv_percent']:.3g}")
     st = res["size_table"]
-    t.add_row("size grid: strain cv % (best paper slot / personalised, "
-              f"caliper sd {st['measurement_sd_mm']:g} mm assumed)",
+    t.add_row("size grid: strain cv % (best paper slot / personalised, caliper sd "
+              f"{st['measurement_sd_mm']:.2g} mm, "
+              f"{'cited %TEM' if st['measurement_sd_cited'] else 'given'})",
               f"{st['slots_strain_cv_percent']:.3g} / {st['personalised_strain_cv_percent']:.3g}")
+    t.add_row("personalised strain cv % by measurement input",
+              ", ".join(f"{k} {v['strain_cv_percent']:.2g}"
+                        for k, v in st["measurement_spread"]["inputs"].items()))
     t.add_row(f"personalised cv < {st['goal_cv_percent']:g} %: caliper sd needed (mm), goal met",
               f"<= {st['required_measurement_sd_mm_for_goal']:.2g}, "
               f"{'yes' if st['goal_met'] else 'no'}")
