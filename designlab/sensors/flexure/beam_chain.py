@@ -29,13 +29,16 @@ contact at zero gap.
 Contact (``contact=True``): node-to-wire pairs one turn apart over the dead turn and the ramp at
 each end (the dead turn against the first active turn, gap ``z(u + 1) - z(u) - d``), and
 node-to-seat pairs over the dead turn (gap ``c - r``). A closed contact is a stiff normal penalty
-spring, frictionless in the 6x6 (tangential contact forces are not modelled there), solved by
-an active-set iteration. :func:`friction_bounds` adds Coulomb friction at the closed contacts of
-the working-load state as its two limits: gross slip (the frictionless tangent, plus a force band
-``mu sum f_n``) and full stick (tangential penalty springs, Mindlin's ``k_t / k_n``). Penalty stiffness per contact node: a line contact of length ``h`` (the node spacing)
-between an elastic cylinder and a flat or a cylinder has a stiffness per unit length of the order
-of the contact modulus ``E*`` (Johnson, *Contact Mechanics*, 1985, sec. 5.6: the approach grows
-only logarithmically with the load), so ``k_n = E* h``.
+spring, frictionless in :func:`chain_stiffness`, solved by an active-set iteration.
+Coulomb friction: :func:`friction_stiffness` and :func:`loop_stiffness` solve it inside the
+contact problem, incrementally (:meth:`ActiveSet.solve_friction`: return map with a tangential
+penalty ``k_t = k_n 2 (1 - nu) / (2 - nu)``, ``ChainSettings.mu``); :func:`friction_bounds`
+gives its two limits at the working-load state: gross slip (the frictionless tangent, plus a
+force band ``mu sum f_n``) and full stick. Penalty stiffness per contact node: a line contact
+of length ``h`` (the node spacing along the wire, mm) between an elastic cylinder and a flat or
+a cylinder has a stiffness per unit length of the order of the contact modulus ``E*`` (Johnson,
+*Contact Mechanics*, 1985, sec. 5.6: the approach grows only logarithmically with the load), so
+``k_n = E* h``.
 
 The 6x6 comes from small symmetric perturbations of the tip disc around a reference state (the
 unloaded spring, or the spring under an axial working load): ``K[:, j] = (W(+d e_j) - W(-d e_j)) /
@@ -764,8 +767,8 @@ def _tip_friction_band(chain: "Chain", closed: np.ndarray, fn: np.ndarray, mu: f
 def friction_bounds(spring: HelicalSpring, settings: ChainSettings | None = None, *,
                     mu: float = 0.3) -> dict:
     """What Coulomb friction at the closed coil and seat contacts can do to the chain's 6x6 at
-    the working load, as two bounds (the return map of :func:`designlab.fem.contact.
-    contact_forces` has only these two limits for a perturbation about a preloaded state):
+    the working load, as two bounds (the closed contacts of the frictionless 10 N state held;
+    :func:`friction_stiffness` solves the frictional path between them):
 
     * **slip** (gross sliding, any perturbation larger than ``mu f_n / k_t``): a sliding contact
       carries a constant ``mu f_n`` whose tangent is zero, so the tangent 6x6 is the
@@ -777,9 +780,8 @@ def friction_bounds(spring: HelicalSpring, settings: ChainSettings | None = None
     Returns the two 6x6 at the spring centre (N mm/rad, N/mm; SI too), the normal forces, the
     band ``mu sum f_n`` at the contacts, its half-width at the tip per master axis
     (``tip_friction_band``: the hysteresis a loop along that axis shows) and the largest stick
-    displacement ``mu f_n / k_t``. ``mu``: assumed
-    (no value is published for the spring; steel on steel runs from ~0.1 lubricated to ~0.6
-    dry)."""
+    displacement ``mu f_n / k_t``. ``mu``: see :data:`MU_STEEL` (no value is published for
+    the spring)."""
     if not (isinstance(mu, (int, float)) and 0 <= mu <= 2):
         raise ParameterError("mu", mu, "a friction coefficient 0 <= mu <= 2")
     settings = settings or ChainSettings()
