@@ -271,7 +271,8 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
             protocol_path: str | Path | None = None, protocol: dict[str, Any] | None = None,
             settings: dict[str, Any] | None = None, model_path: str | Path | None = None,
             progress: Callable[[str], None] | None = None,
-            fem_cache: str | Path | None = None, measured=None) -> Prediction:
+            fem_cache: str | Path | None = None, measured=None,
+            parallel: bool | None = None) -> Prediction:
     """Run the virtual test of one design: ``name`` is a sensor name (then ``overrides`` are
     its parameters) or a part object (``designlab.Fingertip(h=3, r=9)``; ``overrides`` change
     it further). ``protocol_path``/``protocol``: a protocol TOML / overrides; ``settings``:
@@ -280,7 +281,11 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
     ``fem_cache``: a folder where FEM stages are kept and reused (sweeps);
     ``measured``: measured printed-material records (a JSON file of
     :func:`~designlab.fem.materials.load_measured` or its records): the part's materials they
-    name are replaced (:func:`measured_materials`) in the FEM, the readout and the stress."""
+    name are replaced (:func:`measured_materials`) in the FEM, the readout and the stress;
+    ``parallel``: run the coarse mesh of the error bar in a forked process beside the chosen
+    mesh's run (same numbers: the same code on the same inputs); None: when two CPUs are free
+    to this process and no ``fem_cache`` is given (a sweep's workers already use the cores);
+    never once gmsh has run in this process (its threads do not survive a fork)."""
     from designlab.fem.cache import FEMCache
 
     from designlab.geometry.parts import make_part
@@ -309,14 +314,26 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
     mats, records = measured_materials(part, measured)
     if mats:
         kw["materials"] = mats
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        result = sensor.run(part, proto, sett, progress=progress, **kw)
-        report = dict(result.report)
-        if sensor.finish is not None:
-            sensor.finish(report, result, part, proto)
-        report["mesh_convergence"] = _mesh_convergence(sensor, part, proto, sett, report, kw,
-                                                       progress)
+    side, side_out = None, None
+    if _use_parallel(parallel, fem_cache) and _wants_convergence(sensor, sett):
+        side = _Side(lambda: _side_work(sensor, part, proto, sett, kw))
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = sensor.run(part, proto, sett, progress=progress, **kw)
+            report = dict(result.report)
+            if sensor.finish is not None:
+                sensor.finish(report, result, part, proto)
+            side_out = side.result() if side is not None else None
+            if side_out is None or side_out.get("coarse") is None:
+                coarse, coarse_warnings = None, []   # computed here (also: the side failed)
+            else:
+                coarse, coarse_warnings = side_out["coarse"], side_out["warnings"]
+            report["mesh_convergence"] = _mesh_convergence(sensor, part, proto, sett, report,
+                                                           kw, progress, coarse)
+    finally:
+        if side is not None:
+            side.stop()
     if model_path is not None:
         report["uncorrected"] = {k: report[k] for k in ("hysteresis_percent", "condition_number",
                                                         "calibration_matrix") if k in report}
@@ -335,8 +352,132 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
                                              if isinstance(v, (int, float))))
     return Prediction(name, as_dict(part), proto, sett, report, result,
                       # once each: the coarse-mesh run of the error bar repeats the run's
-                      list(dict.fromkeys([str(w.message) for w in caught] + stress_warn)),
+                      list(dict.fromkeys([str(w.message) for w in caught] + coarse_warnings
+                                         + stress_warn)),
                       cases, stresses)
+
+
+def _two_cpus(parallel: bool | None) -> bool:
+    """``parallel`` resolved: None -> at least two CPUs free to this process and a process that
+    may have children (not a daemonic pool worker)."""
+    import multiprocessing as mp
+    import os
+
+    if parallel is not None:
+        return bool(parallel)
+    if mp.current_process().daemon:
+        return False
+    try:
+        return len(os.sched_getaffinity(0)) >= 2
+    except AttributeError:                  # not Linux
+        return (os.cpu_count() or 1) >= 2
+
+
+def _use_parallel(parallel: bool | None, fem_cache) -> bool:
+    """``predict``'s ``parallel`` resolved: never once gmsh ran in this process; True -> yes;
+    None -> two CPUs (:func:`_two_cpus`) and no ``fem_cache`` (a sweep: its workers use the
+    cores)."""
+    import sys
+
+    if "gmsh" in sys.modules or parallel is False:
+        # gmsh's thread pool does not survive a fork (the child's mesher would wait for
+        # threads it does not have): the first predict of a process forks before any meshing
+        return False
+    if parallel:
+        return True
+    return fem_cache is None and _two_cpus(None)
+
+
+def _wants_convergence(sensor, settings) -> bool:
+    """Whether :func:`_mesh_convergence` runs a coarse mesh for these settings."""
+    if not getattr(settings, "mesh_convergence", False):
+        return False
+    return sensor.meshed is None or bool(sensor.meshed(settings))
+
+
+def _side_work(sensor, part, protocol, settings, kw) -> dict[str, Any]:
+    """What the forked process of ``predict(parallel=True)`` computes: the coarse run's
+    convergence values and warnings (:func:`_coarse_values`)."""
+    _serial_occ()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        coarse = _coarse_values(sensor, part, protocol, settings, kw, None)
+    return {"coarse": coarse, "warnings": [str(w.message) for w in caught]}
+
+
+def _serial_occ() -> None:
+    """In a forked child: OpenCascade's thread pool is the parent's (its threads are not in the
+    child), so a parallel ``BRepMesh`` would wait for ever; tessellate on the calling thread
+    (the same triangles)."""
+    try:
+        import OCP.BRepMesh as brepmesh
+    except ImportError:
+        return
+    cls = brepmesh.BRepMesh_IncrementalMesh
+
+    def serial(shape, *args):
+        if len(args) >= 4:
+            args = (*args[:3], False, *args[4:])
+        return cls(shape, *args)
+
+    brepmesh.BRepMesh_IncrementalMesh = serial
+
+
+def _design_png_args(name: str) -> dict[str, Any]:
+    """The keyword arguments of ``design.png`` (:func:`render_bodies`)."""
+    return {"size": (1000, 750), "title": f"{name}: the design"}
+
+
+class _Side:
+    """``fn()`` in a forked child while the caller goes on; :meth:`result` is its return value
+    (pickled through a pipe), or None when the child failed or died (the caller then computes
+    in-process: same result, and the error, if any, raised where it belongs). The child dies
+    with the parent (``PR_SET_PDEATHSIG``) and :meth:`stop` kills it if it is still running:
+    it never outlives the call."""
+
+    def __init__(self, fn: Callable[[], Any]):
+        import multiprocessing as mp
+        import os
+
+        ctx = mp.get_context("fork")
+        self._recv, send = ctx.Pipe(duplex=False)
+        self._proc = ctx.Process(target=_side_main, args=(fn, send, os.getpid()), daemon=True)
+        self._proc.start()
+        send.close()
+        self._done = False
+        self._value: Any = None
+
+    def result(self) -> Any:
+        if not self._done:
+            self._done = True
+            try:
+                ok, value = self._recv.recv()
+                self._value = value if ok else None
+            except (EOFError, OSError):
+                self._value = None
+            self.stop()
+        return self._value
+
+    def stop(self) -> None:
+        if self._proc.is_alive():
+            self._proc.kill()
+        self._proc.join()
+        self._recv.close()
+
+
+def _side_main(fn, send, parent: int) -> None:
+    from designlab.atomic import die_with_parent
+
+    die_with_parent(parent)
+    try:
+        value = (True, fn())
+    except BaseException as exc:  # noqa: BLE001 - the parent recomputes and raises
+        value = (False, f"{type(exc).__name__}: {exc}")
+    try:
+        send.send(value)
+    except Exception as exc:  # noqa: BLE001 - e.g. not picklable: the parent recomputes
+        send.send((False, f"{type(exc).__name__}: {exc}"))
+    send.close()
 
 
 def measured_materials(part, measured) -> tuple[dict[str, Any], list]:
@@ -400,23 +541,34 @@ def _dig(report: dict[str, Any], path: str) -> float:
     return float(v) if isinstance(v, (int, float)) else float("nan")
 
 
-def _mesh_convergence(sensor, part, protocol, settings, report, kw, progress
-                      ) -> dict[str, Any] | None:
+def _coarse_settings(settings):
+    return dataclasses.replace(settings, mesh_convergence=False,
+                               edge_length=settings.edge_length * settings.coarse_factor)
+
+
+def _coarse_values(sensor, part, protocol, settings, kw, progress) -> dict[str, float]:
+    """The sensor's convergence metrics (``sensor.convergence``) of the run on the coarser mesh
+    (``edge_length x coarse_factor``)."""
+    say = (lambda s: progress(f"coarse mesh: {s}")) if progress else None
+    coarse = dict(sensor.run(part, protocol, _coarse_settings(settings), progress=say,
+                             **kw).report)
+    return {path: _dig(coarse, path) for path in sensor.convergence}
+
+
+def _mesh_convergence(sensor, part, protocol, settings, report, kw, progress,
+                      coarse: dict[str, float] | None = None) -> dict[str, Any] | None:
     """The discretisation error bar: the sensor's convergence metrics at the chosen mesh and at
     one coarser level (``edge_length x coarse_factor``), and their relative change. None when
-    the prediction rests on no mesh or the setting is off."""
-    if not getattr(settings, "mesh_convergence", False):
+    the prediction rests on no mesh or the setting is off. ``coarse``: the coarse run's values
+    (:func:`_coarse_values`) when computed already (``predict(parallel=True)``)."""
+    if not _wants_convergence(sensor, settings):
         return None
-    if sensor.meshed is not None and not sensor.meshed(settings):
-        return None
-    coarse_settings = dataclasses.replace(settings, mesh_convergence=False,
-                                          edge_length=settings.edge_length * settings.coarse_factor)
-    say = (lambda s: progress(f"coarse mesh: {s}")) if progress else None
-    coarse = dict(sensor.run(part, protocol, coarse_settings, progress=say, **kw).report)
+    if coarse is None:
+        coarse = _coarse_values(sensor, part, protocol, settings, kw, progress)
     out: dict[str, Any] = {"edge_length_mm": settings.edge_length,
-                           "coarse_edge_length_mm": coarse_settings.edge_length}
+                           "coarse_edge_length_mm": _coarse_settings(settings).edge_length}
     for path in sensor.convergence:
-        v, c = _dig(report, path), _dig(coarse, path)
+        v, c = _dig(report, path), coarse[path]
         rel = abs(v - c) / abs(v) if np.isfinite(v) and np.isfinite(c) and v != 0 else None
         out[path] = {"value": v, "coarse": c, "rel_change": rel}
     return out
@@ -434,7 +586,8 @@ def sensor_model(name: str, design: dict[str, Any], report: dict[str, Any], resu
 
 
 def write_prediction(prediction: Prediction, out: str | Path,
-                     timings: dict[str, tuple[float, float]] | None = None) -> list[Path]:
+                     timings: dict[str, tuple[float, float]] | None = None,
+                     parallel: bool | None = None) -> list[Path]:
     """prediction.json, model.json (:func:`sensor_model`), the plots, and deformed.vtu
     (+ deformed.png) in ``out``, written as a set: every file goes to a hidden staging folder
     beside ``out`` first (a full disk or a kill then leaves ``out`` as it was); a new or empty
@@ -442,7 +595,10 @@ def write_prediction(prediction: Prediction, out: str | Path,
     ``prediction.json`` removed first and renamed last (no ``prediction.json``: no complete
     set). Staging folders of killed writers (their PID is in the name) are removed.
     ``timings``: a dict that gets ``{stage: (wall s, CPU s)}`` of the writing stages (plots,
-    deformed.vtu, deformed.png, model.json, design.png, report), for the benchmark."""
+    deformed.vtu, deformed.png, model.json, design.png, report), for the benchmark. ``parallel``:
+    the plots are drawn by a forked process while this one writes the VTU, the renders and the
+    model (the same files; a failed child's plots are drawn here); None: when two CPUs are free
+    to this process."""
     import gc
     import os
     import re
@@ -469,15 +625,21 @@ def write_prediction(prediction: Prediction, out: str | Path,
     except OSError as exc:
         raise os_error(final, exc) from None
     clock = _StageClock(timings)
+    plotter = None
     # the prediction leaves ~500k objects the collector tracks (CAD, mesher, FEM modules and
     # results); the figures and renders allocate many short-lived ones, and each full
     # collection would walk them all again (~0.9 s CPU of the writing): freeze them until done
     gc.freeze()
     try:
         result = prediction.result
-        names: list[str] = [Path(f).name for f in
-                            get_sensor(prediction.sensor).plots(result, prediction.metrics, stage)]
-        clock("plots")
+        sensor = get_sensor(prediction.sensor)
+        if _two_cpus(parallel):
+            plotter = _Side(lambda: [Path(f).name for f in
+                                     sensor.plots(result, prediction.metrics, stage)])
+            names: list[str] = []
+        else:
+            names = [Path(f).name for f in sensor.plots(result, prediction.metrics, stage)]
+            clock("plots")
         mesh, u = getattr(result, "mesh", None), getattr(result, "displacement", None)
         if mesh is not None and u is not None:
             from designlab.fem.output import write_png, write_vtu
@@ -516,6 +678,12 @@ def write_prediction(prediction: Prediction, out: str | Path,
         clock("model.json")
         names += _design_render(prediction, stage)
         clock("design.png")
+        if plotter is not None:
+            drawn = plotter.result()
+            if drawn is None:               # the child failed: draw here (raises its error)
+                drawn = [Path(f).name for f in sensor.plots(result, prediction.metrics, stage)]
+            names = drawn + names
+            clock("plots (waited for the plotting process)")
         doc = prediction.to_json()
         atomic_write_json(stage / "run.json", run_manifest(f"predict {prediction.sensor}",
                                                            {"settings": doc["settings"],
@@ -548,6 +716,8 @@ def write_prediction(prediction: Prediction, out: str | Path,
         shutil.rmtree(stage, ignore_errors=True)
         raise
     finally:
+        if plotter is not None:
+            plotter.stop()
         gc.unfreeze()
     return [out / n for n in names]
 
@@ -585,8 +755,8 @@ def _design_render(prediction: Prediction, stage: Path) -> list[str]:
     try:
         part = make_part(prediction.sensor, {k: (tuple(v) if isinstance(v, list) else v)
                                              for k, v in prediction.params.items()})
-        render_bodies(part.build(), stage / "design.png", size=(1000, 750),
-                      title=f"{prediction.sensor}: the design")
+        render_bodies(part.build(), stage / "design.png",
+                      **_design_png_args(prediction.sensor))
         return ["design.png"]
     except Exception as exc:  # a render is a convenience; the prediction is the result
         prediction.warnings.append(f"design.png not rendered: {type(exc).__name__}: {exc}")

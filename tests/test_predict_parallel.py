@@ -1,0 +1,74 @@
+"""predict/write_prediction with their forked helpers (the coarse mesh of the error bar beside
+the run, the plots beside the renders) give the same files as one process, and leave no
+process behind. Each side runs in a fresh interpreter: the coarse-mesh child is forked only
+before gmsh has run in a process."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+SCRIPT = r"""
+import json, multiprocessing, sys
+from designlab.sensors.predict import predict, write_prediction, _use_parallel
+parallel = {"1": True, "0": False}[sys.argv[1]]
+assert _use_parallel(parallel, None) == parallel
+pred = predict("fingertip", {}, parallel=parallel, settings={"edge_length": 4.0})
+write_prediction(pred, sys.argv[2], parallel=parallel)
+assert not multiprocessing.active_children()
+assert not _use_parallel(True, None)        # gmsh ran in this process: never forks again
+"""
+
+
+def _run(tmp_path, parallel: str):
+    out = tmp_path / f"p{parallel}"
+    subprocess.run([sys.executable, "-c", SCRIPT, parallel, str(out)], check=True,
+                   timeout=600)
+    return out
+
+
+def _strip(doc):
+    doc = dict(doc)
+    doc.pop("timings_s")
+    return doc
+
+
+@pytest.mark.slow
+def test_parallel_predict_same_files(tmp_path):
+    a, b = _run(tmp_path, "0"), _run(tmp_path, "1")
+    ja = json.loads((a / "prediction.json").read_text())
+    jb = json.loads((b / "prediction.json").read_text())
+    assert ja["mesh_convergence"]["condition_number"]["coarse"] is not None
+    assert _strip(ja) == _strip(jb)
+    for name in ("hysteresis_loops.png", "paper_comparison.png", "design.png", "deformed.png",
+                 "deformed.vtu", "model.json"):
+        assert (a / name).read_bytes() == (b / name).read_bytes(), name
+    assert sorted(p.name for p in a.iterdir()) == sorted(p.name for p in b.iterdir())
+
+
+def test_side_failure_is_none_and_child_gone():
+    """A child that raises gives None (the caller recomputes in-process) and is reaped."""
+    import multiprocessing
+
+    from designlab.sensors.predict import _Side
+
+    def boom():
+        raise ValueError("no")
+
+    assert _Side(boom).result() is None
+    assert _Side(lambda: {"x": 1.5}).result() == {"x": 1.5}
+    assert not multiprocessing.active_children()
+
+
+def test_stop_kills_a_running_child():
+    import multiprocessing
+    import time
+
+    from designlab.sensors.predict import _Side
+
+    side = _Side(lambda: time.sleep(60))
+    t0 = time.perf_counter()
+    side.stop()
+    assert time.perf_counter() - t0 < 10
+    assert not multiprocessing.active_children()
