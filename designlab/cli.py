@@ -335,6 +335,10 @@ def flexure(preset: str = typer.Option("visiflex-catalog", "--preset",
                                           "contact (seated, wire end bonded) or potted (dead turn in epoxy)."),
             working_load: float = typer.Option(10.0, "--working-load",
                                                help="Axial load of the second linearisation, N (0: none)."),
+            mu: float = typer.Option(0.0, "--mu",
+                                     help="Coulomb friction at the beam chain's coil and seat contacts "
+                                          "(0: frictionless, the default; 0.3: dry steel on steel). With "
+                                          "friction the 6x6 is a secant of +-0.02 mm / 2 mrad perturbations."),
             edge_length: Optional[float] = typer.Option(None, "--edge-length",
                                                         help="FEM tet edge length, mm (default: wire radius)."),
             paper_json: Optional[Path] = typer.Option(None, "--paper-json",
@@ -352,7 +356,16 @@ def flexure(preset: str = typer.Option("visiflex-catalog", "--preset",
         raise ParameterError("--frame", frame, "one of " + ", ".join(fr.FRAMES))
     spring = with_overrides(spring_preset(preset), parse_sets(set_))
     paper = fr.load_paper(paper_json)
-    chain = chain_stiffness(spring, ChainSettings(seat=seat, working_load_N=working_load))
+    if not 0 <= mu <= 2:
+        from designlab.errors import ParameterError
+        raise ParameterError("--mu", mu, "a friction coefficient 0 <= mu <= 2")
+    if mu > 0:
+        from designlab.sensors.flexure.beam_chain import friction_stiffness
+
+        chain = friction_stiffness(spring, ChainSettings(seat=seat, working_load_N=working_load),
+                                   mu=mu)
+    else:
+        chain = chain_stiffness(spring, ChainSettings(seat=seat, working_load_N=working_load))
     K_fem = K_fem_loaded = None
     fem_info = None
     if fem:
@@ -381,8 +394,14 @@ def flexure(preset: str = typer.Option("visiflex-catalog", "--preset",
         f"{k} {r['closed_form'][k]:.4g} vs {r['paper_theory'][k]:.4g} ({v:+.2f} %)"
         for k, v in r["closed_form_vs_paper_pct"].items()), highlight=False)
     ci = chain.info
-    console.print(f"chain: {ci['geometry']}; {ci['elements']} beams, {ci['contacts']} contact "
-                  f"pairs, {ci['seconds']:.2f} s", highlight=False)
+    if mu > 0:
+        console.print(f"chain with friction mu {ci['mu']:g}: {ci['contacts']} contact pairs, "
+                      f"secant of +-{ci['amplitude_mm_rad'][0]:g} mm / "
+                      f"{1e3 * ci['amplitude_mm_rad'][1]:g} mrad, asymmetry "
+                      f"{ci['asymmetry']:.2e}, {ci['seconds']:.2f} s", highlight=False)
+    else:
+        console.print(f"chain: {ci['geometry']}; {ci['elements']} beams, {ci['contacts']} "
+                      f"contact pairs, {ci['seconds']:.2f} s", highlight=False)
     if fem_info is not None:
         console.print(f"FEM: {fem_info['n_nodes']} nodes, {fem_info['n_cells']} TET{fem_info['cell_nodes']}"
                       f", {fem_info['coil_pairs']} coil + {fem_info['seat_contacts']} seat contacts "

@@ -201,6 +201,18 @@ def test_flexure_reports_the_wire_stress_and_what_next(tmp_path, capsys):
     assert json.loads((tmp_path / "k.json").read_text())["stress"]["min_safety_factor"] > 2
 
 
+def test_flexure_with_friction_in_the_chain(tmp_path, capsys):
+    """``--mu``: the beam chain's frictional 6x6 (a secant, stiffer than frictionless at the
+    working load); outside 0..2 one line naming the option, exit 2."""
+    rc, so, _ = _run(["flexure", "--mu", "0.3", "--json", tmp_path / "f.json"], capsys)
+    assert rc == 0 and "chain with friction mu 0.3" in " ".join(so.split())
+    rc, _, _ = _run(["flexure", "--json", tmp_path / "n.json"], capsys)
+    f, n = (json.loads((tmp_path / k).read_text()) for k in ("f.json", "n.json"))
+    assert f["chain_info"]["mu"] == 0.3 and "mu" not in n["chain_info"]
+    rc, _, se = _run(["flexure", "--mu", "3"], capsys)
+    assert rc == 2 and "--mu" in se and len(se.strip().splitlines()) == 1
+
+
 def test_sweep_identity_covers_the_config_and_the_uncertainty_table():
     """The fingerprint ``--out`` compares: the same config gives the same one; another swept
     range, setting, or Monte Carlo spec of a robust sweep gives another."""
