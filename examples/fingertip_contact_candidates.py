@@ -7,8 +7,8 @@ design (``CantileverFingertip.tested()``) and the Table III design, default mesh
 
 Sections: (1) readings of the paper's definition of the change; (2) the Table II height datum;
 (3) the bolt head's seat; (4) the sensor stiffness; (5) the direction of the axial loads;
-(6) the calibration target of eq. 3; (7) the readout noise behind the lowest G2; (8) the bottom
-cap's support (a second FEM).
+(6) the calibration target of eq. 3, (6b) the FSS015 non-linearity; (7) the readout noise behind
+the lowest G2; (8) the bottom cap's support (a second FEM).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import numpy as np
 
 from designlab.calibration.calibration_matrix import condition_number, fit_calibration_matrix
 from designlab.geometry.fingertip import TABLE_II_HEIGHTS, CantileverFingertip
-from designlab.sensors.fingertip import FingertipModelSettings, mesh_fingertip
+from designlab.sensors.fingertip import FSS015_V_PER_N, FingertipModelSettings, mesh_fingertip
 from designlab.sensors.fingertip_contact import (ContactSettings, bolt_head_joint,
                                                  condense_fingertip, paper_design,
                                                  run_contact_test, table_ii_dome)
@@ -79,7 +79,13 @@ def surface_normal(part, p):
     return n / np.linalg.norm(n)
 
 
-def calibration_errors(part, settings, cf, proto, target, noise=True):
+def bow(N):
+    """FSS015 non-linearity as a parabolic bow through 0 and 15 N whose largest deviation is
+    Table I's +-0.5 % of span (0.075 N, at 7.5 N): the reading's force for a button force N."""
+    return N + 0.005 * 15.0 * 4.0 * N * (15.0 - N) / 15.0 ** 2
+
+
+def calibration_errors(part, settings, cf, proto, target, noise=True, nonlinear=False):
     """Relative rms error per axis of a least-squares A over every weight of every load set
     (as ``relative_error_per_axis_all_weights``), against the full applied force (``full``,
     as the model) or its normal component along the surface normal (``normal``, eq. 3)."""
@@ -93,6 +99,9 @@ def calibration_errors(part, settings, cf, proto, target, noise=True):
             p, d = (np.asarray(x, float) for x in pts[name])
             F = d if target == "full" else (d @ surface_normal(part, p)) * surface_normal(part, p)
             R = np.asarray(loop["readings_V" if noise else "readings_noise_free_V"])
+            if nonlinear:           # same noise, the bowed force: tare at the empty tray
+                N = np.asarray(loop["sensor_force_N"])
+                R = R + FSS015_V_PER_N * ((bow(N) - bow(N[0])) - (N - N[0]))
             for j in ks:
                 P.append(F * (loads[j] - loads[0]))
                 S.append(R[j] - R[0])
@@ -198,6 +207,15 @@ def main() -> int:
                   f"{rel[2] / max(rel[:2]):.2f}, cond {c:.3g}")
 
     g2_nf = rep["hysteresis_definitions"]["robust_eq1_span10_noise_free"]["by_group"]["G2"]
+    print("\n(6b) FSS015 non-linearity (Table I: +-0.5 % span) as a parabolic bow, Table III")
+    for noise in (False, True):
+        for nl in (False, True):
+            rel, c = calibration_errors(paper_design(part, "III"), s0, cf,
+                                        HangingWeightTest.preset("optimized"), "full", noise, nl)
+            print(f"  {'readout' if noise else 'noise free':10s} {'bow' if nl else 'linear':6s}: "
+                  f"relative error x {rel[0]:.4f} y {rel[1]:.4f} z {rel[2]:.4f} -> P_z/xy "
+                  f"{rel[2] / max(rel[:2]):.3f}")
+
     print("\n(7) readout noise: lowest mean G2 (robust eq. 1 with readout) by seed and FSS015 "
           f"repeatability (friction alone: {g2_nf['lowest']:.2g} %)")
     for rpt in (0.2, 0.1):
