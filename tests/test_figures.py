@@ -120,11 +120,11 @@ def test_deformed_png_has_arrow_and_case(tmp_path):
 
 
 def test_fingertip_paper_comparison_figure_has_the_shared_look():
-    """Seed 001 beside the contact model: constrained layout (no tight_layout), every panel with
-    both axis names, the model series in distinct colours and markers, legends right of the
-    data with black text."""
+    """Seed 001 beside the contact model: a fixed grid saved as drawn (no layout engine, no
+    tight box) whose panels, labels and legends all lie inside the figure and do not overlap,
+    every panel with both axis names, the model series in distinct colours and markers,
+    legends right of the data with black text."""
     import matplotlib.pyplot as plt
-    from matplotlib.layout_engine import ConstrainedLayoutEngine
 
     from designlab.sensors.fingertip import paper_comparison_figure
 
@@ -146,8 +146,15 @@ def test_fingertip_paper_comparison_figure_has_the_shared_look():
     fig = paper_comparison_figure(contact, plt)
     try:
         fig.canvas.draw()
-        assert isinstance(fig.get_layout_engine(), ConstrainedLayoutEngine)
+        assert fig.get_layout_engine() is None
         r = fig.canvas.get_renderer()
+        page = fig.bbox
+        boxes = [ax.get_tightbbox(r) for ax in fig.axes]     # labels and legends included
+        for b in boxes:
+            assert b.x0 >= page.x0 and b.y0 >= page.y0 and b.x1 <= page.x1 and b.y1 <= page.y1
+        for i in range(len(boxes)):
+            for j in range(i + 1, len(boxes)):
+                assert not boxes[i].overlaps(boxes[j]), (i, j)
         for ax in fig.axes:
             assert ax.get_xlabel() and ax.get_ylabel()
         for ax in fig.axes[:3]:

@@ -673,8 +673,17 @@ def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path) ->
     from designlab.sensors.plotstyle import (figure, legend_outside, loading_style,
                                              series_style, unloading_style)
 
-    def save(fig, name):
-        path = atomic_savefig(fig, Path(out) / name, dpi=110)
+    def save(fig, name, tight=True):
+        # a figure whose margins are set (tight=False) is drawn once; bbox_inches="tight"
+        # draws it twice (once to measure)
+        if tight:
+            path = atomic_savefig(fig, Path(out) / name, dpi=110)
+        else:
+            from designlab.atomic import atomic_path
+
+            path = Path(out) / name
+            with atomic_path(path) as tmp:
+                fig.savefig(tmp, format="png", dpi=110)
         plt.close(fig)
         return path
 
@@ -682,6 +691,7 @@ def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path) ->
     loops = report["loops"]
     names = list(loops)
     fig, axes = figure(1, 3, width=14, height=4.4, fixed=True, top=0.84)
+    fig.subplots_adjust(left=0.05, right=0.9, bottom=0.12)
     for k, ax in enumerate(axes):
         for i, n in enumerate(names):
             w = np.array(loops[n]["weights_g"])
@@ -700,9 +710,10 @@ def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path) ->
     legend_outside(fig, handles=handles, title="load point")
     fig.suptitle("hysteresis loops: loading (solid, filled) and unloading (dashed, open), "
                  "rotation 0")
-    files.append(save(fig, "hysteresis_loops.png"))
+    files.append(save(fig, "hysteresis_loops.png", tight=False))
 
     fig, ax = figure(width=7, height=4, fixed=True, top=0.9)
+    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.13)
     h = report["hysteresis_percent"]["by_location"]
     ax.bar(list(h), list(h.values()), color=[series_style(names.index(n))["color"]
                                              if n in names else "0.5" for n in h])
@@ -711,11 +722,12 @@ def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path) ->
     ax.set_title(f"mean over sensors and rotations; overall "
                  f"{report['hysteresis_percent']['overall']:.3g} %")
     ax.grid(alpha=0.3, axis="y")
-    files.append(save(fig, "hysteresis_by_location.png"))
+    files.append(save(fig, "hysteresis_by_location.png", tight=False))
 
     ae = report["applied_vs_estimated"]
     P, E = np.array(ae["applied_N"]), np.array(ae["estimated_N"])
     fig, axes = figure(1, 3, width=13, height=4.2, fixed=True, top=0.9)
+    fig.subplots_adjust(left=0.05, right=0.87, bottom=0.12)
     for i, ax in enumerate(axes):
         ax.plot(P[:, i], E[:, i], ls="", ms=4, label="calibration loads", **series_style(i))
         lim = [min(P[:, i].min(), E[:, i].min()), max(P[:, i].max(), E[:, i].max())]
@@ -725,22 +737,29 @@ def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path) ->
         ax.grid(alpha=0.3)
     legend_outside(axes[-1])
     fig.suptitle(f"calibration (seed 001 Fig. 9): cond(A) = {report['condition_number']:.1f}")
-    files.append(save(fig, "applied_vs_estimated.png"))
+    files.append(save(fig, "applied_vs_estimated.png", tight=False))
     contact = report.get("paper_comparison", {}).get("contact")
     if contact and "goals" in contact:
-        files.append(save(paper_comparison_figure(contact, plt), "paper_comparison.png"))
+        files.append(save(paper_comparison_figure(contact, plt), "paper_comparison.png",
+                          tight=False))
     return files
 
 
 def paper_comparison_figure(contact: dict[str, Any], plt):
     """Seed 001 beside the contact model: G1/G2 hysteresis by location (Fig. 6's trend and
     lowest means), the compressed-sensor changes (Sec. III), Fig. 9's errors per axis. The
-    shared look (:mod:`designlab.sensors.plotstyle`): constrained layout, a colour and marker
-    per series, legends beside the data with black text. (``plt`` is unused, kept for the
-    caller.)"""
+    shared look (:mod:`designlab.sensors.plotstyle`): a colour and marker per series, legends
+    beside the data with black text; a fixed grid whose margins and gaps hold the labels and
+    the legends (saved without ``bbox_inches="tight"``: one draw; constrained layout and the
+    tight box drew it four times, ~1.2 s CPU), the log axes labelled in plain numbers (no
+    mathtext). (``plt`` is unused, kept for the caller.)"""
+    from matplotlib.ticker import FuncFormatter, NullFormatter
+
     from designlab.sensors.plotstyle import figure, legend_outside, series_style
 
-    fig, axes = figure(2, 2, width=14.0, height=9.0)
+    fig, axes = figure(2, 2, width=14.0, height=9.0, fixed=True, top=0.9, wspace=0.7,
+                       hspace=0.32)
+    fig.subplots_adjust(left=0.065, right=0.85, bottom=0.07)
     t2 = contact.get("table_II_design", {})
     paper = contact["paper"]
     labels = {"robust_eq1_span10": "model, robust eq. 1,\nwith readout",
@@ -760,6 +779,8 @@ def paper_comparison_figure(contact: dict[str, Any], plt):
         ax.axhline(lo, color="k", ls="--", lw=1, label=f"paper: lowest mean\n{grp} {lo} %")
         ax.set_xlabel(xlabel)
         ax.set_ylabel(f"{grp} hysteresis, % of span (eq. 1)")
+        ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        ax.yaxis.set_minor_formatter(NullFormatter())
         ax.grid(alpha=0.3, which="both")
         legend_outside(ax, fontsize=7)
     axes[0, 0].set_title("G1 (Table II design); paper, Fig. 6: falls exponentially\ntoward "
