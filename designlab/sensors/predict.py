@@ -62,6 +62,9 @@ class Prediction:
     warnings: list[str] = field(default_factory=list)
     load_cases: list[Any] = field(default_factory=list, repr=False)
     stresses: list[Any] = field(default_factory=list, repr=False)
+    #: ``design.png`` rendered by the forked process of ``predict(parallel=True)``: PNG bytes,
+    #: or the render's error; None: :func:`write_prediction` renders it
+    design_png: bytes | str | None = field(default=None, repr=False)
 
     @property
     def design(self) -> dict[str, Any]:
@@ -316,6 +319,9 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
         kw["materials"] = mats
     side, side_out = None, None
     if _use_parallel(parallel, fem_cache) and _wants_convergence(sensor, sett):
+        from designlab.geometry.render import ensure_display
+
+        ensure_display()    # one X server for both processes (if one is needed), stopped at exit
         side = _Side(lambda: _side_work(sensor, part, proto, sett, kw))
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -354,7 +360,7 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
                       # once each: the coarse-mesh run of the error bar repeats the run's
                       list(dict.fromkeys([str(w.message) for w in caught] + coarse_warnings
                                          + stress_warn)),
-                      cases, stresses)
+                      cases, stresses, design_png=(side_out or {}).get("design_png"))
 
 
 def _two_cpus(parallel: bool | None) -> bool:
@@ -397,12 +403,29 @@ def _wants_convergence(sensor, settings) -> bool:
 
 def _side_work(sensor, part, protocol, settings, kw) -> dict[str, Any]:
     """What the forked process of ``predict(parallel=True)`` computes: the coarse run's
-    convergence values and warnings (:func:`_coarse_values`)."""
+    convergence values and warnings (:func:`_coarse_values`), then ``design.png``
+    (:func:`_render_design`; bytes, or the error as text)."""
+    import tempfile
+
     _serial_occ()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         coarse = _coarse_values(sensor, part, protocol, settings, kw, None)
-    return {"coarse": coarse, "warnings": [str(w.message) for w in caught]}
+    out: dict[str, Any] = {"coarse": coarse, "warnings": [str(w.message) for w in caught]}
+    with tempfile.TemporaryDirectory(prefix="designlab-") as d:
+        try:
+            _render_design(sensor.name, part, Path(d) / "design.png")
+            out["design_png"] = (Path(d) / "design.png").read_bytes()
+        except Exception as exc:  # noqa: BLE001 - a render is a convenience (as in-process)
+            out["design_png"] = f"{type(exc).__name__}: {exc}"
+    return out
+
+
+def _render_design(name: str, part, path: Path) -> None:
+    """``design.png``: the part as built (bodies coloured, legend of body and material)."""
+    from designlab.geometry.render import render_bodies
+
+    render_bodies(part.build(), path, size=(1000, 750), title=f"{name}: the design")
 
 
 def _serial_occ() -> None:
@@ -421,11 +444,6 @@ def _serial_occ() -> None:
         return cls(shape, *args)
 
     brepmesh.BRepMesh_IncrementalMesh = serial
-
-
-def _design_png_args(name: str) -> dict[str, Any]:
-    """The keyword arguments of ``design.png`` (:func:`render_bodies`)."""
-    return {"size": (1000, 750), "title": f"{name}: the design"}
 
 
 class _Side:
@@ -750,13 +768,20 @@ def run_manifest(what: str, settings: dict[str, Any]) -> dict[str, Any]:
 def _design_render(prediction: Prediction, stage: Path) -> list[str]:
     """``design.png``: the part as built (bodies coloured, legend of body and material)."""
     from designlab.geometry.parts import make_part
-    from designlab.geometry.render import render_bodies
 
+    done = prediction.design_png
+    if isinstance(done, bytes):                 # rendered beside the run (predict parallel)
+        from designlab.atomic import atomic_write_bytes
+
+        atomic_write_bytes(stage / "design.png", done)
+        return ["design.png"]
+    if isinstance(done, str):
+        prediction.warnings.append(f"design.png not rendered: {done}")
+        return []
     try:
         part = make_part(prediction.sensor, {k: (tuple(v) if isinstance(v, list) else v)
                                              for k, v in prediction.params.items()})
-        render_bodies(part.build(), stage / "design.png",
-                      **_design_png_args(prediction.sensor))
+        _render_design(prediction.sensor, part, stage / "design.png")
         return ["design.png"]
     except Exception as exc:  # a render is a convenience; the prediction is the result
         prediction.warnings.append(f"design.png not rendered: {type(exc).__name__}: {exc}")
