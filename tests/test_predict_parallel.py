@@ -72,3 +72,17 @@ def test_stop_kills_a_running_child():
     side.stop()
     assert time.perf_counter() - t0 < 10
     assert not multiprocessing.active_children()
+
+
+def test_a_stalled_child_is_killed_and_gives_none(monkeypatch):
+    """A child that waits for ever (no CPU time) is given up on: None, and it is gone."""
+    import multiprocessing
+    import time
+
+    from designlab.sensors.predict import _Side
+
+    monkeypatch.setattr(_Side, "STALL_S", 2.0)
+    t0 = time.perf_counter()
+    assert _Side(lambda: time.sleep(120)).result() is None
+    assert time.perf_counter() - t0 < 30
+    assert not multiprocessing.active_children()

@@ -465,16 +465,38 @@ class _Side:
         self._done = False
         self._value: Any = None
 
+    #: a child whose CPU time has not moved for this long (wall s) waits on something it will
+    #: never get (a lock or a thread pool copied from the parent): it is killed and the work is
+    #: done in-process
+    STALL_S = 20.0
+
     def result(self) -> Any:
         if not self._done:
             self._done = True
             try:
+                while not self._recv.poll(1.0):
+                    if not self._proc.is_alive() or self._stalled():
+                        raise EOFError
                 ok, value = self._recv.recv()
                 self._value = value if ok else None
             except (EOFError, OSError):
                 self._value = None
             self.stop()
         return self._value
+
+    def _stalled(self) -> bool:
+        """True once the child's CPU time (Linux ``/proc``) has not changed for ``STALL_S``."""
+        try:
+            with open(f"/proc/{self._proc.pid}/stat") as fh:
+                fields = fh.read().rsplit(")", 1)[1].split()
+            cpu = int(fields[11]) + int(fields[12])          # utime + stime (ticks)
+        except (OSError, IndexError, ValueError):
+            return False
+        now = time.monotonic()
+        if getattr(self, "_cpu", None) != cpu:
+            self._cpu, self._since = cpu, now
+            return False
+        return now - self._since > self.STALL_S
 
     def stop(self) -> None:
         if self._proc.is_alive():
@@ -496,6 +518,11 @@ def _side_main(fn, send, parent: int) -> None:
     except Exception as exc:  # noqa: BLE001 - e.g. not picklable: the parent recomputes
         send.send((False, f"{type(exc).__name__}: {exc}"))
     send.close()
+    # leave at once: no flush of stdio buffers copied from the parent (its progress bar's
+    # output would be written twice, or wait on a lock another parent thread held at the fork)
+    import os
+
+    os._exit(0)
 
 
 def measured_materials(part, measured) -> tuple[dict[str, Any], list]:
