@@ -137,9 +137,12 @@ def test_batch_history_equals_separate_histories():
     assert both.U.shape == (model.n_dofs, 2, len(t))
     for i, c in enumerate(("pull", "shear")):
         one = solve_history(model, History(t, {c: amp[c]}))
-        np.testing.assert_allclose(both.U[:, i], one.U, rtol=1e-10, atol=1e-14)
+        # the same march; the multi-column solves round differently: 1e-12 of the largest
+        # displacement (round-off carried by the history forces: ~1e-13 measured)
+        tol = 1e-12 * np.abs(one.U).max()
+        np.testing.assert_allclose(both.U[:, i], one.U, rtol=1e-10, atol=tol)
         np.testing.assert_allclose(both.wrench("xmin")[i], one.wrench("xmin"), atol=1e-12)
-        np.testing.assert_allclose(both.displacement(5)[i], one.displacement(5), atol=1e-14)
+        np.testing.assert_allclose(both.displacement(5)[i], one.displacement(5), atol=tol)
 
 
 def test_history_without_forces_same_displacements():

@@ -2,9 +2,10 @@
 
 ``factorize(K, solver="auto", near_null=None)`` returns a :class:`LinearSolver` whose
 ``.solve(F)`` takes (n,) or (n, k). Choices: ``"direct"`` (SuperLU, scipy), ``"pardiso"``
-(Intel MKL PARDISO via pypardiso, x86_64), ``"cholmod"`` (scikit-sparse, when installed),
-``"amg"`` (CG preconditioned by pyamg smoothed aggregation with rigid-body modes as near-null
-space; for TET10 with a TET4 p-multigrid level). ``"auto"``: SuperLU up to
+(Intel MKL PARDISO's Cholesky, the library pypardiso installs, x86_64), ``"cholmod"``
+(scikit-sparse, when installed), ``"amg"`` (CG preconditioned by pyamg smoothed aggregation
+with rigid-body modes as near-null space; for TET10 with a TET4 p-multigrid level).
+``"auto"``: SuperLU up to
 :data:`PARDISO_MIN_DOFS` unknowns, then pardiso or cholmod where installed, else direct up to
 :data:`DIRECT_MAX_DOFS` unknowns (more when many right-hand sides reuse the factorisation),
 else amg.
@@ -35,10 +36,11 @@ DIRECT_MAX_DOFS = 12_000
 #: measured at 28k DOF, 100 steps cost 3 static direct solves but 67 AMG-CG solves
 DIRECT_MAX_DOFS_MANY_RHS = 150_000
 MANY_RHS = 20
-#: below this many unknowns SuperLU beats PARDISO on one thread (measured on the fingertip's
-#: TET10 model, CPU s: 14.8k DOF 5.8 vs 8.3 for a viscoelastic run; 44.6k DOF static 25.1 vs
-#: 7.1; benchmarks/bench_fem_solvers.py)
-PARDISO_MIN_DOFS = 20_000
+#: "auto" takes PARDISO from this many unknowns on (SuperLU below). PARDISO's Cholesky without
+#: iterative refinement beats SuperLU from ~2k unknowns on, in the factorisation and in every
+#: solve (benchmarks/bench_pardiso.py: TET10 boxes, CPU s, one thread); below 5k both factor
+#: and solve in well under a second, and SuperLU needs no MKL.
+PARDISO_MIN_DOFS = 5_000
 
 
 def has_cholmod() -> bool:
@@ -118,40 +120,150 @@ class CholmodSolver(LinearSolver):  # pragma: no cover - needs scikit-sparse
 
 
 class PardisoSolver(LinearSolver):
-    """Intel MKL PARDISO (pypardiso), sparse direct LDL^T/LU with a nested-dissection
-    ordering: the fastest direct solver here on 3-D TET10 matrices. Run on one thread with
-    MKL's conditional numerical reproducibility, so the same matrix gives the same solution
-    bit for bit."""
+    """Intel MKL PARDISO (the library pypardiso installs), called directly: sparse Cholesky
+    (``mtype`` 2, the upper triangle) with a nested-dissection ordering, the fastest direct
+    solver here on 3-D TET10 matrices. One factorisation serves every ``solve`` (phase 33 only:
+    no per-call matrix comparison or index conversion) and the solve does no iterative
+    refinement (a Cholesky factor of an SPD matrix needs none: no perturbed pivots). A matrix
+    that is not positive definite is factored as before (``mtype`` 11, LU with PARDISO's
+    defaults). One MKL thread, right-hand sides copied into 64-byte aligned buffers: the same
+    matrix gives the same solution bit for bit; a matrix that is neither positive definite
+    nor regular enough for LU without perturbed pivots is a one-line :class:`ModelError`."""
 
     kind = "pardiso"
+    #: the last factorisation's PARDISO matrix type (2: Cholesky, 11: LU fallback)
+    mtype = 2
 
     def __init__(self, K):
         super().__init__(K)
         if not has_pardiso():
             raise ParameterError("solver", "pardiso", "pypardiso installed (pip install "
                                  "pypardiso; x86_64 only), or direct/cholmod/amg")
-        import pypardiso
-
         t = time.perf_counter()
-        _mkl_single_thread()
-        self._s = pypardiso.PyPardisoSolver(mtype=11)
-        # pypardiso searches sys.prefix for libmkl_rt on every solver (~2 s CPU): name the
-        # library it found once for the rest of the process (and its children)
-        name = getattr(self._s.libmkl, "_name", None)
-        if name and os.path.isfile(name):
-            os.environ.setdefault("PYPARDISO_MKL_RT", name)
-        self._s.set_statistical_info_off()
-        self._K = sp.csr_matrix(K)
-        self._K.sort_indices()
+        self._lib = _mkl_library()
+        self._pt = np.zeros(64, np.int64)
+        self._iparm = np.zeros(64, np.int32)
+        self._live = False
+        K = sp.csr_matrix(K, dtype=float)
+        K.sum_duplicates()
+        K.sort_indices()
         try:
-            self._s.factorize(self._K)
-        except Exception as exc:  # PyPardisoError: zero pivot, singular
-            raise ModelError(f"model is under-constrained or singular: {exc}") from None
+            self._factor(sp.triu(K, format="csr"), 2)
+            self._check_pivots()
+        except _PardisoError as exc:
+            if exc.code != -4:          # -4: zero pivot (not positive definite)
+                raise ModelError(f"model is under-constrained or singular: {exc}") from None
+            self._release()
+            try:
+                self._factor(K, 11)
+            except _PardisoError as exc2:
+                raise ModelError(f"model is under-constrained or singular: {exc2}") from None
+            if self._iparm[13] > 0:     # pivots PARDISO had to perturb: (nearly) singular
+                self._release()
+                raise ModelError(f"model is under-constrained or singular: not positive "
+                                 f"definite, {int(self._iparm[13])} pivot(s) perturbed in LU")
         self.setup_seconds = time.perf_counter() - t
 
+    def _factor(self, A: sp.csr_matrix, mtype: int) -> None:
+        A.sort_indices()
+        self.mtype = mtype
+        self._a = np.ascontiguousarray(A.data, float)
+        self._ia = np.ascontiguousarray(A.indptr, np.int32)
+        self._ja = np.ascontiguousarray(A.indices, np.int32)
+        ip = self._iparm
+        ip[:] = 0
+        if mtype == 2:
+            ip[0] = 1           # iparm given (not defaults)
+            ip[1] = 2           # nested dissection (METIS)
+            ip[7] = 0           # no iterative refinement (none needed without perturbed pivots)
+            ip[9] = 8           # pivot perturbation 1e-8 (default for symmetric)
+            ip[17] = -1         # report the factor's nonzeros
+            ip[34] = 1          # zero-based indices
+            ip[55] = 1          # keep the pivots (pardiso_getdiag: the singularity check)
+        else:                   # LU with PARDISO's defaults (pypardiso's former setting)
+            ip[0] = 0
+        self._live = True
+        if mtype != 2:          # defaults: one-based indices
+            self._ia, self._ja = self._ia + 1, self._ja + 1
+        self._call(12, np.zeros((1, self.n)), np.zeros((1, self.n)), 1)
+
+    def _call(self, phase: int, b: np.ndarray, x: np.ndarray, nrhs: int) -> None:
+        import ctypes
+
+        i32 = ctypes.c_int32
+        err = i32(0)
+        P = lambda arr: arr.ctypes.data_as(ctypes.c_void_p)  # noqa: E731
+        self._lib.pardiso(P(self._pt), ctypes.byref(i32(1)), ctypes.byref(i32(1)),
+                          ctypes.byref(i32(self.mtype)), ctypes.byref(i32(phase)),
+                          ctypes.byref(i32(self.n)), P(self._a), P(self._ia), P(self._ja),
+                          None, ctypes.byref(i32(nrhs)), P(self._iparm),
+                          ctypes.byref(i32(0)), P(b), P(x), ctypes.byref(err))
+        if err.value != 0:
+            raise _PardisoError(err.value)
+
+    #: a Cholesky pivot this much below its matrix diagonal: the matrix is singular to
+    #: round-off (a properly supported model: > 1e-3 on the strap, 1e-15 on a free chain)
+    MIN_PIVOT_RATIO = 1e-12
+
+    def _check_pivots(self) -> None:
+        import ctypes
+
+        df, da = np.zeros(self.n), np.zeros(self.n)
+        err = ctypes.c_int32(0)
+        P = lambda arr: arr.ctypes.data_as(ctypes.c_void_p)  # noqa: E731
+        self._lib.pardiso_getdiag(P(self._pt), P(df), P(da), ctypes.byref(ctypes.c_int32(1)),
+                                  ctypes.byref(err))
+        if err.value != 0 or not np.all(da > 0):
+            return
+        ratio = df / da
+        i = int(np.argmin(ratio))
+        self.min_pivot_ratio = float(ratio[i])
+        if not ratio[i] > self.MIN_PIVOT_RATIO:
+            self._release()
+            raise ModelError(f"model is under-constrained or singular: the pivot of unknown {i} "
+                             f"is {ratio[i]:.1e} of its diagonal (PARDISO Cholesky)")
+
+    @property
+    def factor_nonzeros(self) -> int:
+        """Nonzeros of the factor (PARDISO's iparm[17])."""
+        return int(self._iparm[17])
+
     def _solve(self, F):
-        # the factorisation of self._K is reused (pypardiso compares the matrix it was given)
-        return np.asarray(self._s.solve(self._K, np.ascontiguousarray(F)), float).reshape(F.shape)
+        k = F.shape[1]
+        b = _aligned((k, self.n))
+        b[:] = F.T
+        x = _aligned((k, self.n))
+        try:
+            self._call(33, b, x, k)
+        except _PardisoError as exc:
+            raise ModelError(f"PARDISO solve failed: {exc}") from None
+        return x.T
+
+    def _release(self) -> None:
+        if getattr(self, "_live", False):
+            self._live = False
+            try:
+                self._call(-1, np.zeros(1), np.zeros(1), 1)
+            except Exception:  # noqa: BLE001 - nothing to do at teardown
+                pass
+
+    def __del__(self):
+        self._release()
+
+
+class _PardisoError(Exception):
+    def __init__(self, code: int):
+        super().__init__(f"PARDISO error {code}")
+        self.code = code
+
+
+def _aligned(shape: tuple[int, ...]) -> np.ndarray:
+    """A C-ordered float array whose data starts on a 64-byte boundary (MKL's code paths, and so
+    its last bits, can depend on the alignment of its operands)."""
+    n = int(np.prod(shape))
+    raw = np.empty(n + 8, float)
+    off = (-raw.ctypes.data % 64) // 8
+    return raw[off:off + n].reshape(shape)
 
 
 def has_pardiso() -> bool:
@@ -160,33 +272,46 @@ def has_pardiso() -> bool:
     return importlib.util.find_spec("pypardiso") is not None
 
 
-_MKL_THREADS_SET = False
+_MKL = None
 
 
-def _mkl_single_thread() -> None:
-    """One MKL thread: reproducible results and no oversubscription of sweep workers (set
-    once per process: looking the library up is slow)."""
-    global _MKL_THREADS_SET
-    if _MKL_THREADS_SET:
-        return
-    _MKL_THREADS_SET = True
-    try:
-        import mkl  # mkl-service, when present
+def _mkl_library():
+    """MKL's runtime library (the one pypardiso installs), loaded once per process and set to
+    one thread: reproducible results, no oversubscription of sweep workers, no idle threads
+    spinning on the CPU. Looked up in the environment's lib folders first (pypardiso's own
+    search walks all of sys.prefix: ~1.4 s)."""
+    global _MKL
+    if _MKL is not None:
+        return _MKL
+    import ctypes
+    import glob
+    import sys
 
-        mkl.set_num_threads(1)
-    except ImportError:
-        import ctypes
-        import ctypes.util
-
-        for name in ("libmkl_rt.so.2", "libmkl_rt.so", ctypes.util.find_library("mkl_rt")):
-            if not name:
-                continue
+    found = [p for d in ("lib", "lib64") for p in glob.glob(f"{sys.prefix}/{d}/libmkl_rt.so*")]
+    names = [os.environ.get("PYPARDISO_MKL_RT")] + sorted(found, key=len)
+    lib = None
+    for name in names:
+        if name and os.path.isfile(name):
             try:
                 lib = ctypes.CDLL(name)
-                lib.MKL_Set_Num_Threads(ctypes.c_int(1))
-                return
-            except (OSError, AttributeError):
+                break
+            except OSError:
                 continue
+    if lib is None:
+        import pypardiso
+
+        lib = pypardiso.PyPardisoSolver().libmkl
+    name = getattr(lib, "_name", None)
+    if name and os.path.isfile(name):       # pypardiso (and children) find it without a search
+        os.environ.setdefault("PYPARDISO_MKL_RT", name)
+    lib.pardiso.restype = None
+    lib.pardiso_getdiag.restype = None
+    try:
+        lib.MKL_Set_Num_Threads(ctypes.c_int(1))
+    except AttributeError:  # pragma: no cover - every libmkl_rt has it
+        pass
+    _MKL = lib
+    return lib
 
 
 class AMGSolver(LinearSolver):

@@ -17,13 +17,18 @@ most; other step sizes (a jump, dt = 0, needs the glassy moduli) are solved by C
 preconditioned with that factorisation (a few iterations: the matrices differ only by the
 moduli scaling per region). With the AMG solver each step size gets its own preconditioner.
 
-Internal variables live at the quadrature points; strains come from one sparse product with
-the strain operator B and stresses return as forces through B^T.
+The internal variables are carried as the nodal forces of the history stresses, one vector per
+time constant: z_i = B^T (W_i h_i) follows z_i <- a_i z_i + gamma_i K_i (u^{n+1} - u^n) with
+K_i the stiffness of term i's moduli (the same recursion mapped through B^T W_i B; round-off
+apart, the same numbers). Time constants whose moduli are proportional share one K_i: with one
+Prony series on every region (or the same relative terms) a step costs one solve and one sparse
+product with a stiffness matrix, on the free dofs alone when nothing else needs the rest.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -148,7 +153,6 @@ class HistoryResult:
     history: History
     U: np.ndarray
     F_int: np.ndarray
-    F_ext: np.ndarray
     factorizations: int
     solvers: tuple[LinearSolver, ...]
     batch: bool = False
@@ -156,6 +160,14 @@ class HistoryResult:
     @property
     def model(self) -> Model:
         return self.system.model
+
+    @cached_property
+    def F_ext(self) -> np.ndarray:
+        """Applied nodal forces (3 n_points, n_steps) (batch: (3 n_points, n_cases, n_steps)),
+        from the load cases and the history's amplitudes (made when first asked for)."""
+        A = np.stack([self.history.amplitude(c) for c in self.cases], axis=1)
+        F = self.system.F[: 3 * self.model.n_points]
+        return F[:, :, None] * A.T[None] if self.batch else F @ A.T
 
     @property
     def t(self) -> np.ndarray:
@@ -224,14 +236,58 @@ class HistoryResult:
         return np.moveaxis(self.U[np.asarray(dofs)], 0, -1)
 
 
+def _terms(pr: _Prony, nq: int) -> tuple[list[float], np.ndarray, np.ndarray]:
+    """Prony terms grouped by time constant: the distinct taus (deviatoric ones first, in order
+    of first appearance) and per tau the per-cell shear and bulk moduli of its terms (0 where
+    a cell has none)."""
+    nqp = len(pr.G0)
+    dt_, dev = _by_tau(pr.dev, pr.G0, nqp)
+    vt_, vol = _by_tau(pr.vol, pr.K0, nqp)
+    taus = list(dt_) + [t for t in vt_ if t not in dt_]
+    shear = np.zeros((len(taus), nqp // nq))
+    bulk = np.zeros((len(taus), nqp // nq))
+    for i, t in enumerate(dt_):
+        shear[taus.index(t)] = dev[i].reshape(-1, nq)[:, 0]
+    for i, t in enumerate(vt_):
+        bulk[taus.index(t)] = vol[i].reshape(-1, nq)[:, 0]
+    return taus, shear, bulk
+
+
+def _shapes(fields: np.ndarray, rtol: float = 1e-13) -> list[tuple[int, list[tuple[int, float]]]]:
+    """Group rows of ``fields`` that are scalar multiples of one another (to ``rtol``: round-off
+    of the products ``modulus * weight``): [(reference row, [(row, factor), ...]), ...]."""
+    groups: list[tuple[int, list[tuple[int, float]]]] = []
+    for t, f in enumerate(fields):
+        for ref, members in groups:
+            r = fields[ref]
+            i = int(np.argmax(np.abs(r)))
+            c = float(f[i] / r[i])
+            if c != 0.0 and np.allclose(f, c * r, rtol=rtol, atol=0.0):
+                members.append((t, c))
+                break
+        else:
+            groups.append((t, [(t, 1.0)]))
+    return groups
+
+
 def solve_history(model: Model, history: History, solver: str = "auto",
                   check: bool = True, batch: bool = False, forces: bool = True
                   ) -> HistoryResult:
     """March ``history`` with the exact exponential update (see module docstring).
     ``batch=True`` runs every load case as a separate history (amplitude ``a_c(t)`` on case c
     alone) in the same march: one factorisation, multi-column solves. ``forces=False`` skips
-    the internal forces (``F_int`` is None: no reactions, wrenches; one stress evaluation and
-    one sparse product per step less)."""
+    the internal forces (``F_int`` is None: no reactions, wrenches; one sparse product per step
+    less).
+
+    The internal variables are carried as nodal forces: per time constant tau_t the force
+    z_t = B^T (W_t h_t) of its history stresses (h_t at the quadrature points, W_t its moduli
+    times the quadrature weights). The recursion h_t <- a_t h_t + gamma_t (e^{n+1} - e^n) maps
+    to z_t <- a_t z_t + gamma_t K_t (u^{n+1} - u^n), with K_t the stiffness of tau_t's moduli
+    (the same identity, summed in another order: round-off apart, the result of carrying h_t).
+    Time constants whose moduli are proportional (one Prony series on every region, or the
+    same relative terms) share one K: one sparse product per step instead of the strain and
+    the force products of the strain operator. Without internal forces, prescribed motions or
+    rigid couplings the march runs on the free dofs alone."""
     system = model.build()
     if check:
         check_constrained(system)
@@ -243,39 +299,50 @@ def solve_history(model: Model, history: History, solver: str = "auto",
     nsteps = len(t)
     A = np.stack([history.amplitude(c) for c in system.cases], axis=1)   # (steps, cases)
     Fc = system.F + system.F_preload
+    Gp = system.G
+    nb = A.shape[1] if batch else 1
     if batch:
-        F_all = Fc[:, :, None] * A.T[None]                               # (n_dofs, nb, steps)
-        G_all = system.G[:, :, None] * A.T[None]
-        Fx = system.F[:, :, None] * A.T[None]
+        load = lambda M, n: M * A[n][None]                    # noqa: E731  (n_dofs, nb)
     else:
-        F_all, G_all, Fx = (Fc @ A.T)[:, None], (system.G @ A.T)[:, None], \
-            (system.F @ A.T)[:, None]
-    nb = F_all.shape[1]
+        load = lambda M, n: (M @ A[n])[:, None]               # noqa: E731
+    has_G = bool(np.any(Gp[:, np.any(A != 0.0, axis=0)]))
     n3 = 3 * model.n_points
-    B, dx = model.B, model.basis.dx.ravel()
-    Bt = B.T.tocsr()
+    nd = system.n_dofs
     pr = _Prony(model)
-    nqp = len(dx)
     nq = model.basis.dx.shape[1]
-    # Prony terms grouped by time constant (the update of h depends on tau alone): one state
-    # array per distinct tau over every qp, weighted per qp (0 outside the term's regions)
-    dev, vol = _by_tau(pr.dev, pr.G0, nqp), _by_tau(pr.vol, pr.K0, nqp)
-    H = np.zeros((len(dev[0]), nqp, 6, nb))
-    M = np.zeros((len(vol[0]), nqp, nb))
-    e_old = np.zeros((nqp, 6, nb))              # deviatoric (engineering) strain
-    th_old = np.zeros((nqp, nb))
-    cvo = (dx[:, None] * _VOIGT_C)[:, :, None]  # dx * tensor -> engineering Voigt stress
-    Winf = (pr.G0 * pr.ginf)[:, None, None] * cvo            # long-term part of the stress
-    Kinf = (dx * pr.K0 * pr.kinf)[:, None]
-    Wdev = dev[1][:, :, None, None] * cvo[None]              # (n_tau, nqp, 6, 1)
-    Wvol = (vol[1] * dx[None])[:, :, None]                   # (n_tau_k, nqp, 1)
-    coef: dict[float, tuple] = {}
-    has_G = bool(np.any(G_all))
-    cache: dict[float, tuple[LinearSolver, object]] = {}
-    U = np.zeros((system.n_dofs, nb, nsteps))
-    F_int = np.zeros((n3, nb, nsteps)) if forces else None
+    taus, shear, bulk = _terms(pr, nq)
+    groups = _shapes(np.concatenate([shear, bulk], axis=1))
+    # one stiffness per group of proportional time constants: K_t = c_t K_group
+    Kg = [stiffness(model.basis, bulk[ref] - 2.0 * shear[ref] / 3.0, shear[ref])
+          for ref, _ in groups]
+    member = {t_: (g, c) for g, (_, ms) in enumerate(groups) for t_, c in ms}
+    tg = [member[i][0] for i in range(len(taus))]
+    tc = np.array([member[i][1] for i in range(len(taus))])
+    K_inf = None
+    if forces:
+        Gi, Ki = (pr.G0 * pr.ginf).reshape(-1, nq)[:, 0], (pr.K0 * pr.kinf).reshape(-1, nq)[:, 0]
+        K_inf = stiffness(model.basis, Ki - 2.0 * Gi / 3.0, Gi)
     T = system.T
     Tt = T.T.tocsr()
+    # no rigid couplings: T selects the free dofs (q = r[free], u[free] = q: the same numbers
+    # as the sparse products, without them)
+    free = system.free_dofs if T.nnz == T.shape[1] and np.all(T.data == 1.0) else None
+    lean = free is not None and not has_G and not forces
+    if lean:        # history forces on the free dofs of the nodes only (rows of q: pos)
+        pos = np.nonzero(free < n3)[0]
+        Kg = [k[free[pos]][:, free[pos]].tocsr() for k in Kg]
+        nz = len(pos)
+    else:
+        nz = n3
+    Z = np.zeros((len(taus), nz, nb))          # history forces per tau
+    V = np.zeros((len(Kg), nz, nb))            # K_group u of the last step
+    coef: dict[float, tuple] = {}
+    cache: dict[float, tuple[LinearSolver, object]] = {}
+    U = np.zeros((nd, nb, nsteps))
+    F_int = np.zeros((n3, nb, nsteps)) if forces else None
+    blk = 16                                   # steps gathered before writing into U, F_int
+    U_buf = np.zeros((blk, nd, nb))
+    F_buf = np.zeros((blk, n3, nb)) if forces else None
     t_prev = t[0]
     q_prev = None
     # the step size used most: factor it first and only (other sizes: preconditioned CG)
@@ -294,8 +361,13 @@ def solve_history(model: Model, history: History, solver: str = "auto",
     for n in range(nsteps):
         dt = 0.0 if n == 0 else float(t[n] - t_prev)
         t_prev = t[n]
-        if n == 0 and not (np.any(F_all[..., 0]) or np.any(G_all[..., 0])):
-            continue                                    # at rest
+        F_n = load(Fc, n)
+        G_n = load(Gp, n) if has_G else None
+        if n == 0 and not (np.any(F_n) or (has_G and np.any(G_n))):
+            U_buf[0] = 0.0                              # at rest
+            if forces:
+                F_buf[0] = 0.0
+            continue
         key = round(dt, 12)
         if key not in cache:
             Ge, Ke = pr.effective(dt)
@@ -312,63 +384,58 @@ def solve_history(model: Model, history: History, solver: str = "auto",
             cache[key] = (lin, K)
         lin, K = cache[key]
         if dt not in coef:
-            a_d = np.array([np.exp(-dt / tau) for tau in dev[0]])
-            g_d = np.array([_gamma(dt, tau) for tau in dev[0]])
-            a_v = np.array([np.exp(-dt / tau) for tau in vol[0]])
-            g_v = np.array([_gamma(dt, tau) for tau in vol[0]])
-            coef[dt] = (a_d[:, None, None, None], g_d[:, None, None, None],
-                        a_v[:, None, None], g_v[:, None, None],
-                        a_d[:, None, None, None] * Wdev, np.tensordot(g_d, Wdev, 1),
-                        a_v[:, None, None] * Wvol, np.tensordot(g_v, Wvol, 1))
-        a_d, g_d, a_v, g_v, aW, gW, aWv, gWv = coef[dt]
-        # history stress sigma_h (per qp, engineering Voigt, times dx)
-        sig_h = -gW * e_old
-        for i in range(len(aW)):
-            sig_h += aW[i] * H[i]
-        if len(aWv):
-            p_h = -gWv * th_old
-            for i in range(len(aWv)):
-                p_h += aWv[i] * M[i]
-            sig_h[:, :3] += p_h[:, None]
-        f_h = np.zeros((system.n_dofs, nb))
-        f_h[:n3] = Bt @ sig_h.reshape(nqp * 6, nb)
-        r = F_all[..., n] - f_h
-        if has_G:
-            r -= K @ G_all[..., n]
-        q = lin.solve(Tt @ r, x0=q_prev)
+            a = np.array([np.exp(-dt / tau) for tau in taus])
+            gc = np.array([_gamma(dt, tau) for tau in taus]) * tc        # gamma_t c_t
+            gsum = np.zeros(len(Kg))
+            np.add.at(gsum, tg, gc)
+            coef[dt] = (a, gc, gsum)
+        a, gc, gsum = coef[dt]
+        # history force f_h = sum_t a_t z_t - sum_t gamma_t K_t u^n
+        fh = np.zeros((nz, nb))
+        for i in range(len(taus)):
+            fh += a[i] * Z[i]
+        for g in range(len(Kg)):
+            fh -= gsum[g] * V[g]
+        if lean:
+            r = F_n[free]
+            r[pos] -= fh
+            q = lin.solve(r, x0=q_prev)
+        else:
+            r = F_n.copy()
+            r[:n3] -= fh
+            if has_G:
+                r -= K @ G_n
+            q = lin.solve(r[free] if free is not None else Tt @ r, x0=q_prev)
         q_prev = q
-        u = T @ q
+        u = U_buf[n % blk]
+        if free is not None:
+            u[:] = 0.0
+            u[free] = q
+        else:
+            u[:] = T @ q
         if has_G:
-            u += G_all[..., n]
-        U[..., n] = u
-        e = (B @ u[:n3]).reshape(nqp, 6, nb)
-        th = e[:, :3].sum(1)
-        e[:, :3] -= (th / 3.0)[:, None]
-        if len(H):
-            de = e - e_old
-            H *= a_d
-            H += g_d * de[None]
-        if len(M):
-            M *= a_v
-            M += g_v * (th - th_old)[None]
-        e_old, th_old = e, th
-        if not forces:
-            continue
-        # full stress -> internal forces
-        sig = Winf * e
-        for i in range(len(H)):
-            sig += Wdev[i] * H[i]
-        p = Kinf * th
-        for i in range(len(M)):
-            p += Wvol[i] * M[i]
-        sig[:, :3] += p[:, None]
-        F_int[..., n] = Bt @ sig.reshape(nqp * 6, nb)
-    F_ext = Fx[:n3]
+            u += G_n
+        un = q[pos] if lean else u[:n3]
+        for g in range(len(Kg)):
+            Vn = Kg[g] @ un
+            dV = Vn - V[g]
+            for i in range(len(taus)):
+                if tg[i] == g:
+                    Z[i] *= a[i]
+                    Z[i] += gc[i] * dV
+            V[g] = Vn
+        if forces:       # internal forces: long-term elastic part plus the history forces
+            F_buf[n % blk] = K_inf @ un + Z.sum(axis=0)
+        if n % blk == blk - 1 or n == nsteps - 1:
+            n0 = n - n % blk
+            U[..., n0:n + 1] = np.moveaxis(U_buf[:n - n0 + 1], 0, -1)
+            if forces:
+                F_int[..., n0:n + 1] = np.moveaxis(F_buf[:n - n0 + 1], 0, -1)
     if not batch:
-        U, F_ext = U[:, 0], F_ext[:, 0]
+        U = U[:, 0]
         F_int = None if F_int is None else F_int[:, 0]
     solvers = tuple(v[0] for v in cache.values())
-    return HistoryResult(system, history, U, F_int, F_ext,
+    return HistoryResult(system, history, U, F_int,
                          sum(not isinstance(x, _Preconditioned) for x in solvers), solvers, batch)
 
 
@@ -397,3 +464,20 @@ class _Preconditioned(LinearSolver):
             self.iterations.append(it[0])
             U[:, j] = x
         return U
+
+
+def long_time_displacements(model: Model, solver: str = "auto") -> np.ndarray:
+    """(n_dofs, n_cases) static displacements of every load case with the long-time (relaxed)
+    moduli, G0 g_inf and K0 k_inf (a load held for ever), on the model's own system: the same
+    supports, couplings and springs (elastic), no second model to build. Equal, to round-off,
+    to ``solve_static`` of the model with :func:`designlab.fem.stress.relaxed` materials."""
+    system = model.build()
+    pr = _Prony(model)
+    nq = model.basis.dx.shape[1]
+    G = (pr.G0 * pr.ginf).reshape(-1, nq)[:, 0]
+    K = (pr.K0 * pr.kinf).reshape(-1, nq)[:, 0]
+    Kf = system.K(stiffness(model.basis, K - 2.0 * G / 3.0, G))
+    Fr = system.T.T @ (system.F + system.F_preload - Kf @ system.G)
+    lin = factorize(system.reduce(Kf), solver, near_null=lambda: near_null_space(system),
+                    coarse=lambda: p1_prolongation(system), n_rhs=Fr.shape[1])
+    return system.T @ lin.solve(Fr) + system.G
