@@ -42,7 +42,6 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import optimize, stats
 
 from designlab.errors import DataError, ModelError, ParameterError
 from designlab.params import rng, validate
@@ -493,6 +492,8 @@ def fit(u, y, dt: float, *, cells: int | None = None, max_cells: int = 3, order:
             fp = prob.residuals(pert)
             return ((fp - f0[None, :]) / step[:, None]).T
 
+        from scipy import optimize
+
         res = optimize.least_squares(fun, np.clip(theta0, lb, ub),
                                      jac=jac if jacobian == "batched" else "2-point",
                                      bounds=(lb, ub),
@@ -508,7 +509,9 @@ def fit(u, y, dt: float, *, cells: int | None = None, max_cells: int = 3, order:
         lb = np.concatenate([np.repeat(bounds_cell[0][i], N) for i in range(3)])
         ub = np.concatenate([np.repeat(bounds_cell[1][i], N) for i in range(3)])
         n_new = N if fixed is None else 1
-        lhs = stats.qmc.LatinHypercube(d=3 * n_new, seed=rng_).random(n_screen)
+        from scipy.stats import qmc
+
+        lhs = qmc.LatinHypercube(d=3 * n_new, seed=rng_).random(n_screen)
         lo_s = np.array([np.log(max(0.1, 2 * dt)), np.log(0.01), -1.0])
         hi_s = np.array([np.log(max(min(300.0, rec_len / 2), 4 * dt)), np.log(1.0), 1.0])
         new = lo_s.repeat(n_new) + lhs * (hi_s - lo_s).repeat(n_new)   # (n_screen, 3 n_new)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import nnls
 
 from designlab.loop.effects.base import Context, Effect, Fitted, play, varying_drives
 
@@ -62,6 +61,8 @@ class PrandtlIshlinskii(Effect):
             Fp, tp = F - Q @ (Q.T @ F), target - Q @ (Q.T @ target)
         else:
             Fp, tp = F, target
+        from scipy.optimize import nnls
+
         p, _ = nnls(Fp, tp, maxiter=50 * k)
         alpha = np.linalg.lstsq(N, target - F @ p, rcond=None)[0] if N.shape[1] else []
         return np.r_[p, alpha]
