@@ -80,7 +80,8 @@ def test_getting_started_notebook_runs():
     assert {"image/png", "text/html"} <= kinds        # the part's picture, the tables
 
 
-def test_cli_params_lists_every_field(capsys):
+def test_cli_params_lists_every_field(capsys, monkeypatch):
+    from designlab import cli
     from designlab.cli import main
     from designlab.geometry.api import field_rows
     from designlab.geometry.parts import PARTS
@@ -88,9 +89,8 @@ def test_cli_params_lists_every_field(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["params", "nope"])
     assert exc.value.code == 2
-    import os
-
-    os.environ["COLUMNS"] = "250"
+    # wide enough that no name is wrapped, whatever width the console took at import
+    monkeypatch.setattr(cli.console, "width", 250)
     main(["params", "strap"])
     out = capsys.readouterr().out
     for r in field_rows(PARTS["strap"]):
