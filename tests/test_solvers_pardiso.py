@@ -10,8 +10,8 @@ import scipy.sparse as sp
 
 from designlab.errors import ModelError
 from designlab.fem import Material, Model
-from designlab.fem.solvers import (PARDISO_MIN_DOFS, DirectSolver, PardisoSolver, choose_solver,
-                                   has_pardiso)
+from designlab.fem.solvers import (MANY_RHS, PARDISO_MIN_DOFS, PARDISO_MIN_DOFS_MANY_RHS,
+                                   DirectSolver, PardisoSolver, choose_solver, has_pardiso)
 from designlab.mesh.tetmesh import box_tet_mesh
 
 pytestmark = pytest.mark.skipif(not has_pardiso(), reason="pypardiso (MKL) not installed")
@@ -59,4 +59,8 @@ def test_indefinite_falls_back_to_lu_and_singular_is_one_line():
 def test_auto_takes_pardiso_from_its_threshold():
     assert choose_solver(PARDISO_MIN_DOFS - 1) == "direct"
     assert choose_solver(PARDISO_MIN_DOFS) == "pardiso"
-    assert choose_solver(PARDISO_MIN_DOFS, n_rhs=500) == "pardiso"
+    # time histories (many right-hand sides) from far fewer unknowns
+    assert PARDISO_MIN_DOFS_MANY_RHS < PARDISO_MIN_DOFS
+    assert choose_solver(PARDISO_MIN_DOFS_MANY_RHS - 1, n_rhs=MANY_RHS) == "direct"
+    assert choose_solver(PARDISO_MIN_DOFS_MANY_RHS, n_rhs=MANY_RHS) == "pardiso"
+    assert choose_solver(PARDISO_MIN_DOFS_MANY_RHS, n_rhs=MANY_RHS - 1) == "direct"

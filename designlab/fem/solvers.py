@@ -6,7 +6,8 @@
 (scikit-sparse, when installed), ``"amg"`` (CG preconditioned by pyamg smoothed aggregation
 with rigid-body modes as near-null space; for TET10 with a TET4 p-multigrid level).
 ``"auto"``: SuperLU up to
-:data:`PARDISO_MIN_DOFS` unknowns, then pardiso or cholmod where installed, else direct up to
+:data:`PARDISO_MIN_DOFS` unknowns (:data:`PARDISO_MIN_DOFS_MANY_RHS` for many right-hand
+sides), then pardiso or cholmod where installed, else direct up to
 :data:`DIRECT_MAX_DOFS` unknowns (more when many right-hand sides reuse the factorisation),
 else amg.
 """
@@ -36,11 +37,14 @@ DIRECT_MAX_DOFS = 12_000
 #: measured at 28k DOF, 100 steps cost 3 static direct solves but 67 AMG-CG solves
 DIRECT_MAX_DOFS_MANY_RHS = 150_000
 MANY_RHS = 20
-#: "auto" takes PARDISO from this many unknowns on (SuperLU below). PARDISO's Cholesky without
+#: "auto" takes PARDISO from this many unknowns on for one or a few right-hand sides (SuperLU
+#: below: the static solves of the smaller models keep the results they had) ...
+PARDISO_MIN_DOFS = 20_000
+#: ... and from this many for many right-hand sides (time histories): PARDISO's Cholesky without
 #: iterative refinement beats SuperLU from ~2k unknowns on, in the factorisation and in every
-#: solve (benchmarks/bench_pardiso.py: TET10 boxes, CPU s, one thread); below 5k both factor
-#: and solve in well under a second, and SuperLU needs no MKL.
-PARDISO_MIN_DOFS = 5_000
+#: solve (benchmarks/bench_pardiso.py: TET10 boxes, CPU s, one thread; 12.2k DOF: 0.43 vs 1.58 s,
+#: 7.4 vs 15.1 ms per solve); below 5k both take well under a second.
+PARDISO_MIN_DOFS_MANY_RHS = 5_000
 
 
 def has_cholmod() -> bool:
@@ -402,7 +406,7 @@ def choose_solver(n: int, solver: str = "auto", n_rhs: int = 1) -> str:
     if solver not in SOLVERS:
         raise ParameterError("solver", solver, "one of " + ", ".join(SOLVERS))
     if solver == "auto":
-        if n < PARDISO_MIN_DOFS:
+        if n < (PARDISO_MIN_DOFS_MANY_RHS if n_rhs >= MANY_RHS else PARDISO_MIN_DOFS):
             return "direct"
         if has_pardiso():
             return "pardiso"
