@@ -97,10 +97,6 @@ SHORT = {"n_steps": 2, "step_hold_s": 1.0, "dt_s": 0.25, "cycles": 1, "cycle_per
 CHEAP = {"edge_length": 2.0, "order": 1, "mesh_convergence": False}
 
 
-@pytest.mark.xfail(strict=True, reason="needs designlab/sensors/strap.py to pass the trace "
-                   "material to gauge_resistance (run() and build_model(); lead's change, "
-                   "see the issue-16 report): until then the gauges read at the back-"
-                   "calculated 1.8 kOhm while electrical reports the measured resistance")
 def test_predict_strap_reads_the_gauges_at_the_measured_resistance(tmp_path):
     """End to end: predict strap --measured with a resistivity record twice the back-
     calculated one -> the electrical report, the gauges' operating point and the sensitivity

@@ -148,7 +148,7 @@ def build(ctx: dict[str, Any], values: dict[str, Any], seed: int) -> dict[str, A
     # resistance: the rho_eff scale, and the printed width over the designed one on the
     # meander's lines (legs, turns, leads: squares = length / width); the 2 x 3 mm pads are
     # not printed at the trace width and keep their squares
-    Rg = el.gauge_resistance(part, sett.contact_ohm)
+    Rg = el.gauge_resistance(part, sett.contact_ohm, ctx["trace_material"])
     lines = sum(v for k, v in Rg.items() if k not in ("pads", "contacts", "total"))
     R0 = ((lines / float(values.get("trace_width_scale", 1.0)) + Rg.get("pads", 0.0))
           * float(values.get("resistivity_scale", 1.0)) + Rg["contacts"])

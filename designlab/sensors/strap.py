@@ -332,7 +332,8 @@ def build_model(part, flat_mesh, settings: StrapModelSettings, materials=None):
     from designlab.sensors.strap_electrical import gauge_resistance
 
     d = centreline_direction(part, settings)
-    R0 = gauge_resistance(part, settings.contact_ohm)["total"]
+    trace = model.region_materials[mesh.region_id(GAUGE_REGIONS[0])]
+    R0 = gauge_resistance(part, settings.contact_ohm, trace)["total"]  # measured rho if given
     gauges = {ch: StrainGauge(model, gauge_cells(part, flat_mesh, reg), direction=d, name=ch,
                               R0=R0, R_fixed=settings.divider_ohm, V_s=settings.supply_V)
               for ch, reg in zip(CHANNELS, GAUGE_REGIONS)}
@@ -595,12 +596,12 @@ def run(part=None, protocol: StrapLoadTest | None = None,
     from designlab.sensors import strap_electrical as el
     from designlab.sensors import strap_fit as sf
 
-    R0 = el.gauge_resistance(part, settings.contact_ohm)["total"]
+    trace_mat = region_materials[mesh.region_id(GAUGE_REGIONS[0])]
+    R0 = el.gauge_resistance(part, settings.contact_ohm, trace_mat)["total"]
     gauges = {c: _Gauge(float(fem["gauge_factor"][i]), float(fem["gauge_quadratic"][i]), R0,
                         settings.divider_ohm, settings.supply_V)
               for i, c in enumerate(CHANNELS)}
     g1 = gauges[CHANNELS[0]]
-    trace_mat = region_materials[mesh.region_id(GAUGE_REGIONS[0])]
     pre = None
     eps0 = 0.0
     if settings.prestrained:
