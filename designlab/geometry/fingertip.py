@@ -358,7 +358,6 @@ def _well_plane(p: CantileverFingertip, axis: np.ndarray) -> Plane:
 @functools.lru_cache(maxsize=8)
 def _build(p: CantileverFingertip) -> dict[str, Body]:
     rb = p.ball_radius
-    axes, _ = p.sensor_axes()
     inner = _outline_solid(p.fingertip_radius, p.h, p.r)
     fingertip = single_solid((inner - Sphere(rb)).clean(), "fingertip")
     skin = None
@@ -366,6 +365,36 @@ def _build(p: CantileverFingertip) -> dict[str, Body]:
         t = p.skin_thickness
         outer = _outline_solid(p.fingertip_radius + t, p.h, p.r + t)
         skin = single_solid((outer - inner).clean(), "skin")
+    out = {"fingertip": Body("fingertip", fingertip, "ABS", (0.95, 0.6, 0.2))}
+    out.update(_fixed_bodies(p))
+    if skin is not None:  # cast silicone coating, not printed
+        out["skin"] = Body("skin", skin, "silicone", (0.95, 0.85, 0.3), printed=False)
+    return out
+
+
+#: the bodies that do not depend on the fingertip's outline (h, r): built once per value of the
+#: other parameters and shared (an (h, r) sweep rebuilds only the fingertip; same shapes)
+_FIXED: dict[tuple, dict[str, Body]] = {}
+_OUTLINE_ONLY = ("h", "r")
+
+
+def _fixed_bodies(p: CantileverFingertip) -> dict[str, Body]:
+    import dataclasses
+
+    key = tuple((f.name, getattr(p, f.name)) for f in dataclasses.fields(p)
+                if f.name not in _OUTLINE_ONLY)
+    got = _FIXED.get(key)
+    if got is None:
+        if len(_FIXED) >= 8:
+            _FIXED.pop(next(iter(_FIXED)))
+        got = _FIXED[key] = _build_fixed(p)
+    return got
+
+
+def _build_fixed(p: CantileverFingertip) -> dict[str, Body]:
+    """Base, cap, ball, bolt, sensors: they use neither h nor r."""
+    rb = p.ball_radius
+    axes, _ = p.sensor_axes()
 
     # ball with the tapped blind hole (modelled at the bolt's nominal diameter)
     rbolt = p.bolt_diameter / 2
@@ -417,7 +446,6 @@ def _build(p: CantileverFingertip) -> dict[str, Body]:
 
     abs_c, steel, dark = (0.92, 0.9, 0.85), (0.75, 0.76, 0.78), (0.15, 0.15, 0.18)
     out = {
-        "fingertip": Body("fingertip", fingertip, "ABS", (0.95, 0.6, 0.2)),
         "base": Body("base", base, "ABS", abs_c),
         "cap": Body("cap", cap, "ABS", (0.6, 0.6, 0.62)),
         "ball": Body("ball", ball, "steel", steel, printed=False),
@@ -425,6 +453,4 @@ def _build(p: CantileverFingertip) -> dict[str, Body]:
     }
     for k, s in enumerate(sensors):
         out[f"sensor_{k + 1}"] = Body(f"sensor_{k + 1}", s, "steel", dark, printed=False)
-    if skin is not None:  # cast silicone coating, not printed
-        out["skin"] = Body("skin", skin, "silicone", (0.95, 0.85, 0.3), printed=False)
     return out
