@@ -121,6 +121,11 @@ class System:
     F_preload: np.ndarray
     constrained: np.ndarray
     free_dofs: np.ndarray        # dof of each column of T (free primary dofs, ascending)
+    # all springs stacked: row i of R_spring is a row of spring ``spring_of_row[i]`` (index
+    # into ``model.springs``) with stiffness ``k_rows[i]``; K_spring = R^T diag(k) R + beams
+    R_spring: sp.csr_matrix | None = None
+    k_rows: np.ndarray | None = None
+    spring_of_row: np.ndarray | None = None
 
     @property
     def n_dofs(self) -> int:
@@ -488,6 +493,16 @@ class Model:
 
     def spring_map(self, s: Spring) -> sp.csr_matrix:
         """(1 or 3, n_dofs) map u -> elongation along the axis (or the 3 relative motions)."""
+        if s.axis is not None and _is_node(s.a) and (s.b is None or _is_node(s.b)):
+            # node to node/ground along an axis (e.g. Winkler springs): the row directly
+            # (the same numbers as the general path: axis[k] * +-1, zeros dropped)
+            nz = np.nonzero(s.axis)[0]
+            cols, vals = 3 * int(s.a) + nz, s.axis[nz]
+            if s.b is not None:
+                cols, vals = np.r_[cols, 3 * int(s.b) + nz], np.r_[vals, -s.axis[nz]]
+            if s.b is None or int(s.b) != int(s.a):
+                return sp.csr_matrix((vals, (np.zeros(len(cols), int), cols)),
+                                     shape=(1, self.n_dofs))
         L = self.point_map(s.a)
         if s.b is not None:
             L = L - self.point_map(s.b)
@@ -504,14 +519,30 @@ class Model:
         n, npts = self.n_dofs, self.n_points
         cases = self.cases
         nc = len(cases)
-        # springs
-        K_spring = sp.csr_matrix((n, n))
+        # springs: all rows stacked into one R, K_spring = R^T diag(k) R (built once)
         F_pre = np.zeros((n, nc))
-        for s in self.springs.values():
-            R = self.spring_map(s)
-            K_spring = K_spring + s.k * (R.T @ R)
+        rr, cc, vv, kk, own = [], [], [], [], []
+        nrow = 0
+        for i, s in enumerate(self.springs.values()):
+            R = self.spring_map(s).tocoo()
+            m = R.shape[0]
+            rr.append(R.row + nrow)
+            cc.append(R.col)
+            vv.append(R.data)
+            kk.append(np.full(m, s.k))
+            own.append(np.full(m, i))
             if s.preload:
-                F_pre[:, cases.index(s.case)] -= s.preload * R.toarray()[0]
+                F_pre[:, cases.index(s.case)] -= s.preload * R.tocsr()[0].toarray()[0]
+            nrow += m
+        if nrow:
+            R_spring = sp.csr_matrix((np.concatenate(vv), (np.concatenate(rr),
+                                      np.concatenate(cc))), shape=(nrow, n))
+            k_rows, spring_of_row = np.concatenate(kk), np.concatenate(own)
+            K_spring = _gram(R_spring, k_rows, n)
+        else:
+            R_spring = sp.csr_matrix((0, n))
+            k_rows, spring_of_row = np.zeros(0), np.zeros(0, int)
+            K_spring = sp.csr_matrix((n, n))
         for bm in self.beams.values():
             Lb = self.beam_map(bm)
             K_spring = K_spring + Lb.T @ sp.csr_matrix(bm.K) @ Lb
@@ -555,4 +586,24 @@ class Model:
         else:
             T = S
         return System(self, cases, self.K_el, K_spring.tocsr(), T, G, F, F_pre, constrained,
-                      np.nonzero(free)[0])
+                      np.nonzero(free)[0], R_spring, k_rows, spring_of_row)
+
+
+def _is_node(end) -> bool:
+    return isinstance(end, (int, np.integer)) and not isinstance(end, bool)
+
+
+def _gram(R: sp.csr_matrix, k: np.ndarray, n: int) -> sp.csr_matrix:
+    """R^T diag(k) R (n square) from the products within each row, k_r * (R_ri * R_rj): the
+    same numbers as summing k * (R_s^T R_s) spring by spring for one-row springs."""
+    R = R.tocsr()
+    R.sum_duplicates()
+    cnt = np.diff(R.indptr)
+    sq = cnt * cnt
+    row = np.repeat(np.arange(len(cnt)), sq)
+    off = np.arange(int(sq.sum())) - np.repeat(np.cumsum(sq) - sq, sq)
+    c = cnt[row]
+    i = R.indptr[row] + off // c
+    j = R.indptr[row] + off % c
+    return sp.csr_matrix((k[row] * (R.data[i] * R.data[j]), (R.indices[i], R.indices[j])),
+                         shape=(n, n))

@@ -61,17 +61,21 @@ def check_constrained(system: System) -> None:
             links.append(np.column_stack([r.nodes, np.full(len(r.nodes), npts + r.index)]))
     spring_rows = []
     Kd = system.K_el.diagonal()
-    for s in model.springs.values():
-        Rm = model.spring_map(s).tocsr()
-        spring_rows.append((s, Rm))
-        nodes = np.unique(_graph_nodes(model, Rm.indices))
-        if len(nodes) > 1:
-            links.append(np.column_stack([nodes[:-1], nodes[1:]]))
+    Rs = system.R_spring
+    if Rs is not None and Rs.shape[0]:
+        # one stacked map for all springs: link the graph nodes each spring touches (chain)
+        Rc = Rs.tocoo()
+        key = np.unique(np.column_stack([system.spring_of_row[Rc.row],
+                                         _graph_nodes(model, Rc.col)]), axis=0)
+        same = key[1:, 0] == key[:-1, 0]
+        if same.any():
+            links.append(np.column_stack([key[:-1, 1][same], key[1:, 1][same]]))
+        spring_rows.append((np.sqrt(system.k_rows / kref_of(Kd))[:, None], Rs))
     for bm in model.beams.values():
         Lb = model.beam_map(bm)
         lam, vec = np.linalg.eigh(bm.K)
         keep = lam > 1e-12 * max(lam.max(), 0)
-        spring_rows.append((None, sp.csr_matrix((np.sqrt(lam[keep] / kref_of(Kd))[:, None]
+        spring_rows.append((1.0, sp.csr_matrix((np.sqrt(lam[keep] / kref_of(Kd))[:, None]
                                                  * vec[:, keep].T) @ Lb)))
         nodes = np.unique(_graph_nodes(model, Lb.indices))
         if len(nodes) > 1:
@@ -87,7 +91,6 @@ def check_constrained(system: System) -> None:
     used = np.zeros(ng, bool)
     used[np.unique(model.mesh.cells)] = True
     used[npts:] = True
-    kref = kref_of(Kd)
     cons = np.nonzero(system.constrained)[0]
     total_free = 0
     for c in np.unique(label[used]):
@@ -99,8 +102,8 @@ def check_constrained(system: System) -> None:
         L = max(float(np.ptp(allx, axis=0).max()), 1e-9)
         R = rigid_modes(model, members, x0, L)
         M = [R[cons]]
-        for s, Rm in spring_rows:
-            M.append((1.0 if s is None else np.sqrt(s.k / kref)) * (Rm @ R))
+        for scale, Rm in spring_rows:
+            M.append(scale * (Rm @ R))
         sv = np.linalg.svd(np.vstack(M), compute_uv=False) if sum(len(m) for m in M) else []
         rank = int(np.sum(np.asarray(sv) > 1e-8))
         total_free += 6 - rank
