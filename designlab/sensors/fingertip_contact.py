@@ -247,7 +247,142 @@ def contact_laws(part, settings: ContactSettings, k_sensor: float) -> list[Conta
 
 
 def _problem(part, cf: CondensedFingertip, settings: ContactSettings) -> ContactProblem:
-    return ContactProblem(cf.C, cf.L, contact_laws(part, settings, cf.k_sensor))
+    return _FastProblem(cf.C, cf.L, contact_laws(part, settings, cf.k_sensor))
+
+
+class _FastProblem(ContactProblem):
+    """:class:`~designlab.fem.contact.ContactProblem` with the same numbers (the same
+    floating-point operations on the same values, in the same order: bit-identical results) and
+    less Python and numpy overhead per Newton iteration, for the fingertip's laws (every contact
+    Hertz in series with the sensor's spring, Mindlin with no tangential series spring, friction):
+    the law arrays' branches that are constant for such laws are resolved once, the
+    block-diagonal tangent is scattered with one index assignment into a kept buffer. Other laws
+    take the parent's path."""
+
+    def __post_init__(self):
+        super().__post_init__()
+        la, m = self._la, self.m
+        self._fast = bool(la.hertz.all() and (la.ks_inv > 0).all() and (la.c > 0).all()
+                          and not np.isfinite(la.kts).any() and (la.mu > 0).all())
+        self._eye = np.eye(3 * m)
+        k, i, j = np.meshgrid(np.arange(m), np.arange(3), np.arange(3), indexing="ij")
+        self._bd = ((3 * k + i).ravel(), (3 * k + j).ravel())     # D[:, k, i, j] -> Dbd
+        self._gap0 = None if self.gap0 is None else np.asarray(self.gap0, float)
+        self._mu_col = la.mu[:, None]
+        self._ki, self._c = la.ks_inv, la.c
+        self._c2, self._c23 = 2.0 * la.c, (2.0 / 3.0) * la.c
+        self._eye2 = np.eye(2)
+
+    def _normal(self, delta, N_guess):
+        """contact._LawArrays.normal with every ``ks_inv > 0`` and ``c > 0``: the same
+        operations (``divide(x, y, out=zeros, where=y > 0)`` written ``where(y > 0, x / y,
+        0.0)``, one ``s ** 2`` per iteration instead of two equal ones); divisions by zero are
+        silenced by the caller."""
+        ki, c, c2, c23 = self._ki, self._c, self._c2, self._c23
+        d = np.maximum(delta, 0.0)
+        up = np.minimum(np.cbrt(d / ki), np.sqrt(d / c))
+        sg = np.cbrt(np.maximum(N_guess, 0.0))
+        s = np.where((sg > 0) & (sg < up), sg, up)
+        for _ in range(80):
+            s2 = s ** 2
+            fp = 3.0 * s2 * ki + c2 * s
+            step = np.where(fp > 0, (s ** 3 * ki + c * s2 - d) / fp, 0.0)
+            s = np.maximum(s - step, 0.0)
+            if not (np.abs(step) > 1e-14 * s).any():
+                break
+        N = s ** 3
+        denom = ki + c23 * np.where(s > 0, 1.0 / s, 0.0)
+        dN = np.where((denom > 0) & (d > 0), 1.0 / denom, 0.0)
+        return N, dN
+
+    def _forces(self, g, state):
+        """contact.contact_forces for these laws (the same operations, fewer of them)."""
+        la = self._la
+        p = np.empty_like(g)
+        D = np.zeros(g.shape + (3,))
+        delta = (0.0 if self._gap0 is None else self._gap0) - g[..., 0]
+        N, dN = self._normal(delta, state.N)
+        p[..., 0] = N
+        mdN = -dN
+        D[..., 0, 0] = mdN
+        # _LawArrays.kt: every contact Hertz, no tangential series spring
+        Nk = np.maximum(N, 0.0)
+        kt = la.A * np.cbrt(Nk)
+        dkt = np.where(Nk > 0, kt / (3.0 * Nk), 0.0)
+        dg = g[..., 1:] - state.gt
+        Ttr = state.T - kt[..., None] * dg
+        nT = np.sqrt(np.add.reduce(Ttr * Ttr, axis=-1))       # np.linalg.norm's operations
+        lim = la.mu * N
+        closed = N > 0
+        slip = (nT > lim) & closed
+        nT1 = nT[..., None]
+        th = np.where(nT1 > 0, Ttr / nT1, 0.0)
+        r = np.where(slip, lim / nT, 1.0)            # slip: nT > lim >= 0
+        closed1 = closed[..., None]
+        slip1 = slip[..., None]
+        p[..., 1:] = np.where(closed1, r[..., None] * Ttr, 0.0)
+        P = self._eye2 - np.where(slip1[..., None], th[..., :, None] * th[..., None, :], 0.0)
+        Dtt = (r * -kt)[..., None, None] * P
+        mdN1 = mdN[..., None]
+        dTtr_dgn = (-dkt)[..., None] * dg * mdN1
+        DtN = r[..., None] * (P @ dTtr_dgn[..., None])[..., 0] \
+            + np.where(slip1, self._mu_col * th * mdN1, 0.0)
+        D[..., 1:, 1:] = np.where(closed1[..., None], Dtt, 0.0)
+        D[..., 1:, 0] = np.where(closed1, DtN, 0.0)
+        return p, D
+
+    def solve_increment(self, g0, state, g_start):
+        if not self._fast:
+            return super().solve_increment(g0, state, g_start)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return self._solve_increment(g0, state, g_start)
+
+    def _solve_increment(self, g0, state, g_start):
+        Bn, m = g0.shape[:2]
+        F = self.F
+        FT = F.T
+        g = g_start.copy()
+        scale = max(float(np.abs(g0).max()), float(np.abs(g_start).max()), 1e-9)
+        forces = self._forces
+        tol = self.tol * scale
+        floor = 1e-15 * scale
+
+        def residual(g):
+            p, D = forces(g, state)
+            return (g - g0).reshape(Bn, -1) - p.reshape(Bn, -1) @ FT, D
+
+        R, D = residual(g)
+        Dbd = np.zeros((Bn, 3 * m, 3 * m))
+        rows, cols = self._bd
+        eye = self._eye[None]
+        Fb = F[None]
+        for it in range(1, self.max_iter + 1):
+            Dbd[:, rows, cols] = D.reshape(Bn, -1)
+            J = eye - Fb @ Dbd
+            dx = np.linalg.solve(J, -R[..., None])[..., 0].reshape(Bn, m, 3)
+            r0 = np.sqrt(np.add.reduce(R * R, axis=1))         # np.linalg.norm
+            lam = np.ones(Bn)
+            for _ in range(8):
+                g_try = g + lam[:, None, None] * dx
+                R_try, D_try = residual(g_try)
+                worse = np.sqrt(np.add.reduce(R_try * R_try, axis=1)) > r0 * (1 - 1e-4 * lam) \
+                    + floor
+                if not worse.any():
+                    break
+                lam = np.where(worse, 0.5 * lam, lam)
+            else:
+                lam = np.where(worse, 1.0, lam)
+                g_try = g + lam[:, None, None] * dx
+                R_try, D_try = residual(g_try)
+            g, R, D = g_try, R_try, D_try
+            if np.abs(R).max() <= tol:
+                break
+        else:
+            from designlab.errors import ModelError
+            raise ModelError(f"contact increment did not converge in {self.max_iter} Newton "
+                             f"iterations (residual {np.abs(R).max():.3g} mm)")
+        p, _ = forces(g, state)
+        return g, p, it
 
 
 #: tightenings already done in this process (the designs of an (h, r) sweep share one FEM,
