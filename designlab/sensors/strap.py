@@ -920,7 +920,8 @@ def plots(prediction: StrapPrediction, report: dict[str, Any] | None, out_dir: s
     s = report["series"]
     t = np.asarray(s["t_s"])
     paths = []
-    fig, ax = figure(3, 1, width=9, height=7.5, sharex=True)
+    fig, ax = figure(3, 1, width=9, height=7.5, sharex=True, fixed=True, top=0.95,
+                     hspace=0.1)
     for i, (y, lab) in enumerate(((s["F_n_N"], "normal force F_n"), (s["F_x_N"], "shear force F_x"))):
         ax[0].plot(t, y, color=series_style(i)["color"], label=lab)
     ax[0].set_ylabel("force (N)")
@@ -938,7 +939,7 @@ def plots(prediction: StrapPrediction, report: dict[str, Any] | None, out_dir: s
     paths.append(_save(fig, out / "strap_time_series.png"))
     close(fig)
 
-    fig, ax = figure(1, 2, width=10, height=4.2)
+    fig, ax = figure(1, 2, width=10, height=4.2, fixed=True, top=0.88)
     ax[0].plot(s["F_n_N"], 1e3 * np.asarray(s["sum_V"]), ls="", ms=3, **series_style(4))
     ax[0].set_xlabel("normal force F_n (N)")
     ax[0].set_ylabel("Ch1 + Ch2 (mV)")
@@ -953,7 +954,7 @@ def plots(prediction: StrapPrediction, report: dict[str, Any] | None, out_dir: s
 
     loops = report.get("loops") or {}
     if loops:
-        fig, ax = figure(width=7, height=4.2)
+        fig, ax = figure(width=7, height=4.2, fixed=True, top=0.9)
         fnl = np.asarray(loops["F_n_N"])
         k = int(np.argmax(fnl))
         for i, name in enumerate(("sum", "Ch1", "Ch2")):
