@@ -288,9 +288,10 @@ def _load_sets(part, protocol, rotations_deg):
 
     check_locations(part, protocol)
     W, D = [], []
+    points = {rot: part.load_points(rot) for rot in rotations_deg}   # once per rotation
     for name in (*protocol.g1_locations, *protocol.g2_locations):
         for rot in rotations_deg:
-            p, d = part.load_points(rot)[name]
+            p, d = points[rot][name]
             W.append(wrench_at_ball(p, d))
             D.append(np.asarray(d, float))
     return np.array(W), np.array(D)

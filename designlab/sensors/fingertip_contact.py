@@ -555,10 +555,11 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
     rots = (list(rotations_deg) if rotations_deg is not None
             else [360.0 * i / protocol.rotations for i in range(protocol.rotations)])
     runs = []                                   # (group, name, rot, point dir)
+    points = {rot: part.load_points(rot) for rot in rots}        # once per rotation
     for group, names in (("G1", protocol.g1_locations), ("G2", protocol.g2_locations)):
         for name in names:
             for rot in rots:
-                p, d = part.load_points(rot)[name]
+                p, d = points[rot][name]
                 runs.append((group, name, rot, d, wrench_at_ball(p, d)))
     W = np.array([r[4] for r in runs])                               # (B, 6)
     loads = protocol.loads_N                                         # (steps,)
