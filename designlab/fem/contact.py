@@ -342,6 +342,10 @@ class ContactProblem:
         self.Lf = self.L.reshape(3 * m, n)
         self.F = self.Lf @ self.C @ self.Lf.T          # contact flexibility (3m x 3m)
         self._la = _LawArrays(self.laws)
+        m = self.m
+        self._eye = np.eye(3 * m)
+        k, i, j = np.meshgrid(np.arange(m), np.arange(3), np.arange(3), indexing="ij")
+        self._bd = ((3 * k + i).ravel(), (3 * k + j).ravel())     # D[:, k, i, j] -> Dbd
 
     @property
     def m(self) -> int:
@@ -351,23 +355,32 @@ class ContactProblem:
         """(B, m, 3) relative displacements of the loads ``f`` (B, n) with no contact force."""
         return (np.atleast_2d(f) @ self.C.T @ self.Lf.T).reshape(-1, self.m, 3)
 
+    def _forces(self, g: np.ndarray, state: ContactState):
+        """Contact forces and their tangent at the relative displacements ``g`` (the laws'
+        :func:`contact_forces`; a subclass may evaluate its laws faster, with the same numbers)."""
+        return contact_forces(self._la, g, state, self.gap0)
+
     def solve_increment(self, g0: np.ndarray, state: ContactState, g_start: np.ndarray):
         """Equilibrium g = g0 + F p(g) for free motions ``g0`` (B, m, 3), from ``g_start``.
         Returns (g, p, iterations)."""
         Bn, m = g0.shape[:2]
         F = self.F
+        FT, Fb, eye = F.T, F[None], self._eye[None]
+        rows, cols = self._bd
+        forces = self._forces
         g = g_start.copy()
         scale = max(float(np.abs(g0).max()), float(np.abs(g_start).max()), 1e-9)
+        tol, floor = self.tol * scale, 1e-15 * scale
+
         def residual(g):
-            p, D = contact_forces(self._la, g, state, self.gap0)
-            return (g - g0).reshape(Bn, -1) - p.reshape(Bn, -1) @ F.T, D
+            p, D = forces(g, state)
+            return (g - g0).reshape(Bn, -1) - p.reshape(Bn, -1) @ FT, D
 
         R, D = residual(g)
+        Dbd = np.zeros((Bn, 3 * m, 3 * m))         # block-diagonal tangent, blocks rewritten
         for it in range(1, self.max_iter + 1):
-            Dbd = np.zeros((Bn, 3 * m, 3 * m))
-            for k in range(m):
-                Dbd[:, 3 * k:3 * k + 3, 3 * k:3 * k + 3] = D[:, k]
-            J = np.eye(3 * m)[None] - F[None] @ Dbd
+            Dbd[:, rows, cols] = D.reshape(Bn, -1)
+            J = eye - Fb @ Dbd
             dx = np.linalg.solve(J, -R[..., None])[..., 0].reshape(Bn, m, 3)
             # backtracking on the residual norm, per load history (stick/slip and open/closed
             # switches make the residual only piecewise smooth); when no step length reduces
@@ -377,8 +390,8 @@ class ContactProblem:
             for _ in range(8):
                 g_try = g + lam[:, None, None] * dx
                 R_try, D_try = residual(g_try)
-                worse = np.linalg.norm(R_try, axis=1) > r0 * (1 - 1e-4 * lam) + 1e-15 * scale
-                if not np.any(worse):
+                worse = np.linalg.norm(R_try, axis=1) > r0 * (1 - 1e-4 * lam) + floor
+                if not worse.any():
                     break
                 lam = np.where(worse, 0.5 * lam, lam)
             else:
@@ -386,12 +399,12 @@ class ContactProblem:
                 g_try = g + lam[:, None, None] * dx
                 R_try, D_try = residual(g_try)
             g, R, D = g_try, R_try, D_try
-            if np.abs(R).max() <= self.tol * scale:
+            if np.abs(R).max() <= tol:
                 break
         else:
             raise ModelError(f"contact increment did not converge in {self.max_iter} Newton "
                              f"iterations (residual {np.abs(R).max():.3g} mm)")
-        p, _ = contact_forces(self._la, g, state, self.gap0)
+        p, _ = forces(g, state)
         return g, p, it
 
     def solve_path(self, f_points: np.ndarray, state: ContactState, n_sub: int = 1,

@@ -255,18 +255,14 @@ class _FastProblem(ContactProblem):
     floating-point operations on the same values, in the same order: bit-identical results) and
     less Python and numpy overhead per Newton iteration, for the fingertip's laws (every contact
     Hertz in series with the sensor's spring, Mindlin with no tangential series spring, friction):
-    the law arrays' branches that are constant for such laws are resolved once, the
-    block-diagonal tangent is scattered with one index assignment into a kept buffer. Other laws
-    take the parent's path."""
+    the law arrays' branches that are constant for such laws are resolved once (the Newton
+    iteration is the parent's). Other laws take the parent's path."""
 
     def __post_init__(self):
         super().__post_init__()
-        la, m = self._la, self.m
+        la = self._la
         self._fast = bool(la.hertz.all() and (la.ks_inv > 0).all() and (la.c > 0).all()
                           and not np.isfinite(la.kts).any() and (la.mu > 0).all())
-        self._eye = np.eye(3 * m)
-        k, i, j = np.meshgrid(np.arange(m), np.arange(3), np.arange(3), indexing="ij")
-        self._bd = ((3 * k + i).ravel(), (3 * k + j).ravel())     # D[:, k, i, j] -> Dbd
         self._gap0 = None if self.gap0 is None else np.asarray(self.gap0, float)
         self._mu_col = la.mu[:, None]
         self._ki, self._c = la.ks_inv, la.c
@@ -297,6 +293,8 @@ class _FastProblem(ContactProblem):
 
     def _forces(self, g, state):
         """contact.contact_forces for these laws (the same operations, fewer of them)."""
+        if not self._fast:
+            return super()._forces(g, state)
         la = self._la
         p = np.empty_like(g)
         D = np.zeros(g.shape + (3,))
@@ -334,55 +332,8 @@ class _FastProblem(ContactProblem):
     def solve_increment(self, g0, state, g_start):
         if not self._fast:
             return super().solve_increment(g0, state, g_start)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return self._solve_increment(g0, state, g_start)
-
-    def _solve_increment(self, g0, state, g_start):
-        Bn, m = g0.shape[:2]
-        F = self.F
-        FT = F.T
-        g = g_start.copy()
-        scale = max(float(np.abs(g0).max()), float(np.abs(g_start).max()), 1e-9)
-        forces = self._forces
-        tol = self.tol * scale
-        floor = 1e-15 * scale
-
-        def residual(g):
-            p, D = forces(g, state)
-            return (g - g0).reshape(Bn, -1) - p.reshape(Bn, -1) @ FT, D
-
-        R, D = residual(g)
-        Dbd = np.zeros((Bn, 3 * m, 3 * m))
-        rows, cols = self._bd
-        eye = self._eye[None]
-        Fb = F[None]
-        for it in range(1, self.max_iter + 1):
-            Dbd[:, rows, cols] = D.reshape(Bn, -1)
-            J = eye - Fb @ Dbd
-            dx = np.linalg.solve(J, -R[..., None])[..., 0].reshape(Bn, m, 3)
-            r0 = np.sqrt(np.add.reduce(R * R, axis=1))         # np.linalg.norm
-            lam = np.ones(Bn)
-            for _ in range(8):
-                g_try = g + lam[:, None, None] * dx
-                R_try, D_try = residual(g_try)
-                worse = np.sqrt(np.add.reduce(R_try * R_try, axis=1)) > r0 * (1 - 1e-4 * lam) \
-                    + floor
-                if not worse.any():
-                    break
-                lam = np.where(worse, 0.5 * lam, lam)
-            else:
-                lam = np.where(worse, 1.0, lam)
-                g_try = g + lam[:, None, None] * dx
-                R_try, D_try = residual(g_try)
-            g, R, D = g_try, R_try, D_try
-            if np.abs(R).max() <= tol:
-                break
-        else:
-            from designlab.errors import ModelError
-            raise ModelError(f"contact increment did not converge in {self.max_iter} Newton "
-                             f"iterations (residual {np.abs(R).max():.3g} mm)")
-        p, _ = forces(g, state)
-        return g, p, it
+        with np.errstate(divide="ignore", invalid="ignore"):  # see _normal
+            return super().solve_increment(g0, state, g_start)
 
 
 #: tightenings already done in this process (the designs of an (h, r) sweep share one FEM,
