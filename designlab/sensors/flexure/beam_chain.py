@@ -234,6 +234,23 @@ def _block_diag(blocks: np.ndarray) -> np.ndarray:
     return out
 
 
+def _next_closed(g: np.ndarray, closed: np.ndarray, tol: float, seen: set):
+    """The next normal active set from the gaps ``g`` (mm): closed where ``g < -tol``, open
+    where ``g > tol``, kept in between. A set met before (a cycle) flips only the contact with
+    the largest gap instead. Returns (set, whether it is unchanged)."""
+    new = np.where(g < -tol, True, np.where(g > tol, False, closed))
+    if np.array_equal(new, closed):
+        return closed, True
+    key = new.tobytes()
+    if key in seen:
+        bad = np.nonzero(new != closed)[0]
+        new = closed.copy()
+        k = bad[np.argmax(np.abs(g[bad]))]
+        new[k] = not closed[k]
+    seen.add(key)
+    return new, False
+
+
 class ActiveSet:
     """Unilateral penalty contacts on a linear structure with a 6-dof master (u, th), solved by
     an active-set iteration. A subclass sets ``Kq`` (sparse, n_q square: the structure),
@@ -252,17 +269,9 @@ class ActiveSet:
         seen = set()
         for it in range(self.s.max_iterations):
             q, g = step(closed)
-            new = np.where(g < -tol, True, np.where(g > tol, False, closed))
-            if np.array_equal(new, closed):
+            closed, settled = _next_closed(g, closed, tol, seen)
+            if settled:
                 return q, g, closed, it + 1
-            key = new.tobytes()
-            if key in seen:
-                bad = np.nonzero(new != closed)[0]
-                new = closed.copy()
-                k = bad[np.argmax(np.abs(g[bad]))]
-                new[k] = not closed[k]
-            seen.add(key)
-            closed = new
         raise ModelError(f"beam chain: contact active set did not settle in "
                          f"{self.s.max_iterations} iterations")
 
@@ -481,16 +490,8 @@ class ActiveSet:
                 alpha /= 2
             q = qt
             g_new = g0 + N @ q
-            new = np.where(g_new < -tol, True, np.where(g_new > tol, False, closed))
-            if not np.array_equal(new, closed):
-                key = new.tobytes()
-                if key in seen:
-                    bad = np.nonzero(new != closed)[0]
-                    new = closed.copy()
-                    k = bad[np.argmax(np.abs(g_new[bad]))]
-                    new[k] = not closed[k]
-                seen.add(key)
-                closed = new
+            closed, settled = _next_closed(g_new, closed, tol, seen)
+            if not settled:
                 continue
             # same normal set: converged when the residual is round-off and the stick/slip
             # split of the new state is the one the step was taken with
