@@ -287,8 +287,39 @@ def slot_table(part, perimeter: float, material, R0: float, R_fixed: float,
 # ------------------------------------------------------------------ the pulp under the band
 
 #: pulp moduli (MPa) of the compliance estimate: strap_pulp's default 0.06 (the Winkler
-#: default's equivalent, NOT a literature value) and its sweep's ends
+#: default's equivalent, NOT a literature value) and its sweep's ends; the cited range
+#: (:func:`pulp_literature`) is added to them by :func:`pulp_compliance`
 PULP_MODULI = (0.02, 0.06, 0.3)
+#: the cited fingertip modulus (designlab/data/)
+PULP_LITERATURE_JSON = "fingertip_pulp.json"
+
+
+def pulp_literature() -> dict[str, Any]:
+    """The cited modulus of the fingertip (``designlab/data/fingertip_pulp.json``: the
+    range with its source, read from an abstract; an effective Hertz modulus of the whole
+    fingertip, not the subcutaneous tissue's small-strain modulus)."""
+    import json
+    from importlib import resources
+
+    return json.loads((resources.files("designlab") / "data" / PULP_LITERATURE_JSON)
+                      .read_text())
+
+
+def cited_pulp_moduli() -> tuple[float, ...]:
+    """The ends of the cited fingertip modulus range (MPa)."""
+    return tuple(float(e) for e in pulp_literature()["finger_hertz_modulus"]["E_MPa"])
+
+
+def _pulp_modulus_origin(E: float) -> str:
+    if E in cited_pulp_moduli():
+        cite = pulp_literature()["finger_hertz_modulus"]["citation"]
+        return (f"cited range end: effective Hertz modulus of the index finger, {cite} "
+                f"(abstract only; designlab/data/{PULP_LITERATURE_JSON})")
+    if E == 0.06:
+        return "strap_pulp's default (the Winkler default's equivalent, NOT a literature value)"
+    if E in PULP_MODULI:
+        return "strap_pulp's sweep end (NOT a literature value)"
+    return "given"
 
 
 def confined_modulus(E: float, nu: float) -> float:
@@ -333,16 +364,20 @@ def compliant_initial_strain(part, perimeter: float, material, *, slot: int | No
 
 def pulp_compliance(perimeters, target: float, material, R0: float, R_fixed: float,
                     slot_perimeter: float = 2 * math.pi * REFERENCE_RADIUS,
-                    moduli=PULP_MODULI, pulp_depth: float = 3.0,
+                    moduli=None, pulp_depth: float = 3.0,
                     pulp_nu: float = 0.49) -> dict[str, Any]:
     """What the finger's compliance does to the initial strain (:func:`compliant_initial_
     strain`): per pulp modulus, the personalised strap (cut for the target on a rigid finger)
     over ``perimeters`` -- its strain, their cv and the mean drop -- and the paper's slots on
     the reference finger with the sum-sensitivity cv between them (prestrain factors as in
     :func:`slot_table`). A size-dependent, predictable drop: a fit that knew the pulp could
-    cut for it; with no cited pulp modulus it is an error of the fit."""
+    cut for it. ``moduli`` default: :data:`PULP_MODULI` (strap_pulp's default and sweep ends,
+    not literature values) and the ends of the cited fingertip modulus range
+    (:func:`cited_pulp_moduli`), ascending; each row says where its modulus comes from."""
     from designlab.geometry.strap import ArchStrap
 
+    if moduli is None:
+        moduli = sorted(set(PULP_MODULI) | set(cited_pulp_moduli()))
     base = ArchStrap()
     out = []
     for E in moduli:
@@ -362,7 +397,7 @@ def pulp_compliance(perimeters, target: float, material, R0: float, R_fixed: flo
                           "pulp_compression_mm": e["pulp_compression_mm"],
                           "sensitivity_factor": op["electrical_factor"]
                           / neo_hooke(e0)["tangent_over_E"]})
-        out.append({"pulp_E_MPa": E,
+        out.append({"pulp_E_MPa": E, "pulp_E_origin": _pulp_modulus_origin(E),
                     "personalised_strain": eps,
                     "personalised_strain_cv_percent": spread_percent(eps),
                     "personalised_mean_drop_percent": float(100 * (1 - np.mean(eps) / target)),
@@ -378,8 +413,12 @@ def pulp_compliance(perimeters, target: float, material, R0: float, R_fixed: flo
                      "bisection; the stiffest a bonded layer can be, so the drops are lower "
                      "bounds for each E",
             "pulp_modulus_note": "0.06 MPa is strap_pulp's default, the Winkler default's "
-                                 "equivalent, NOT a literature value (none could be read: "
-                                 "docs/strap.md); 0.02 and 0.3 MPa its sweep's ends"}
+                                 "equivalent, NOT a literature value; 0.02 and 0.3 MPa its "
+                                 "sweep's ends; the cited rows (pulp_E_origin) are the ends "
+                                 "of an effective Hertz modulus of the whole index fingertip "
+                                 "read from an abstract, not a small-strain modulus of the "
+                                 "subcutaneous tissue (docs/strap.md)",
+            "cited_pulp_modulus": pulp_literature()["finger_hertz_modulus"]}
 
 
 # ------------------------------------------------------------------------- personalised strap
