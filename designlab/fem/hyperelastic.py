@@ -1,0 +1,560 @@
+"""Geometrically nonlinear static analysis: compressible neo-Hookean solids, total Lagrangian.
+
+``solve_hyperelastic(model, hyper={body: NeoHooke(mu, kappa)}, cases={"default": 1.0})`` solves
+the equilibrium of a :class:`~designlab.fem.model.Model` at large deformation, on its TET4 or
+TET10 mesh (shape functions and quadrature from :mod:`designlab.fem.elements` through
+:func:`designlab.fem.assembly.cell_basis`: the gradients are w.r.t. the reference
+coordinates).
+
+Energy (per unit reference volume), the CalculiX / Abaqus ``*HYPERELASTIC, NEO HOOKE`` form::
+
+    W = mu/2 (I1bar - 3) + kappa/2 (J - 1)^2,   I1bar = J^(-2/3) tr(F^T F),  J = det F
+
+i.e. C10 = mu/2 and D1 = 2/kappa (mu, kappa: the small-strain shear and bulk moduli: at small
+strain the model is the linear material with G = mu, K = kappa). First Piola-Kirchhoff stress
+``P = mu J^(-2/3) (F - I1/3 F^-T) + kappa J (J - 1) F^-T`` and its consistent tangent
+``A = dP/dF`` are formed in closed form, vectorised over (cells, quadrature points).
+
+Regions without a :class:`NeoHooke` are **St-Venant-Kirchhoff** with the region's linear
+Material (S = lambda tr(E) I + 2 mu E, E the Green-Lagrange strain): geometrically nonlinear
+(large rotations exact), the linear law at small strain, for the stiff parts that strain little.
+
+What comes from the Model (``Model.build()``'s System, the same the linear solvers use): the
+prescribed displacements (``fix``/``prescribe``), nodal forces, tractions, pressures and body
+forces (all **dead loads**: fixed in the reference configuration, no follower pressure),
+linear springs and beams (their stiffness added to the tangent, small-displacement), and the
+rigid couplings (``u = T q + G``: the linear, small-rotation kinematics of the reference
+points). Load cases are combined with the factors ``cases`` and applied in ``steps`` equal
+increments of a load factor lambda 0 -> 1 (prescribed values and loads together).
+
+Newton's method per increment: the first iteration extrapolates the tangent (the predictor
+takes the prescribed-displacement increment through K_t, so a large prescribed step does not
+distort the cells next to it), then full Newton steps with a backtracking line search on the
+residual norm (the step is halved, at most ``max_halvings`` times, while the residual grows
+or a cell inverts). An increment that does not converge in ``max_iter`` iterations (or
+inverts a cell) is cut in half, at most ``max_cuts`` times in a row. Convergence:
+``|r| <= rtol * max(|f_ext|, |f_int|)`` over the free dofs' residual ``r = T^T (f_int -
+lambda f_ext)``, ``f_int`` the full internal force vector (reactions included, so a
+displacement-driven problem has a scale).
+The stresses are formed from the displacement gradient H = F - I without cancellation
+(J - 1, I1 - 3 and the deviatoric bracket expanded in H; E = (H + H^T + H^T H)/2): the
+residual keeps its relative precision at small strains (with F = I + H the stress at strain
+1e-6 would carry a ~1e-10 relative round-off and Newton would stall there). The linear systems use
+:func:`designlab.fem.solvers.factorize` (PARDISO's Cholesky, or SuperLU on small models).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from designlab.errors import ModelError, ParameterError
+from designlab.fem.assembly import _bsr_to_csr, block_pattern
+from designlab.fem.model import Model, System
+from designlab.fem.solvers import factorize
+
+_CHUNK = 2048          # cells per batch of the tangent's element matrices
+_I3 = np.eye(3)
+
+
+@dataclass(frozen=True)
+class NeoHooke:
+    """Compressible neo-Hookean parameters: ``mu`` (shear, MPa) and ``kappa`` (bulk, MPa),
+    W = mu/2 (I1bar - 3) + kappa/2 (J - 1)^2 (CalculiX: C10 = mu/2, D1 = 2/kappa)."""
+
+    mu: float
+    kappa: float
+
+    def __post_init__(self):
+        if not (self.mu > 0):
+            raise ParameterError("mu", self.mu, "> 0 MPa (neo-Hookean shear modulus)")
+        if not (self.kappa > 0):
+            raise ParameterError("kappa", self.kappa, "> 0 MPa (neo-Hookean bulk modulus)")
+
+    @classmethod
+    def from_linear(cls, E: float, nu: float) -> "NeoHooke":
+        """The neo-Hookean solid whose small-strain limit is (E, nu): mu = E / (2 (1 + nu)),
+        kappa = E / (3 (1 - 2 nu))."""
+        if not (E > 0):
+            raise ParameterError("E", E, "> 0 MPa")
+        if not (-1.0 < nu < 0.5):
+            raise ParameterError("nu", nu, "in (-1, 0.5)")
+        return cls(E / (2.0 * (1.0 + nu)), E / (3.0 * (1.0 - 2.0 * nu)))
+
+    @property
+    def C10(self) -> float:
+        return 0.5 * self.mu
+
+    @property
+    def D1(self) -> float:
+        return 2.0 / self.kappa
+
+
+# ---------------------------------------------------------------- constitutive laws (vectorised)
+
+def _cof(F: np.ndarray) -> np.ndarray:
+    """Cofactor matrices of (..., 3, 3) arrays: cof(F) = det(F) F^-T."""
+    a, b, c = F[..., 0, 0], F[..., 0, 1], F[..., 0, 2]
+    d, e, f = F[..., 1, 0], F[..., 1, 1], F[..., 1, 2]
+    g, h, i = F[..., 2, 0], F[..., 2, 1], F[..., 2, 2]
+    cof = np.empty_like(F)
+    cof[..., 0, 0] = e * i - f * h
+    cof[..., 0, 1] = f * g - d * i
+    cof[..., 0, 2] = d * h - e * g
+    cof[..., 1, 0] = c * h - b * i
+    cof[..., 1, 1] = a * i - c * g
+    cof[..., 1, 2] = b * g - a * h
+    cof[..., 2, 0] = b * f - c * e
+    cof[..., 2, 1] = c * d - a * f
+    cof[..., 2, 2] = a * e - b * d
+    return cof
+
+
+def _invariants(H: np.ndarray):
+    """For F = I + H: j = J - 1, i1 = I1 - 3, c1 + c2 = cof F - I (c1 = tr H I - H^T,
+    c2 = cof H), all without cancellation."""
+    trH = np.einsum("...ii->...", H)
+    c2 = _cof(H)
+    detH = np.einsum("...j,...j->...", H[..., 0, :], c2[..., 0, :])
+    HH = np.einsum("...ij,...ji->...", H, H)                  # tr(H^2)
+    j = trH + 0.5 * (trH * trH - HH) + detH
+    i1 = 2.0 * trH + np.einsum("...ij,...ij->...", H, H)
+    c = trH[..., None, None] * _I3 - np.swapaxes(H, -1, -2) + c2
+    return j, i1, c
+
+
+def neo_hooke_energy(H: np.ndarray, mu, kappa) -> np.ndarray:
+    """W (MPa) at displacement gradients H = F - I (..., 3, 3)."""
+    j, i1, _ = _invariants(H)
+    J = 1.0 + j
+    return 0.5 * mu * (J ** (-2.0 / 3.0) * (3.0 + i1) - 3.0) + 0.5 * kappa * j ** 2
+
+
+def neo_hooke_stress(H: np.ndarray, mu, kappa, tangent: bool = True):
+    """First Piola-Kirchhoff stress P (..., 3, 3) and, with ``tangent``, A = dP/dF
+    (..., 3, 3, 3, 3) indexed [i, J, k, L], at displacement gradients H = F - I. ``mu``,
+    ``kappa``: scalars or arrays broadcasting against H[..., 0, 0].
+
+    P = mu J^-2/3 (F - I1/3 F^-T) + kappa (J - 1) cof F, the bracket formed as
+    (J F - I1/3 cof F) / J = (H + j F - c - i1/3 (I + c)) / J (the identities cancel
+    exactly)."""
+    j, i1, c = _invariants(H)
+    J = 1.0 + j
+    if np.any(~(J > 0)):
+        raise ModelError("an element turned inside out (det F <= 0)")
+    F = _I3 + H
+    mu = np.asarray(mu, float)
+    kappa = np.asarray(kappa, float)
+    a = mu * J ** (-2.0 / 3.0)                             # mu J^-2/3
+    dev = (H + j[..., None, None] * F - c - (i1 / 3.0)[..., None, None] * (_I3 + c)) \
+        / J[..., None, None]
+    cofF = _I3 + c
+    P = a[..., None, None] * dev + (kappa * j)[..., None, None] * cofF
+    if not tangent:
+        return P, None
+    Hi = cofF / J[..., None, None]                         # F^-T
+    I1 = 3.0 + i1
+    HH = np.einsum("...iJ,...kL->...iJkL", Hi, Hi)
+    HHt = np.einsum("...iL,...kJ->...iJkL", Hi, Hi)
+    FH = np.einsum("...iJ,...kL->...iJkL", F, Hi)
+    FH = FH + np.einsum("...iJkL->...kLiJ", FH)
+    delta = np.einsum("ik,JL->iJkL", _I3, _I3)
+    ax = (..., None, None, None, None)
+    A = a[ax] * (delta - (2.0 / 3.0) * FH + (2.0 / 9.0) * I1[ax] * HH
+                 + (I1 / 3.0)[ax] * HHt) \
+        + (kappa * (2.0 * J - 1.0) * J)[ax] * HH - (kappa * J * j)[ax] * HHt
+    return P, A
+
+
+def svk_stress(H: np.ndarray, lam, mu, tangent: bool = True):
+    """St-Venant-Kirchhoff at H = F - I: P = F S, S = lam tr(E) I + 2 mu E,
+    E = (H + H^T + H^T H) / 2; A = dP/dF [i, J, k, L]."""
+    lam = np.asarray(lam, float)
+    mu = np.asarray(mu, float)
+    F = _I3 + H
+    E = 0.5 * (H + np.swapaxes(H, -1, -2) + np.einsum("...kI,...kJ->...IJ", H, H))
+    trE = np.einsum("...ii->...", E)
+    S = (lam * trE)[..., None, None] * _I3 + 2.0 * mu[..., None, None] * E
+    P = S + H @ S
+    if not tangent:
+        return P, None
+    b = F @ np.swapaxes(F, -1, -2)
+    ax = (..., None, None, None, None)
+    A = (np.einsum("ik,...JL->...iJkL", _I3, S)
+         + lam[ax] * np.einsum("...iJ,...kL->...iJkL", F, F)
+         + mu[ax] * (np.einsum("...ik,JL->...iJkL", b, _I3)
+                     + np.einsum("...iL,...kJ->...iJkL", F, F)))
+    return P, A
+
+
+# ---------------------------------------------------------------- the discrete problem
+
+@dataclass(frozen=True, eq=False)
+class Continuum:
+    """The hyperelastic mesh part of a Model: per cell either neo-Hookean (mu, kappa) or
+    St-Venant-Kirchhoff (lam, mu) parameters."""
+
+    model: Model
+    neo: np.ndarray              # (m,) bool
+    p1: np.ndarray               # (m,) mu (neo) or lam (SVK)
+    p2: np.ndarray               # (m,) kappa (neo) or mu (SVK)
+
+    @classmethod
+    def of(cls, model: Model, hyper: dict | None) -> "Continuum":
+        hyper = dict(hyper or {})
+        mesh = model.mesh
+        names = {mesh.region_names.get(int(r), str(r)): int(r) for r in np.unique(mesh.region)}
+        unknown = sorted(set(hyper) - set(names))
+        if unknown:
+            raise ParameterError("hyper", unknown[0], "a body of the mesh: "
+                                 + ", ".join(sorted(names)))
+        m = mesh.n_cells
+        neo, p1, p2 = np.zeros(m, bool), np.zeros(m), np.zeros(m)
+        for body, rid in names.items():
+            sel = mesh.region == rid
+            h = hyper.get(body)
+            if h is not None:
+                if not isinstance(h, NeoHooke):
+                    raise ParameterError(f"hyper[{body!r}]", h, "a NeoHooke(mu, kappa)")
+                neo[sel], p1[sel], p2[sel] = True, h.mu, h.kappa
+            else:
+                mat = model.region_materials[rid]
+                p1[sel], p2[sel] = mat.lame
+        return cls(model, neo, p1, p2)
+
+    def displacement_gradient(self, u: np.ndarray) -> np.ndarray:
+        """(m, nq, 3, 3) H = du/dX = F - I at the quadrature points; ``u`` (3 n_points,)."""
+        b = self.model.basis
+        ue = u.reshape(-1, 3)[self.model.mesh.cells]                 # (m, nn, 3)
+        return np.einsum("eai,eqaJ->eqiJ", ue, b.dNdx, optimize=True)
+
+    def stress(self, H: np.ndarray, tangent: bool):
+        """P (m, nq, 3, 3) and A (m, nq, 3, 3, 3, 3) or None at displacement gradients H."""
+        nq = H.shape[1]
+        P = np.empty_like(H)
+        A = np.empty(H.shape + (3, 3)) if tangent else None
+        for neo, law in ((True, neo_hooke_stress), (False, svk_stress)):
+            sel = np.nonzero(self.neo == neo)[0]
+            if not len(sel):
+                continue
+            p1 = np.repeat(self.p1[sel, None], nq, 1)
+            p2 = np.repeat(self.p2[sel, None], nq, 1)
+            Ps, As = law(H[sel], p1, p2, tangent)
+            P[sel] = Ps
+            if tangent:
+                A[sel] = As
+        return P, A
+
+    def internal_force(self, P: np.ndarray) -> np.ndarray:
+        """(3 n_points,) f_a,i = sum_q dx G_aJ P_iJ."""
+        b = self.model.basis
+        fe = np.einsum("eqaJ,eqiJ,eq->eai", b.dNdx, P, b.dx, optimize=True)
+        dofs = 3 * self.model.mesh.cells[:, :, None] + np.arange(3)
+        return np.bincount(dofs.ravel(), weights=fe.ravel(), minlength=b.n_dofs)
+
+    def tangent(self, A: np.ndarray) -> sp.csr_matrix:
+        """Consistent tangent (3 n_points square CSR), K_(a i)(b k) = sum_q dx G_aJ A_iJkL
+        G_bL, scattered into the mesh's cached node-block pattern."""
+        b = self.model.basis
+        mesh = self.model.mesh
+        pat = block_pattern(mesh)
+        m, nq, nn, _ = b.dNdx.shape
+        nnzb = len(pat.indices)
+        data = np.zeros((9, nnzb))
+        for s in range(0, m, _CHUNK):
+            e = slice(s, min(s + _CHUNK, m))
+            c = e.stop - e.start
+            Gw = b.dNdx[e] * b.dx[e][:, :, None, None]                       # (c, nq, nn, 3)
+            T = np.matmul(Gw, A[e].transpose(0, 1, 3, 2, 4, 5).reshape(c, nq, 3, 27))
+            # T[c, q, a, (i k L)] = sum_J Gw_aJ A_iJkL
+            T = T.reshape(c, nq, nn * 9, 3)
+            K = np.matmul(T, b.dNdx[e].transpose(0, 1, 3, 2)).sum(axis=1)  # (c, nn*9, nn)
+            K = K.reshape(c, nn, 3, 3, nn)                                  # [a, i, k, b]
+            idx = pat.scatter[e].ravel()                                    # (a, b) order
+            for i in range(3):
+                for k in range(3):
+                    w = K[:, :, i, k, :].ravel()
+                    data[3 * i + k] += np.bincount(idx, weights=w, minlength=nnzb)
+        return _bsr_to_csr(pat, np.ascontiguousarray(data.T))
+
+
+@dataclass(frozen=True)
+class Increment:
+    """One converged load increment: load factor, Newton iterations, residual history
+    (|r| / reference per iteration, the first before any correction), line-search halvings."""
+
+    lam: float
+    iterations: int
+    residuals: tuple[float, ...]
+    halvings: int
+
+
+@dataclass(frozen=True, eq=False)
+class HyperelasticResult:
+    """Displacement ``u`` (n_dofs,) of the equilibrium at load factor 1 and how it was found.
+
+    ``increments``: the converged increments; ``cuts``: increments cut in half; ``rtol``: the
+    convergence tolerance; ``seconds``: wall time; ``assemblies``: tangent assemblies."""
+
+    system: System
+    continuum: Continuum
+    u: np.ndarray
+    f_ext: np.ndarray
+    increments: tuple[Increment, ...]
+    cuts: int
+    rtol: float
+    seconds: float
+    assemblies: int
+    solver: str = field(default="")
+
+    @property
+    def model(self) -> Model:
+        return self.system.model
+
+    @property
+    def iterations(self) -> int:
+        return sum(i.iterations for i in self.increments)
+
+    def displacement(self) -> np.ndarray:
+        """(n_points, 3) nodal displacements, mm."""
+        return self.u[: 3 * self.model.n_points].reshape(-1, 3)
+
+    def displacement_gradient(self) -> np.ndarray:
+        """(m, nq, 3, 3) H = F - I at the quadrature points."""
+        return self.continuum.displacement_gradient(self.u[: 3 * self.model.n_points])
+
+    def deformation_gradient(self) -> np.ndarray:
+        """(m, nq, 3, 3) F at the quadrature points."""
+        return _I3 + self.displacement_gradient()
+
+    def first_piola(self) -> np.ndarray:
+        """(m, nq, 3, 3) first Piola-Kirchhoff stress, MPa (force per reference area)."""
+        return self.continuum.stress(self.displacement_gradient(), False)[0]
+
+    def cauchy(self) -> np.ndarray:
+        """(m, nq, 3, 3) Cauchy stress sigma = P F^T / J, MPa."""
+        F = self.deformation_gradient()
+        P = self.first_piola()
+        return P @ np.swapaxes(F, -1, -2) / np.linalg.det(F)[..., None, None]
+
+    def reactions(self) -> np.ndarray:
+        """(n_points, 3) f_int - f_ext on the mesh nodes: the support reactions (N)."""
+        n3 = 3 * self.model.n_points
+        fi = self.continuum.internal_force(self.first_piola())
+        return (fi - self.f_ext[:n3]).reshape(-1, 3)
+
+    def green_strain(self) -> np.ndarray:
+        """(m, nq, 6) Green-Lagrange strain, engineering shears (xx, yy, zz, xy, xz, yz)."""
+        H = self.displacement_gradient()
+        E = 0.5 * (H + np.swapaxes(H, -1, -2) + np.einsum("...kI,...kJ->...IJ", H, H))
+        return np.stack([E[..., 0, 0], E[..., 1, 1], E[..., 2, 2], 2 * E[..., 0, 1],
+                         2 * E[..., 0, 2], 2 * E[..., 1, 2]], -1)
+
+    def principal_stretches(self) -> np.ndarray:
+        """(m, nq, 3) principal stretches (ascending), sqrt of the eigenvalues of C."""
+        F = self.deformation_gradient()
+        C = np.einsum("...kI,...kJ->...IJ", F, F)
+        return np.sqrt(np.linalg.eigvalsh(C))
+
+    def summary(self) -> dict:
+        """Plain numbers: increments, iterations, cuts, final residuals, time."""
+        return {"increments": len(self.increments), "iterations": self.iterations,
+                "iterations_per_increment": [i.iterations for i in self.increments],
+                "cuts": self.cuts, "rtol": self.rtol,
+                "final_residual": self.increments[-1].residuals[-1] if self.increments else 0.0,
+                "tangent_assemblies": self.assemblies, "seconds": round(self.seconds, 3),
+                "solver": self.solver}
+
+
+def solve_hyperelastic(model: Model, hyper: dict | None = None, cases=None, steps: int = 5,
+                       rtol: float = 1e-9, max_iter: int = 25, max_cuts: int = 8,
+                       max_halvings: int = 6, solver: str = "auto",
+                       u0: np.ndarray | None = None) -> HyperelasticResult:
+    """Large-deformation static equilibrium of ``model`` (see the module docstring).
+
+    hyper: {body: NeoHooke}; other bodies are St-Venant-Kirchhoff with their Material.
+    cases: {case: factor} (default: the model's only case, factor 1; a str: that case).
+    steps: equal load increments; rtol: residual tolerance (relative); solver: as
+    :func:`~designlab.fem.solvers.factorize`. ``u0``: not supported yet (must be None)."""
+    t0 = time.perf_counter()
+    if not (isinstance(steps, (int, np.integer)) and steps >= 1):
+        raise ParameterError("steps", steps, "an integer >= 1")
+    if not (0 < rtol < 1):
+        raise ParameterError("rtol", rtol, "in (0, 1)")
+    if u0 is not None:
+        raise ParameterError("u0", "array", "None (starts from the reference configuration)")
+    system = model.build()
+    if cases is None:
+        if len(system.cases) != 1:
+            raise ParameterError("cases", None, "{case: factor} for a model with cases "
+                                 + ", ".join(system.cases))
+        cases = {system.cases[0]: 1.0}
+    elif isinstance(cases, str):
+        cases = {cases: 1.0}
+    w = np.zeros(len(system.cases))
+    for c, f in cases.items():
+        w[system.case_index(c)] += float(f)
+    f_ext = (system.F + system.F_preload) @ w
+    g = system.G @ w
+    cont = Continuum.of(model, hyper)
+    n3 = 3 * model.n_points
+    T = system.T
+    Tt = T.T.tocsr()
+    Ks = system.K_spring
+
+    def forces(u, tangent):
+        P, A = cont.stress(cont.displacement_gradient(u[:n3]), tangent)
+        fi = np.zeros(system.n_dofs)
+        fi[:n3] = cont.internal_force(P)
+        fi += Ks @ u
+        Kt = system.K(cont.tangent(A)) if tangent else None
+        return fi, Kt
+
+    def solve(Kt, r):
+        Kr = system.reduce(Kt)
+        lin = factorize(Kr, solver)
+        return lin.solve(r), lin.kind
+
+    q = np.zeros(T.shape[1])
+    lam = 0.0
+    dlam = 1.0 / steps
+    incs: list[Increment] = []
+    cuts = 0
+    assemblies = 0
+    kind = ""
+    cuts_in_row = 0
+    u_prev = np.zeros(system.n_dofs)
+    fi_prev, Kt_prev = forces(u_prev, True)
+    assemblies += 1
+    while lam < 1.0 - 1e-14:
+        lam_new = min(1.0, lam + dlam)
+        ok = False
+        try:
+            # predictor: the tangent at the last equilibrium takes the increment of the
+            # prescribed values and the loads
+            dg = (lam_new - lam) * g
+            r = Tt @ (fi_prev + Kt_prev @ dg - lam_new * f_ext)
+            dq, kind = solve(Kt_prev, -r)
+            q_try = q + dq
+            res_hist = []
+            halv = 0
+            it = 0
+            while it < max_iter:
+                u = T @ q_try + lam_new * g
+                fi, Kt = forces(u, True)
+                assemblies += 1
+                r = Tt @ (fi - lam_new * f_ext)
+                ref = max(np.linalg.norm(lam_new * f_ext), np.linalg.norm(fi), 1e-300)
+                rn = np.linalg.norm(r) / ref
+                res_hist.append(rn)
+                if rn <= rtol:
+                    ok = True
+                    break
+                it += 1
+                dq, kind = solve(Kt, -r)
+                step = 1.0
+                for _ in range(max_halvings + 1):
+                    try:
+                        u_t = T @ (q_try + step * dq) + lam_new * g
+                        fi_t, _ = forces(u_t, False)
+                        rn_t = np.linalg.norm(Tt @ (fi_t - lam_new * f_ext)) / ref
+                        if rn_t < rn or step < 1.0 / 2 ** max_halvings:
+                            break
+                    except ModelError:
+                        pass
+                    step *= 0.5
+                    halv += 1
+                else:
+                    raise ModelError("line search failed")
+                q_try = q_try + step * dq
+        except ModelError:
+            ok = False
+        if not ok:
+            cuts += 1
+            cuts_in_row += 1
+            if cuts_in_row > max_cuts:
+                raise ModelError(f"hyperelastic solve did not converge: load factor {lam:.4g} "
+                                 f"reached, increment cut {max_cuts} times in a row")
+            dlam *= 0.5
+            continue
+        cuts_in_row = 0
+        q = q_try
+        lam = lam_new
+        u_prev, fi_prev, Kt_prev = u, fi, Kt
+        incs.append(Increment(lam, it, tuple(res_hist), halv))
+    return HyperelasticResult(system, cont, u_prev, f_ext, tuple(incs), cuts, rtol,
+                              time.perf_counter() - t0, assemblies, kind)
+
+
+# ---------------------------------------------------------------- CalculiX reference
+
+def solve_calculix_neo_hooke(mesh, hyper: dict, prescribed, forces: np.ndarray,
+                             increment: float = 0.1, rtol: float = 1e-8,
+                             workdir=None, timeout_s: float = 3600.0) -> np.ndarray:
+    """The same problem in CalculiX (``ccx``): ``*HYPERELASTIC, NEO HOOKE`` (C10 = mu/2,
+    D1 = 2/kappa) per region, ``*STEP, NLGEOM`` with a fixed ``increment`` of the step
+    (``*STATIC, DIRECT``), the residual tolerance of ``*CONTROLS, PARAMETERS=FIELD`` set to
+    ``rtol`` (ccx's default 0.005 is loose for a comparison). ``hyper``: {region id:
+    NeoHooke} for every region; ``prescribed``, ``forces`` as
+    :func:`designlab.fem.calculix.write_inp` (the deck is written by it and edited). Returns
+    the (n_points, 3) displacements (mm) at the end of the step (7 significant digits)."""
+    import os
+    import re
+    import subprocess
+    import tempfile
+    from pathlib import Path
+
+    from designlab.fem.calculix import ccx_path, read_dat_displacements, write_inp
+
+    if not (0 < increment <= 1):
+        raise ParameterError("increment", increment, "in (0, 1]")
+    exe = ccx_path()
+    lin = {}
+    for rid, h in hyper.items():
+        if not isinstance(h, NeoHooke):
+            raise ParameterError(f"hyper[{rid}]", h, "a NeoHooke(mu, kappa)")
+        k, g = h.kappa, h.mu
+        lin[int(rid)] = (9 * k * g / (3 * k + g), (3 * k - 2 * g) / (2 * (3 * k + g)))
+    tmp = None
+    if workdir is None:
+        tmp = tempfile.TemporaryDirectory(prefix="designlab-ccx-nl-")
+        wd = Path(tmp.name)
+    else:
+        wd = Path(workdir)
+        wd.mkdir(parents=True, exist_ok=True)
+    try:
+        write_inp(wd / "job.inp", mesh, lin, prescribed, forces)
+        text = (wd / "job.inp").read_text()
+        for rid, h in hyper.items():
+            old = re.compile(rf"\*MATERIAL, NAME=M{int(rid)}\n\*ELASTIC\n[^\n]*\n")
+            text, n = old.subn(f"*MATERIAL, NAME=M{int(rid)}\n*HYPERELASTIC, NEO HOOKE\n"
+                               f"{h.C10:.13g}, {h.D1:.13g}\n", text)
+            if n != 1:
+                raise ModelError(f"region {rid}: material block not found in the deck")
+        text = text.replace("*STEP\n*STATIC\n",
+                            f"*STEP, NLGEOM, INC=10000\n*STATIC, DIRECT\n{increment:.13g}, 1.0\n"
+                            f"*CONTROLS, PARAMETERS=FIELD\n{rtol:.3g}, {rtol:.3g}\n"
+                            "*CONTROLS, PARAMETERS=TIME INCREMENTATION\n"
+                            "50, 60, 9, 200, 10, 4, 12, 5, 6\n")
+        (wd / "job.inp").write_text(text)
+        env = dict(os.environ, OMP_NUM_THREADS="1", CCX_NPROC_EQUATION_SOLVER="1",
+                   CCX_NPROC_STIFFNESS="1", CCX_NPROC_RESULTS="1")
+        proc = subprocess.run([exe, "-i", "job"], cwd=wd, env=env, capture_output=True,
+                              text=True, timeout=timeout_s)
+        log = proc.stdout + proc.stderr
+        (wd / "ccx.log").write_text(log)
+        err = re.search(r"\*ERROR[^\n]*(?:\n[^\n]+)?", log)
+        if proc.returncode != 0 or err is not None or not (wd / "job.dat").exists():
+            msg = " ".join(err.group(0).split()) if err else f"exit code {proc.returncode}"
+            raise ModelError(f"CalculiX failed: {msg}")
+        text = (wd / "job.dat").read_text()
+        # the .dat holds one displacement block per increment: keep the last
+        last = text.rfind(" displacements (vx,vy,vz)")
+        (wd / "last.dat").write_text(text[last:])
+        return read_dat_displacements(wd / "last.dat", mesh.n_points)
+    finally:
+        if tmp is not None:
+            tmp.cleanup()
