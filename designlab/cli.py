@@ -818,7 +818,7 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
     """Virtual test of a design before printing: hysteresis, calibration matrix, condition number, K_f."""
     from rich.table import Table
 
-    from designlab.sensors.predict import predict as run_predict, write_prediction
+    from designlab.sensors.predict import predict_and_write
     from designlab.params import load_toml, parse_sets
 
     from designlab.sensors.registry import get_sensor
@@ -871,11 +871,10 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
 
         records = load_measured(measured)
     with progress_bar(f"predict {part}: building") as bar:
-        prediction = run_predict(part, overrides, protocol_path=protocol, settings=settings,
-                                 model_path=model, measured=records,
-                                 progress=lambda s: bar(f"predict {part}: {s}"))
-        bar(f"predict {part}: writing")
-        files = write_prediction(prediction, out)
+        prediction, files = predict_and_write(part, overrides, out=out, protocol_path=protocol,
+                                              settings=settings, model_path=model,
+                                              measured=records,
+                                              progress=lambda s: bar(f"predict {part}: {s}"))
     pred = prediction.metrics
     t = Table(title=f"{part}: virtual test")
     t.add_column("quantity")

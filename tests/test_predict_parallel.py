@@ -11,11 +11,16 @@ import pytest
 
 SCRIPT = r"""
 import json, multiprocessing, sys
-from designlab.sensors.predict import predict, write_prediction, _use_parallel
-parallel = {"1": True, "0": False}[sys.argv[1]]
+from designlab.sensors.predict import (predict, predict_and_write, write_prediction,
+                                       _use_parallel)
+parallel = {"1": True, "0": False, "P": True}[sys.argv[1]]
 assert _use_parallel(parallel, None) == parallel
-pred = predict("fingertip", {}, parallel=parallel, settings={"edge_length": 4.0})
-write_prediction(pred, sys.argv[2], parallel=parallel)
+if sys.argv[1] == "P":          # designlab predict --out: the painter and the plotting side
+    predict_and_write("fingertip", {}, out=sys.argv[2], parallel=True,
+                      settings={"edge_length": 4.0})
+else:
+    pred = predict("fingertip", {}, parallel=parallel, settings={"edge_length": 4.0})
+    write_prediction(pred, sys.argv[2], parallel=parallel)
 assert not multiprocessing.active_children()
 assert not _use_parallel(True, None)        # gmsh ran in this process: never forks again
 """
@@ -36,15 +41,48 @@ def _strip(doc):
 
 @pytest.mark.slow
 def test_parallel_predict_same_files(tmp_path):
-    a, b = _run(tmp_path, "0"), _run(tmp_path, "1")
+    a, b, c = _run(tmp_path, "0"), _run(tmp_path, "1"), _run(tmp_path, "P")
     ja = json.loads((a / "prediction.json").read_text())
-    jb = json.loads((b / "prediction.json").read_text())
     assert ja["mesh_convergence"]["condition_number"]["coarse"] is not None
-    assert _strip(ja) == _strip(jb)
-    for name in ("hysteresis_loops.png", "paper_comparison.png", "design.png", "deformed.png",
-                 "deformed.vtu", "model.json"):
-        assert (a / name).read_bytes() == (b / name).read_bytes(), name
-    assert sorted(p.name for p in a.iterdir()) == sorted(p.name for p in b.iterdir())
+    for other in (b, c):
+        jb = json.loads((other / "prediction.json").read_text())
+        assert _strip(ja) == _strip(jb)
+        for name in ("hysteresis_loops.png", "paper_comparison.png", "design.png",
+                     "deformed.png", "deformed.vtu", "model.json"):
+            assert (a / name).read_bytes() == (other / name).read_bytes(), (other.name, name)
+        assert sorted(p.name for p in a.iterdir()) == sorted(p.name for p in other.iterdir())
+
+
+def test_jobs_larger_than_a_pipe_both_ways():
+    """A job and its result both far larger than a pipe's buffer, several queued before the
+    first result is read: no deadlock, results in order, nothing left running."""
+    import multiprocessing
+
+    import numpy as np
+
+    from designlab.sensors.predict import _Side
+
+    side = _Side(lambda: np.zeros(300_000))
+    big = np.arange(500_000, dtype=float)
+    tickets = [side.submit(np.multiply, big, k) for k in (2.0, 3.0, 4.0)]
+    assert tickets[2].get()[-1] == 4.0 * big[-1]
+    assert tickets[0].get()[1] == 2.0
+    assert side._first.get().shape == (300_000,)
+    side.stop()
+    assert not multiprocessing.active_children()
+
+
+def test_a_failing_job_is_none_and_the_next_runs():
+    import multiprocessing
+
+    from designlab.sensors.predict import _Side
+
+    side = _Side(None)
+    bad = side.submit(int, "not a number")
+    good = side.submit(int, "7")
+    assert bad.get() is None and good.get() == 7
+    side.stop()
+    assert not multiprocessing.active_children()
 
 
 def test_side_failure_is_none_and_child_gone():

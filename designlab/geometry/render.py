@@ -172,7 +172,24 @@ def render_bodies(bodies: Mapping[str, Body], path: str | Path, size: tuple[int,
                   title: str = "", tolerance: float = 0.1, backend: str = "auto") -> str:
     """Write a PNG of ``bodies`` to ``path``; returns the backend used (``pyvista`` or
     ``matplotlib``). ``backend="auto"`` prefers pyvista when an X display can be had."""
-    items = _meshes(bodies, tolerance)
+    return render_items(_meshes(bodies, tolerance), path, size, title, backend)
+
+
+def portable_items(bodies: Mapping[str, Body], tolerance: float = 0.1) -> list[tuple]:
+    """The bodies tessellated as plain data that pickles (another process draws them with
+    :func:`render_items`): ``(body without its shape, vertices, faces)`` per body."""
+    import dataclasses
+
+    return [(dataclasses.replace(b, shape=None), np.asarray(m.vertices), np.asarray(m.faces))
+            for b, m in _meshes(bodies, tolerance)]
+
+
+def render_items(items, path: str | Path, size: tuple[int, int] = (1200, 900), title: str = "",
+                 backend: str = "auto") -> str:
+    """:func:`render_bodies` of tessellated bodies: ``(Body, trimesh)`` pairs or the
+    :func:`portable_items` triples."""
+    items = [it if len(it) == 2 else (it[0], trimesh.Trimesh(it[1], it[2], process=False))
+             for it in items]
     path = Path(path)
     if backend == "auto":
         backend = "pyvista" if ensure_display() else "matplotlib"

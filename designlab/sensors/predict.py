@@ -64,7 +64,7 @@ class Prediction:
     stresses: list[Any] = field(default_factory=list, repr=False)
     #: ``design.png`` rendered by the forked process of ``predict(parallel=True)``: PNG bytes,
     #: or the render's error; None: :func:`write_prediction` renders it
-    design_png: bytes | str | None = field(default=None, repr=False)
+    design_png: "bytes | str | _Ticket | None" = field(default=None, repr=False)
 
     @property
     def design(self) -> dict[str, Any]:
@@ -275,7 +275,7 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
             settings: dict[str, Any] | None = None, model_path: str | Path | None = None,
             progress: Callable[[str], None] | None = None,
             fem_cache: str | Path | None = None, measured=None,
-            parallel: bool | None = None) -> Prediction:
+            parallel: bool | None = None, pictures: "_Pictures | None" = None) -> Prediction:
     """Run the virtual test of one design: ``name`` is a sensor name (then ``overrides`` are
     its parameters) or a part object (``designlab.Fingertip(h=3, r=9)``; ``overrides`` change
     it further). ``protocol_path``/``protocol``: a protocol TOML / overrides; ``settings``:
@@ -288,7 +288,9 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
     ``parallel``: run the coarse mesh of the error bar in a forked process beside the chosen
     mesh's run (same numbers: the same code on the same inputs); None: when two CPUs are free
     to this process and no ``fem_cache`` is given (a sweep's workers already use the cores);
-    never once gmsh has run in this process (its threads do not survive a fork)."""
+    never once gmsh has run in this process (its threads do not survive a fork);
+    ``pictures`` (:func:`predict_and_write`): its painter draws design.png instead of the
+    coarse mesh's process, which is kept (with matplotlib imported) to draw the plots."""
     from designlab.fem.cache import FEMCache
 
     from designlab.geometry.parts import make_part
@@ -317,12 +319,22 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
     mats, records = measured_materials(part, measured)
     if mats:
         kw["materials"] = mats
-    side, side_out = None, None
+    side, side_out, design = None, None, None
+    if pictures is not None:
+        from designlab.geometry.render import portable_items
+
+        try:
+            design = pictures.painter.submit(_design_job, name, portable_items(part.build()))
+        except Exception as exc:  # noqa: BLE001 - a render is a convenience (as in-process)
+            design = f"{type(exc).__name__}: {exc}"
     if _use_parallel(parallel, fem_cache) and _wants_convergence(sensor, sett):
         from designlab.geometry.render import ensure_display
 
         ensure_display()    # one X server for both processes (if one is needed), stopped at exit
-        side = _Side(lambda: _side_work(sensor, part, proto, sett, kw))
+        side = _Side(lambda: _side_work(sensor, part, proto, sett, kw, render=pictures is None))
+        if pictures is not None:        # then it draws the plots: import matplotlib meanwhile
+            side.submit(_warm_matplotlib)
+            pictures.side = side
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -330,7 +342,7 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
             report = dict(result.report)
             if sensor.finish is not None:
                 sensor.finish(report, result, part, proto)
-            side_out = side.result() if side is not None else None
+            side_out = side._first.get() if side is not None else None
             if side_out is None or side_out.get("coarse") is None:
                 coarse, coarse_warnings = None, []   # computed here (also: the side failed)
             else:
@@ -338,7 +350,7 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
             report["mesh_convergence"] = _mesh_convergence(sensor, part, proto, sett, report,
                                                            kw, progress, coarse)
     finally:
-        if side is not None:
+        if side is not None and pictures is None:
             side.stop()
     if model_path is not None:
         report["uncorrected"] = {k: report[k] for k in ("hysteresis_percent", "condition_number",
@@ -360,7 +372,8 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
                       # once each: the coarse-mesh run of the error bar repeats the run's
                       list(dict.fromkeys([str(w.message) for w in caught] + coarse_warnings
                                          + stress_warn)),
-                      cases, stresses, design_png=(side_out or {}).get("design_png"))
+                      cases, stresses, design_png=design if design is not None
+                      else (side_out or {}).get("design_png"))
 
 
 def _two_cpus(parallel: bool | None) -> bool:
@@ -401,9 +414,9 @@ def _wants_convergence(sensor, settings) -> bool:
     return sensor.meshed is None or bool(sensor.meshed(settings))
 
 
-def _side_work(sensor, part, protocol, settings, kw) -> dict[str, Any]:
+def _side_work(sensor, part, protocol, settings, kw, render: bool = True) -> dict[str, Any]:
     """What the forked process of ``predict(parallel=True)`` computes: the coarse run's
-    convergence values and warnings (:func:`_coarse_values`), then ``design.png``
+    convergence values and warnings (:func:`_coarse_values`), then (``render``) ``design.png``
     (:func:`_render_design`; bytes, or the error as text)."""
     import tempfile
 
@@ -412,6 +425,8 @@ def _side_work(sensor, part, protocol, settings, kw) -> dict[str, Any]:
         warnings.simplefilter("always")
         coarse = _coarse_values(sensor, part, protocol, settings, kw, None)
     out: dict[str, Any] = {"coarse": coarse, "warnings": [str(w.message) for w in caught]}
+    if not render:
+        return out
     with tempfile.TemporaryDirectory(prefix="designlab-") as d:
         try:
             _render_design(sensor.name, part, Path(d) / "design.png")
@@ -425,7 +440,78 @@ def _render_design(name: str, part, path: Path) -> None:
     """``design.png``: the part as built (bodies coloured, legend of body and material)."""
     from designlab.geometry.render import render_bodies
 
-    render_bodies(part.build(), path, size=(1000, 750), title=f"{name}: the design")
+    render_bodies(part.build(), path, size=DESIGN_PNG_SIZE, title=f"{name}: the design")
+
+
+DESIGN_PNG_SIZE = (1000, 750)
+DEFORMED_PNG_SIZE = (1000, 750)
+
+
+def _warm_pictures() -> None:
+    """The painter's first job (:func:`predict_and_write`): import the drawing libraries
+    (VTK/pyvista, matplotlib) while the caller imports and builds the CAD."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot  # noqa: F401
+    import pyvista.plotting  # noqa: F401
+
+
+def _warm_matplotlib() -> None:
+    """The coarse mesh's process, once done (:func:`predict_and_write`): matplotlib imported
+    for the plots it will draw."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot  # noqa: F401
+
+
+@dataclass
+class _Pictures:
+    """:func:`predict_and_write`'s forked helpers: the ``painter`` (drawing libraries imported
+    first thing; design.png, deformed.png) and the coarse mesh's process (``side``, set by
+    :func:`predict`; the plots), or the painter alone."""
+
+    painter: _Side
+    side: _Side | None = None
+
+    @property
+    def plotter(self) -> _Side:
+        return self.side if self.side is not None and not self.side._dead else self.painter
+
+    def stop(self) -> None:
+        for p in (self.painter, self.side):
+            if p is not None:
+                p.stop()
+
+
+def _design_job(name: str, items) -> bytes:
+    """design.png of :func:`~designlab.geometry.render.portable_items` (the painter's job):
+    the PNG bytes, as :func:`_render_design` draws them."""
+    import tempfile
+
+    from designlab.geometry.render import render_items
+
+    with tempfile.TemporaryDirectory(prefix="designlab-") as d:
+        path = Path(d) / "design.png"
+        render_items(items, path, size=DESIGN_PNG_SIZE, title=f"{name}: the design")
+        return path.read_bytes()
+
+
+def _plots_job(sensor_name: str, result, metrics, stage: Path) -> list[str]:
+    """The sensor's plots into ``stage`` (the painter's job): their file names."""
+    return [Path(f).name for f in get_sensor(sensor_name).plots(result, metrics, stage)]
+
+
+def _deformed_job(path: Path, mesh, u, kw: dict[str, Any]) -> str:
+    """deformed.png (the painter's job): '' when drawn, else the error in words."""
+    from designlab.fem.output import write_png
+
+    try:
+        write_png(path, mesh, u, **kw)
+        return ""
+    except Exception as exc:  # noqa: BLE001 - rendering is a convenience; the VTU is the result
+        return str(exc)
 
 
 def _serial_occ() -> None:
@@ -451,38 +537,67 @@ class _Side:
     (pickled through a pipe), or None when the child failed or died (the caller then computes
     in-process: same result, and the error, if any, raised where it belongs). The child dies
     with the parent (``PR_SET_PDEATHSIG``) and :meth:`stop` kills it if it is still running:
-    it never outlives the call."""
+    it never outlives the call. ``fn=None``: a child that only takes jobs (:meth:`submit`).
 
-    def __init__(self, fn: Callable[[], Any]):
+    After ``fn`` the child serves jobs: :meth:`submit` sends ``(job, args)`` (a module-level
+    function and picklable arguments) and returns a :class:`_Ticket`; jobs run one after the
+    other in the order sent, results come back in that order."""
+
+    def __init__(self, fn: Callable[[], Any] | None):
         import multiprocessing as mp
         import os
 
         ctx = mp.get_context("fork")
         self._recv, send = ctx.Pipe(duplex=False)
-        self._proc = ctx.Process(target=_side_main, args=(fn, send, os.getpid()), daemon=True)
+        jobs, self._jobs = ctx.Pipe(duplex=False)
+        self._proc = ctx.Process(target=_side_main, args=(fn, send, jobs, os.getpid()),
+                                 daemon=True)
         self._proc.start()
         send.close()
-        self._done = False
-        self._value: Any = None
+        jobs.close()
+        self._sent = 0 if fn is None else 1      # results the child owes, in order
+        self._got: list[Any] = []                # results received (index = ticket)
+        self._dead = False
+        self._first = _Ticket(self, 0) if fn is not None else None
 
     #: a child whose CPU time has not moved for this long (wall s) waits on something it will
     #: never get (a lock or a thread pool copied from the parent): it is killed and the work is
     #: done in-process
     STALL_S = 20.0
 
+    def submit(self, job: Callable[..., Any], *args: Any) -> "_Ticket":
+        """Run ``job(*args)`` in the child after what it was given before."""
+        ticket = _Ticket(self, self._sent)
+        self._sent += 1
+        if not self._dead:
+            try:
+                self._jobs.send((job, args))
+            except (OSError, ValueError, TypeError, AttributeError, EOFError,
+                    __import__("pickle").PicklingError):
+                self._give_up()
+        return ticket
+
     def result(self) -> Any:
-        if not self._done:
-            self._done = True
+        """The first job's (``fn``'s) result, then the child is stopped (one-shot use)."""
+        value = self._first.get() if self._first is not None else None
+        self.stop()
+        return value
+
+    def _wait(self, index: int) -> Any:
+        while len(self._got) <= index and not self._dead:
             try:
                 while not self._recv.poll(1.0):
                     if not self._proc.is_alive() or self._stalled():
                         raise EOFError
                 ok, value = self._recv.recv()
-                self._value = value if ok else None
+                self._got.append(value if ok else None)
             except (EOFError, OSError):
-                self._value = None
-            self.stop()
-        return self._value
+                self._give_up()
+        return self._got[index] if index < len(self._got) else None
+
+    def _give_up(self) -> None:
+        self._dead = True
+        self.stop()
 
     def _stalled(self) -> bool:
         """True once the child's CPU time (Linux ``/proc``) has not changed for ``STALL_S``."""
@@ -503,26 +618,74 @@ class _Side:
             self._proc.kill()
         self._proc.join()
         self._recv.close()
+        self._jobs.close()
+        self._dead = True
 
 
-def _side_main(fn, send, parent: int) -> None:
+@dataclass
+class _Ticket:
+    """A job sent to a :class:`_Side`: :meth:`get` waits for its result (None: it failed)."""
+
+    side: _Side
+    index: int
+
+    def get(self) -> Any:
+        return self.side._wait(self.index)
+
+
+def _side_main(fn, send, jobs, parent: int) -> None:
+    """The child of :class:`_Side`: ``fn``, then the jobs as they come. A thread reads the
+    jobs and another sends the results, so neither side's pipe can fill while the other is
+    blocked writing to it (a job and a result both larger than a pipe's buffer)."""
+    import queue
+    import threading
+
     from designlab.atomic import die_with_parent
 
     die_with_parent(parent)
-    try:
-        value = (True, fn())
-    except BaseException as exc:  # noqa: BLE001 - the parent recomputes and raises
-        value = (False, f"{type(exc).__name__}: {exc}")
-    try:
-        send.send(value)
-    except Exception as exc:  # noqa: BLE001 - e.g. not picklable: the parent recomputes
-        send.send((False, f"{type(exc).__name__}: {exc}"))
-    send.close()
-    # leave at once: no flush of stdio buffers copied from the parent (its progress bar's
-    # output would be written twice, or wait on a lock another parent thread held at the fork)
-    import os
+    todo: queue.Queue = queue.Queue()
+    done: queue.Queue = queue.Queue()
 
-    os._exit(0)
+    def read():
+        while True:
+            try:
+                todo.put(jobs.recv())
+            except (EOFError, OSError):
+                todo.put(None)
+                return
+
+    def write():
+        while (value := done.get()) is not None:
+            try:
+                send.send(value)
+            except Exception as exc:  # noqa: BLE001 - e.g. not picklable: the parent recomputes
+                send.send((False, f"{type(exc).__name__}: {exc}"))
+
+    def run(call):
+        try:
+            return (True, call())
+        except BaseException as exc:  # noqa: BLE001 - the parent recomputes and raises
+            return (False, f"{type(exc).__name__}: {exc}")
+
+    writer = threading.Thread(target=write, daemon=True)
+    writer.start()
+    try:
+        if fn is not None:
+            done.put(run(fn))
+        threading.Thread(target=read, daemon=True).start()
+        while (item := todo.get()) is not None:
+            job, args = item
+            done.put(run(lambda: job(*args)))
+        done.put(None)
+        writer.join()
+        send.close()
+    finally:
+        # leave at once: no flush of stdio buffers copied from the parent (its progress bar's
+        # output would be written twice, or wait on a lock another parent thread held at the
+        # fork)
+        import os
+
+        os._exit(0)
 
 
 def measured_materials(part, measured) -> tuple[dict[str, Any], list]:
@@ -632,7 +795,8 @@ def sensor_model(name: str, design: dict[str, Any], report: dict[str, Any], resu
 
 def write_prediction(prediction: Prediction, out: str | Path,
                      timings: dict[str, tuple[float, float]] | None = None,
-                     parallel: bool | None = None) -> list[Path]:
+                     parallel: bool | None = None, pictures: "_Pictures | None" = None
+                     ) -> list[Path]:
     """prediction.json, model.json (:func:`sensor_model`), the plots, and deformed.vtu
     (+ deformed.png) in ``out``, written as a set: every file goes to a hidden staging folder
     beside ``out`` first (a full disk or a kill then leaves ``out`` as it was); a new or empty
@@ -643,7 +807,9 @@ def write_prediction(prediction: Prediction, out: str | Path,
     deformed.vtu, deformed.png, model.json, design.png, report), for the benchmark. ``parallel``:
     the plots are drawn by a forked process while this one writes the VTU, the renders and the
     model (the same files; a failed child's plots are drawn here); None: when two CPUs are free
-    to this process."""
+    to this process. ``pictures`` (:func:`predict_and_write`): forked processes that have the
+    drawing libraries imported draw the plots and deformed.png instead (what they fail to draw
+    is drawn here)."""
     import gc
     import os
     import re
@@ -678,16 +844,20 @@ def write_prediction(prediction: Prediction, out: str | Path,
     try:
         result = prediction.result
         sensor = get_sensor(prediction.sensor)
-        if _two_cpus(parallel):
+        plots_job, deformed_job = None, None
+        names: list[str] = []
+        if pictures is not None:
+            plots_job = pictures.plotter.submit(_plots_job, prediction.sensor, result, prediction.metrics,
+                                       stage)
+        elif _two_cpus(parallel):
             plotter = _Side(lambda: [Path(f).name for f in
                                      sensor.plots(result, prediction.metrics, stage)])
-            names: list[str] = []
         else:
             names = [Path(f).name for f in sensor.plots(result, prediction.metrics, stage)]
             clock("plots")
         mesh, u = getattr(result, "mesh", None), getattr(result, "displacement", None)
         if mesh is not None and u is not None:
-            from designlab.fem.output import write_png, write_vtu
+            from designlab.fem.output import write_vtu
 
             pdata, cdata = {"displacement": u}, {}
             for c, st in zip(prediction.load_cases, prediction.stresses):
@@ -705,24 +875,39 @@ def write_prediction(prediction: Prediction, out: str | Path,
                                                  for c in prediction.load_cases if c.vtu]})
             names.append("deformed.vtu")
             clock("deformed.vtu")
-            try:
-                first = prediction.load_cases[0] if prediction.load_cases else None
-                if first is not None:
-                    u = np.asarray(first.displacement)
-                write_png(stage / "deformed.png", mesh, np.asarray(u), size=(1000, 750),
-                          title=prediction.sensor,
-                          loads=[(first.point, first.direction, first.force_N)]
-                          if first is not None and first.point is not None else (),
-                          case=first.description if first is not None else "")
-                names.append("deformed.png")
-            except Exception as exc:  # rendering is a convenience; the VTU is the result
-                prediction.warnings.append(f"deformed.png not rendered: {exc}")
-            clock("deformed.png")
+            first = prediction.load_cases[0] if prediction.load_cases else None
+            if first is not None:
+                u = np.asarray(first.displacement)
+            png = {"size": DEFORMED_PNG_SIZE, "title": prediction.sensor,
+                   "loads": [(first.point, first.direction, first.force_N)]
+                   if first is not None and first.point is not None else (),
+                   "case": first.description if first is not None else ""}
+            if pictures is not None:
+                deformed_job = pictures.painter.submit(_deformed_job, stage / "deformed.png",
+                                                       mesh, np.asarray(u), png)
+            else:
+                _deformed_png(prediction, stage, mesh, u, png, names)
+                clock("deformed.png")
         prediction.sensor_model().save(stage / "model.json")
         names.append("model.json")
         clock("model.json")
         names += _design_render(prediction, stage)
         clock("design.png")
+        if deformed_job is not None:
+            err = deformed_job.get()
+            if err is None:                 # the painter failed: draw here
+                _deformed_png(prediction, stage, mesh, u, png, names)
+            elif err:
+                prediction.warnings.append(f"deformed.png not rendered: {err}")
+            else:
+                names.append("deformed.png")
+            clock("deformed.png (waited for the painter)")
+        if plots_job is not None:
+            drawn = plots_job.get()
+            if drawn is None:               # the painter failed: draw here (raises its error)
+                drawn = [Path(f).name for f in sensor.plots(result, prediction.metrics, stage)]
+            names = drawn + names
+            clock("plots (waited for the painter)")
         if plotter is not None:
             drawn = plotter.result()
             if drawn is None:               # the child failed: draw here (raises its error)
@@ -767,6 +952,45 @@ def write_prediction(prediction: Prediction, out: str | Path,
     return [out / n for n in names]
 
 
+def _deformed_png(prediction: Prediction, stage: Path, mesh, u, png: dict[str, Any],
+                  names: list[str]) -> None:
+    """deformed.png drawn in this process (a failure is a warning: the VTU is the result)."""
+    from designlab.fem.output import write_png
+
+    try:
+        write_png(stage / "deformed.png", mesh, np.asarray(u), **png)
+        names.append("deformed.png")
+    except Exception as exc:  # rendering is a convenience; the VTU is the result
+        prediction.warnings.append(f"deformed.png not rendered: {exc}")
+
+
+def predict_and_write(name: Any, overrides: dict[str, Any] | None = None, *,
+                      out: str | Path, parallel: bool | None = None,
+                      timings: dict[str, tuple[float, float]] | None = None,
+                      **kw: Any) -> tuple[Prediction, list[Path]]:
+    """:func:`predict` then :func:`write_prediction` (``designlab predict --out``), with a
+    painter: a process forked first, before the CAD is imported, that imports the drawing
+    libraries while this one builds the part, then draws design.png, deformed.png and the plots
+    while this one computes and writes (the same files as one process). Parallel when
+    :func:`predict` would fork (``parallel``, two CPUs, no FEM cache, gmsh not yet run)."""
+    pictures = None
+    if _use_parallel(parallel, kw.get("fem_cache")):
+        from designlab.geometry.render import ensure_display
+
+        ensure_display()    # one X server for every process (if one is needed), stopped at exit
+        pictures = _Pictures(_Side(_warm_pictures))
+    try:
+        prediction = predict(name, overrides, parallel=parallel, pictures=pictures, **kw)
+        if kw.get("progress"):
+            kw["progress"]("writing")
+        files = write_prediction(prediction, out, timings=timings, parallel=parallel,
+                                 pictures=pictures)
+    finally:
+        if pictures is not None:
+            pictures.stop()
+    return prediction, files
+
+
 class _StageClock:
     """Calls ``clock(stage)`` store the wall and CPU time since the previous call in
     ``timings`` (None: nothing is measured)."""
@@ -797,6 +1021,8 @@ def _design_render(prediction: Prediction, stage: Path) -> list[str]:
     from designlab.geometry.parts import make_part
 
     done = prediction.design_png
+    if isinstance(done, _Ticket):               # drawn by predict_and_write's painter
+        done = prediction.design_png = done.get()
     if isinstance(done, bytes):                 # rendered beside the run (predict parallel)
         from designlab.atomic import atomic_write_bytes
 
