@@ -40,7 +40,8 @@ The stresses are formed from the displacement gradient H = F - I without cancell
 (J - 1, I1 - 3 and the deviatoric bracket expanded in H; E = (H + H^T + H^T H)/2): the
 residual keeps its relative precision at small strains (with F = I + H the stress at strain
 1e-6 would carry a ~1e-10 relative round-off and Newton would stall there). The linear systems use
-:func:`designlab.fem.solvers.factorize` (PARDISO's Cholesky, or SuperLU on small models).
+:func:`designlab.fem.solvers.factorize` chosen as for many right-hand sides (PARDISO's Cholesky from
+5k unknowns on, its LU where the tangent is indefinite; SuperLU below).
 """
 
 from __future__ import annotations
@@ -54,7 +55,7 @@ import scipy.sparse as sp
 from designlab.errors import ModelError, ParameterError
 from designlab.fem.assembly import _bsr_to_csr, block_pattern
 from designlab.fem.model import Model, System
-from designlab.fem.solvers import factorize
+from designlab.fem.solvers import MANY_RHS, factorize
 
 _CHUNK = 2048          # cells per batch of the tangent's element matrices
 _I3 = np.eye(3)
@@ -372,13 +373,15 @@ class HyperelasticResult:
 def solve_hyperelastic(model: Model, hyper: dict | None = None, cases=None, steps: int = 5,
                        rtol: float = 1e-9, max_iter: int = 25, max_cuts: int = 8,
                        max_halvings: int = 6, solver: str = "auto",
-                       u0: np.ndarray | None = None) -> HyperelasticResult:
+                       u0: np.ndarray | None = None, on_increment=None) -> HyperelasticResult:
     """Large-deformation static equilibrium of ``model`` (see the module docstring).
 
     hyper: {body: NeoHooke}; other bodies are St-Venant-Kirchhoff with their Material.
     cases: {case: factor} (default: the model's only case, factor 1; a str: that case).
     steps: equal load increments; rtol: residual tolerance (relative); solver: as
-    :func:`~designlab.fem.solvers.factorize`. ``u0``: not supported yet (must be None)."""
+    :func:`~designlab.fem.solvers.factorize`. ``u0``: not supported yet (must be None).
+    ``on_increment(lam, u)``: called after every converged increment with the load factor and
+    the displacement (n_dofs,) (e.g. to record a load-response curve)."""
     t0 = time.perf_counter()
     if not (isinstance(steps, (int, np.integer)) and steps >= 1):
         raise ParameterError("steps", steps, "an integer >= 1")
@@ -415,7 +418,9 @@ def solve_hyperelastic(model: Model, hyper: dict | None = None, cases=None, step
 
     def solve(Kt, r):
         Kr = system.reduce(Kt)
-        lin = factorize(Kr, solver)
+        # one factorisation per iteration: "auto" chooses as for many right-hand sides
+        # (PARDISO from 5k unknowns on instead of SuperLU up to 20k)
+        lin = factorize(Kr, solver, n_rhs=MANY_RHS)
         return lin.solve(r), lin.kind
 
     q = np.zeros(T.shape[1])
@@ -429,8 +434,10 @@ def solve_hyperelastic(model: Model, hyper: dict | None = None, cases=None, step
     u_prev = np.zeros(system.n_dofs)
     fi_prev, Kt_prev = forces(u_prev, True)
     assemblies += 1
-    while lam < 1.0 - 1e-14:
-        lam_new = min(1.0, lam + dlam)
+    while lam < 1.0:
+        lam_new = lam + dlam
+        if lam_new > 1.0 - 1e-9:         # the last increment ends exactly at 1
+            lam_new = 1.0
         ok = False
         try:
             # predictor: the tangent at the last equilibrium takes the increment of the
@@ -485,6 +492,8 @@ def solve_hyperelastic(model: Model, hyper: dict | None = None, cases=None, step
         lam = lam_new
         u_prev, fi_prev, Kt_prev = u, fi, Kt
         incs.append(Increment(lam, it, tuple(res_hist), halv))
+        if on_increment is not None:
+            on_increment(lam, u)
     return HyperelasticResult(system, cont, u_prev, f_ext, tuple(incs), cuts, rtol,
                               time.perf_counter() - t0, assemblies, kind)
 

@@ -199,7 +199,135 @@ def comparison(cases=COMPARISON, slots=(0, 1, 2, 3), **settings) -> list[dict[st
     return rows
 
 
-if __name__ == "__main__":      # python -m designlab.sensors.strap_pulp [NAME=VALUE ...]
+def _gauge_stretch_strain(gauge, H: np.ndarray) -> float:
+    """A gauge's mean nominal strain along its (reference) direction at displacement
+    gradients H (m, nq, 3, 3): |F d| - 1, weighted as :class:`StrainGauge` weights its
+    small strain (dx over the gauge's cells)."""
+    basis = gauge.model.basis
+    cells = gauge.cells
+    x = basis.x[cells]
+    d = gauge.direction(x) if callable(gauge.direction) else np.broadcast_to(
+        np.asarray(gauge.direction, float), x.shape)
+    d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    Fd = d + np.einsum("eqij,eqj->eqi", H[cells], d)
+    w = basis.dx[cells] / basis.dx[cells].sum()
+    return float((w * (np.linalg.norm(Fd, axis=-1) - 1.0)).sum())
+
+
+def _principal_biot(H: np.ndarray) -> np.ndarray:
+    """Per quadrature point, the largest |principal stretch - 1| (H: (k, 3, 3))."""
+    F = H + np.eye(3)
+    C = np.einsum("...kI,...kJ->...IJ", F, F)
+    return np.abs(np.sqrt(np.linalg.eigvalsh(C)) - 1.0).max(axis=-1)
+
+
+#: the pulp laws :func:`nonlinear_comparison` knows: neo-Hookean (the nearly incompressible
+#: hyperelastic body, mu and kappa of the linear E and nu) and St-Venant-Kirchhoff (the
+#: linear law with exact kinematics). SVK is not run by default: at nu 0.49 under
+#: compression it softens and loses stability (measured: no equilibrium past F_n = 3.08 N at
+#: edge_length 3), the known defect of SVK in compression, not a property of the pulp
+PULP_LAWS = ("neo-Hooke", "SVK")
+
+
+def nonlinear_comparison(steps: int = 10, laws=("neo-Hooke",), part=None, protocol=None,
+                         say=lambda s: None, **settings) -> dict[str, Any]:
+    """The strap with the solid pulp at the protocol's peak normal force (F_n only), linear
+    (``solve_static``, as ``strap.run`` does) against geometrically nonlinear
+    (:func:`designlab.fem.hyperelastic.solve_hyperelastic`): the strap's bodies as
+    St-Venant-Kirchhoff solids of their elastic materials, the pulp per ``laws`` (neo-Hookean:
+    mu = E / (2 (1 + nu)), kappa = E / (3 (1 - 2 nu)) of ``pulp_modulus``, ``pulp_poisson``,
+    the same small-strain limit as the linear pulp; SVK: the linear law, large kinematics).
+    With ``finger_model = "winkler"`` (a setting) the finger is the linear springs and only
+    the strap is nonlinear (row "none"): the strap's geometric nonlinearity alone.
+    The worn mesh is the stress-free reference in every case (the wrap's prestress stays
+    in closed form, strap_fit) and the loads are dead loads.
+
+    Returns {"linear": {...}, law: {...}}, each with the gauge strains at the peak (Ch1, Ch2,
+    sum; linear: per newton x peak), the pulp's and the strap's largest and 95th-percentile
+    principal strain (linear: |eigenvalue| of the small strain; nonlinear: |stretch - 1|),
+    and for the nonlinear cases the curve (F_n, Ch1, Ch2) per increment, the secant and the
+    local (last increment) sum sensitivity relative to the linear one, and the solver's
+    summary; plus the linear sum sensitivity in mV/N (``strap.run``'s report on the same
+    mesh: the nonlinear mV/N is that times the ratio, the readout being linear in strain)."""
+    from designlab.fem.hyperelastic import Continuum, NeoHooke, solve_hyperelastic
+    from designlab.fem.static import solve_static
+    from designlab.geometry.strap import ArchStrap
+    from designlab.sensors import strap as st
+    from designlab.sensors.montecarlo_strap import elastic_materials
+    from designlab.sensors.protocols import StrapLoadTest
+
+    part = ArchStrap() if part is None else part
+    proto = StrapLoadTest() if protocol is None else protocol
+    s = st.StrapModelSettings(**{"mesh_convergence": False, "finger_model": "solid",
+                                 **settings})
+    solid = s.finger_model == "solid"
+    if not solid:                  # Winkler springs: no pulp body, the strap alone nonlinear
+        laws = ("none",)
+    mats = elastic_materials(part)
+    say("meshing")
+    flat = st.mesh_strap(part, s)
+    model, gauges, _ = st.build_model(part, flat, s, mats)
+    ch = list(st.CHANNELS)
+    peak = float(proto.normal_N)
+    mesh = model.mesh
+    pulp = mesh.region == mesh.region_id(PULP) if solid else np.zeros(mesh.n_cells, bool)
+    n3 = 3 * model.n_points
+
+    def strain_stats(a, sel):
+        a = a.reshape(mesh.n_cells, -1)[sel].ravel()
+        if not len(a):
+            return None, None
+        return float(a.max()), float(np.percentile(a, 95.0))
+
+    say("linear")
+    res = solve_static(model, solver=s.solver)
+    u1 = res.U[:n3, res.system.case_index("F_n")]
+    e1 = [float(gauges[c].strain(u1)) for c in ch]
+    eps = _principal_abs(np.asarray(model.B @ u1).reshape(-1, 6)) * peak
+    out: dict[str, Any] = {"peak_F_n_N": peak, "cells": int(mesh.n_cells),
+                           "pulp_cells": int(pulp.sum()), "dofs": int(model.n_dofs),
+                           "finger_model": s.finger_model, "pulp_E_MPa": s.pulp_modulus,
+                           "pulp_nu": s.pulp_poisson, "edge_length_mm": s.edge_length}
+    lin = {"gauge_strain_at_peak": [peak * e for e in e1] + [peak * (e1[0] + e1[1])]}
+    lin["pulp_max_strain"], lin["pulp_p95_strain"] = strain_stats(eps, pulp)
+    lin["strap_max_strain"], lin["strap_p95_strain"] = strain_stats(eps, ~pulp)
+    report = st.run(part, proto, s, materials=mats, mesh=flat).report
+    lin["sum_mV_per_N"] = 1e3 * report["sensitivity"]["V_per_N"]["sum"]["F_n"]
+    out["linear"] = lin
+    for law in laws:
+        if law not in PULP_LAWS + (("none",) if not solid else ()):
+            raise ValueError(f"laws: {law!r} is not one of {PULP_LAWS}")
+        hyper = {PULP: NeoHooke.from_linear(s.pulp_modulus, s.pulp_poisson)} \
+            if law == "neo-Hooke" else {}
+        curve = []
+
+        def record(lam, u):
+            H = r_cont.displacement_gradient(u[:n3])
+            curve.append([lam * peak] + [_gauge_stretch_strain(gauges[c], H) for c in ch])
+            say(f"{law}: F_n {lam * peak:.3g} N")
+
+        r_cont = Continuum.of(model, hyper)
+        r = solve_hyperelastic(model, hyper, cases={"F_n": peak}, steps=steps,
+                               solver=s.solver, on_increment=record)
+        H = r.displacement_gradient()
+        biot = _principal_biot(H.reshape(-1, 3, 3))
+        c = np.array(curve)
+        tot = c[:, 1] + c[:, 2]
+        row = {"gauge_strain_at_peak": [float(c[-1, 1]), float(c[-1, 2]), float(tot[-1])],
+               "curve": [[round(float(v), 8) for v in line] for line in c]}
+        row["pulp_max_strain"], row["pulp_p95_strain"] = strain_stats(biot, pulp)
+        row["strap_max_strain"], row["strap_p95_strain"] = strain_stats(biot, ~pulp)
+        lin_sum = lin["gauge_strain_at_peak"][2]
+        row["secant_sum_over_linear"] = float(tot[-1] / lin_sum)
+        row["local_sum_over_linear"] = float((tot[-1] - tot[-2]) / (c[-1, 0] - c[-2, 0])
+                                             / (lin_sum / peak)) if len(c) > 1 else None
+        row["sum_mV_per_N_secant"] = lin["sum_mV_per_N"] * row["secant_sum_over_linear"]
+        row["solver"] = r.summary()
+        out[law] = row
+    return out
+
+
+if __name__ == "__main__":      # python -m designlab.sensors.strap_pulp [--nonlinear] [NAME=VALUE]
     import json
     import sys
     import warnings
@@ -207,9 +335,15 @@ if __name__ == "__main__":      # python -m designlab.sensors.strap_pulp [NAME=V
     from designlab.sensors.predict import model_settings
 
     warnings.simplefilter("ignore")
-    extra = dict(a.split("=", 1) for a in sys.argv[1:])
+    args = [a for a in sys.argv[1:] if a != "--nonlinear"]
+    extra = dict(a.split("=", 1) for a in args)
     base = model_settings("strap", extra)        # parses and checks NAME=VALUE as --setting
     extra = {k: getattr(base, k) for k in extra}
+    if "--nonlinear" in sys.argv[1:]:
+        print(json.dumps(nonlinear_comparison(say=lambda m: print(m, file=sys.stderr,
+                                                                  flush=True), **extra),
+                         indent=1))
+        sys.exit(0)
     for row in comparison(**extra):
         print(json.dumps({k: round(v, 4) if isinstance(v, float) else v
                           for k, v in row.items()}), flush=True)
