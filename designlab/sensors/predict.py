@@ -328,9 +328,10 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
         except Exception as exc:  # noqa: BLE001 - a render is a convenience (as in-process)
             design = f"{type(exc).__name__}: {exc}"
     if _use_parallel(parallel, fem_cache) and _wants_convergence(sensor, sett):
-        from designlab.geometry.render import ensure_display
+        if pictures is None:        # one X server for both processes (if one is needed)
+            from designlab.geometry.render import ensure_display
 
-        ensure_display()    # one X server for both processes (if one is needed), stopped at exit
+            ensure_display()
         side = _Side(lambda: _side_work(sensor, part, proto, sett, kw, render=pictures is None))
         if pictures is not None:        # then it draws the plots: import matplotlib meanwhile
             side.submit(_warm_matplotlib)
@@ -448,8 +449,12 @@ DEFORMED_PNG_SIZE = (1000, 750)
 
 
 def _warm_pictures() -> None:
-    """The painter's first job (:func:`predict_and_write`): import the drawing libraries
-    (VTK/pyvista, matplotlib) while the caller imports and builds the CAD."""
+    """The painter's first job (:func:`predict_and_write`): an X server for VTK if one is
+    needed (it dies with the painter), the drawing libraries (VTK/pyvista, matplotlib)
+    imported, while the caller imports and builds the CAD."""
+    from designlab.geometry.render import ensure_display
+
+    ensure_display()
     import matplotlib
 
     matplotlib.use("Agg")
@@ -975,9 +980,6 @@ def predict_and_write(name: Any, overrides: dict[str, Any] | None = None, *,
     :func:`predict` would fork (``parallel``, two CPUs, no FEM cache, gmsh not yet run)."""
     pictures = None
     if _use_parallel(parallel, kw.get("fem_cache")):
-        from designlab.geometry.render import ensure_display
-
-        ensure_display()    # one X server for every process (if one is needed), stopped at exit
         pictures = _Pictures(_Side(_warm_pictures))
     try:
         prediction = predict(name, overrides, parallel=parallel, pictures=pictures, **kw)
