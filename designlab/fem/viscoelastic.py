@@ -245,6 +245,14 @@ class HistoryResult:
         """Displacements (n_dofs,) (batch: (n_dofs, n_cases)) at ``step``."""
         return self.U[..., step]
 
+    def long_time(self) -> tuple[np.ndarray, float] | None:
+        """A reduced march's long-time (relaxed) displacements of every load case, (n_dofs,
+        n_cases) as :func:`long_time_displacements` gives them, from its basis (Galerkin with
+        the relaxed stiffness), with their certified relative residual; None for a full march
+        or when the residual is above the march's ``rom_tol`` (then factor the relaxed
+        stiffness: :func:`long_time_displacements`)."""
+        return None
+
     def linear(self, f) -> np.ndarray:
         """``f(U)`` for a map ``f`` linear in each column that takes (n_dofs, k) to (..., k)
         (e.g. :meth:`~designlab.fem.transducers.StrainGauge.strain`): (..., n_steps) (batch:
@@ -426,7 +434,7 @@ def solve_history(model: Model, history: History, solver: str = "auto",
                             K_inf=K_inf)
         rom = _reduced_march(ctx, rom_tol, rom_max, rom_basis)
         if rom.ok:
-            return ReducedHistoryResult.make(ctx, rom, forces)
+            return ReducedHistoryResult.make(ctx, rom, forces, rom_tol)
         why = rom.why
     march = "full" if why is None or method == "full" else f"full ({why})"
     for n in range(nsteps):
@@ -642,6 +650,8 @@ class _Rom:
     W: np.ndarray | None = None     # (taus, r, nb, steps) history coordinates after each step
     residual: float = np.inf
     enrichments: int = 0
+    long_time: np.ndarray | None = None     # (n_q, cases) relaxed response in the basis
+    long_residual: float = np.inf
 
 
 class _Basis:
@@ -719,6 +729,7 @@ def _reduced_march_1(ctx: _MarchContext, tol: float, r_max: int, r_start: int | 
         rom.residual, rom.enrichments = res, enrich
         if res <= tol:
             rom.ok = True
+            rom.long_time, rom.long_residual = _long_time(ctx, basis.V, basis.KV)
             return rom
         if basis.r >= r_max:
             return _Rom(False, f"reduced basis of {basis.r} left residual {res:.1e} > {tol:.0e}",
@@ -727,6 +738,25 @@ def _reduced_march_1(ctx: _MarchContext, tol: float, r_max: int, r_start: int | 
             return _Rom(False, f"reduced basis stalled at {basis.r} (residual {res:.1e})",
                         residual=res)
         enrich += 1
+
+
+def _long_time(ctx: _MarchContext, V: np.ndarray, KV: np.ndarray
+               ) -> tuple[np.ndarray | None, float]:
+    """The long-time (relaxed) response of every load case in the basis (Galerkin with the
+    relaxed stiffness K_inf = K_main - sum_g gsum_g K_g, whose Neumann series in
+    K_main^-1 K_g the Krylov basis holds) and its full-order residual: max over the cases of
+    ||T^T F_c - K_inf q_c|| / ||T^T F_c|| (None, inf without loads or with prescribed
+    motions)."""
+    if np.any(ctx.system.G) or not np.any(ctx.Fq):
+        return None, np.inf
+    _, _, g_main = ctx.coefficients(ctx.main_dt)
+    KiV = KV - sum(g_main[g] * np.asarray(Kq @ V) for g, Kq in enumerate(ctx.Kq))
+    M = V.T @ KiV
+    Y = np.linalg.solve(0.5 * (M + M.T), V.T @ ctx.Fq)
+    R = ctx.Fq - KiV @ Y
+    fn = np.linalg.norm(ctx.Fq, axis=0)
+    on = fn > 0
+    return V @ Y, float((np.linalg.norm(R, axis=0)[on] / fn[on]).max())
 
 
 def _step_sizes(t: np.ndarray) -> np.ndarray:
@@ -845,7 +875,8 @@ class ReducedHistoryResult(HistoryResult):
     coords: np.ndarray          # (r, nb, n_steps)
 
     @classmethod
-    def make(cls, ctx: _MarchContext, rom: _Rom, forces: bool) -> "ReducedHistoryResult":
+    def make(cls, ctx: _MarchContext, rom: _Rom, forces: bool, tol: float
+             ) -> "ReducedHistoryResult":
         self = cls.__new__(cls)
         system = ctx.system
         basis = np.asarray(system.T @ rom.V)
@@ -863,7 +894,10 @@ class ReducedHistoryResult(HistoryResult):
         for k, v in dict(system=system, history=ctx.history, F_int=F_int,
                          factorizations=1, solvers=(ctx.lin,), batch=ctx.batch,
                          march="reduced", rom_residual=float(rom.residual),
-                         basis_size=int(rom.V.shape[1]), basis=basis, coords=rom.Y).items():
+                         basis_size=int(rom.V.shape[1]), basis=basis, coords=rom.Y,
+                         _long=(None if rom.long_time is None else
+                                np.asarray(system.T @ rom.long_time)),
+                         _long_residual=rom.long_residual, _tol=tol).items():
             object.__setattr__(self, k, v)
         return self
 
@@ -874,6 +908,10 @@ class ReducedHistoryResult(HistoryResult):
 
     def _coords(self) -> np.ndarray:
         return self.coords if self.batch else self.coords[:, 0]
+
+    def long_time(self) -> tuple[np.ndarray, float] | None:
+        return None if self._long is None or not self._long_residual <= self._tol else \
+            (self._long, self._long_residual)
 
     def _at(self, step: int) -> np.ndarray:
         return self.basis @ self._coords()[..., step]

@@ -33,7 +33,9 @@ protocol; with Prony series: the whole history through
 :func:`~designlab.fem.viscoelastic.solve_history` (both cases, one History) with
 ``method="auto"``: the certified reduced-order march (a Krylov basis of the two load patterns,
 every step's full-order residual checked; the full march when it does not certify), reported in
-the FEM stage as ``march``, ``rom_residual`` and ``rom_basis``.
+the FEM stage as ``march``, ``rom_residual`` and ``rom_basis``. The stress check's long-time
+unit displacements come from the same basis when their residual certifies
+(``long_time_residual``; else, NaN, one more factorisation of the relaxed stiffness).
 
 The FEM stage (:func:`solve_fem`: mesh, wrap, model, the gauges' strain history) is cached under
 :func:`fem_key`, a key of only what it depends on; the readout (divider, ADC, the wrap's
@@ -505,11 +507,15 @@ def solve_fem(part, protocol: StrapLoadTest, settings: StrapModelSettings, mater
     if viscous:
         # the stress check's load cases: the long-time displacement per newton of each case
         # (relaxed moduli, the springs of the finger unchanged; fem.stress's convention), one
-        # more static solve; superposed over the protocol's loads (exact for the linear model)
+        # more static solve; superposed over the protocol's loads (exact for the linear model);
+        # from the reduced march's basis when its residual certifies (no second factorisation)
         say("long-time unit loads (stress)")
         from designlab.fem.viscoelastic import long_time_displacements
 
-        U_long = long_time_displacements(model, solver=settings.solver)[: 3 * model.n_points]
+        lt = res.long_time()
+        out["long_time_residual"] = np.array(np.nan if lt is None else lt[1])
+        U_long = (long_time_displacements(model, solver=settings.solver) if lt is None
+                  else lt[0])[: 3 * model.n_points]
         out["U_long"] = np.stack([U_long[:, res.system.case_index(c)].reshape(-1, 3)
                                   for c in CASES], axis=-1)
     timings["solve"] = time.perf_counter() - t0
