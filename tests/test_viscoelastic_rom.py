@@ -169,6 +169,12 @@ def test_auto_method_and_default():
     assert solve_history(model, hist, forces=False).march == "full"     # the default
     with pytest.raises(ParameterError, match="method"):
         solve_history(model, hist, method="fast")
+    with pytest.raises(ParameterError, match="rom_tol"):
+        solve_history(model, hist, method="reduced", rom_tol=0.0)
+    with pytest.raises(ParameterError, match="rom_max"):
+        solve_history(model, hist, method="reduced", rom_max=0)
+    with pytest.raises(ParameterError, match="rom_basis"):
+        solve_history(model, hist, method="reduced", rom_basis=2.5)
 
 
 def test_reduced_is_the_same_bit_for_bit_run_to_run():

@@ -353,6 +353,14 @@ def solve_history(model: Model, history: History, solver: str = "auto",
     most :data:`ROM_MAX_COLUMNS` load columns). ``rom_tol``: the certified relative residual;
     ``rom_max``: the largest basis; ``rom_basis``: the starting basis' size (default
     _ROM_START, then enriched). The result's ``march`` says which ran and why not reduced."""
+    if method not in ("auto", "full", "reduced"):
+        raise ParameterError("method", method, "one of auto, full, reduced")
+    if not rom_tol > 0:
+        raise ParameterError("rom_tol", rom_tol, "a relative residual > 0")
+    if int(rom_max) != rom_max or rom_max < 1:
+        raise ParameterError("rom_max", rom_max, "an integer >= 1")
+    if rom_basis is not None and (int(rom_basis) != rom_basis or rom_basis < 1):
+        raise ParameterError("rom_basis", rom_basis, "None or an integer >= 1")
     system = model.build()
     if check:
         check_constrained(system)
@@ -425,13 +433,11 @@ def solve_history(model: Model, history: History, solver: str = "auto",
                         coarse=lambda: p1_prolongation(system), n_rhs=nsteps * nb)
         main = (lin,)
         cache[main_dt] = (lin, K)
-    if method not in ("auto", "full", "reduced"):
-        raise ParameterError("method", method, "one of auto, full, reduced")
     why = _reduced_ineligible(method, nsteps, A, nb, has_G, main)
     if why is None:
-        ctx = _MarchContext(system=system, history=history, A=A, Fc=Fc, batch=batch, taus=taus, tg=tg,
-                            tc=tc, Kg=Kg_nodal, Kr_main=Kr_main, lin=main[0], main_dt=main_dt,
-                            K_inf=K_inf)
+        ctx = _MarchContext(system=system, history=history, A=A, Fc=Fc, batch=batch,
+                            taus=taus, tg=tg, tc=tc, Kg=Kg_nodal, Kr_main=Kr_main,
+                            lin=main[0], main_dt=main_dt, K_inf=K_inf)
         rom = _reduced_march(ctx, rom_tol, rom_max, rom_basis)
         if rom.ok:
             return ReducedHistoryResult.make(ctx, rom, forces, rom_tol)
@@ -705,8 +711,7 @@ def _reduced_march(ctx: _MarchContext, tol: float, r_max: int, r_start: int | No
 
 
 def _reduced_march_1(ctx: _MarchContext, tol: float, r_max: int, r_start: int | None) -> _Rom:
-    t, A = ctx.t, ctx.A
-    active = np.nonzero(np.any(A != 0.0, axis=0))[0]
+    active = np.nonzero(np.any(ctx.A != 0.0, axis=0))[0]
     basis = _Basis(ctx)
     block_start = basis.r
     basis.add(ctx.lin.solve(ctx.Fq[:, active]))            # the load patterns
@@ -759,9 +764,14 @@ def _long_time(ctx: _MarchContext, V: np.ndarray, KV: np.ndarray
     return V @ Y, float((np.linalg.norm(R, axis=0)[on] / fn[on]).max())
 
 
-def _step_sizes(t: np.ndarray) -> np.ndarray:
-    """dt per step as the full march takes it (0 for the first)."""
-    return np.concatenate([[0.0], np.diff(t)])
+def _step_sizes(t: np.ndarray, main_dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per step, as the full march takes them: dt (0 for the first; the history's
+    coefficients) and the dt of the step's matrix (``main_dt`` for its size, else the first dt
+    of the same size, to 1e-12)."""
+    dts = np.concatenate([[0.0], np.diff(t)])
+    first: dict[float, float] = {round(main_dt, 12): main_dt}
+    mdts = np.array([first.setdefault(round(float(d), 12), float(d)) for d in dts])
+    return dts, mdts
 
 
 def _march_projected(ctx: _MarchContext, V: np.ndarray, KV: np.ndarray) -> _Rom:
@@ -779,24 +789,26 @@ def _march_projected(ctx: _MarchContext, V: np.ndarray, KV: np.ndarray) -> _Rom:
         Kgr.append(0.5 * (m + m.T))
     Fr = V.T @ ctx.Fq                                        # (r, cases)
     _, _, g_main = ctx.coefficients(ctx.main_dt)
-    dts = _step_sizes(ctx.t)
+    dts, mdts = _step_sizes(ctx.t, ctx.main_dt)
     Y = np.zeros((r, nb, nsteps))
     W = np.zeros((len(ctx.taus), r, nb, nsteps))
     w = np.zeros((len(ctx.taus), r, nb))
     y = np.zeros((r, nb))
-    facs: dict[float, tuple] = {}
+    facs: dict[float, object] = {}
+    coefs: dict[float, tuple] = {}
     for n in range(nsteps):
-        dt = float(dts[n])
+        dt, mdt = float(dts[n]), float(mdts[n])
         a_n = A[n]
         load = Fr * a_n[None] if ctx.batch else (Fr @ a_n)[:, None]
         if n == 0 and ctx.at_rest():
             continue                                          # at rest, as the full march
-        key = round(dt, 12)
-        if key not in facs:
-            a, gc, gsum = ctx.coefficients(dt)
-            M = M0 + sum((gsum[g] - g_main[g]) * Kgr[g] for g in range(len(Kgr)))
-            facs[key] = (sla.cho_factor(M, check_finite=False), a, gc, gsum)
-        fac, a, gc, gsum = facs[key]
+        if mdt not in facs:
+            gm = ctx.coefficients(mdt)[2]
+            M = M0 + sum((gm[g] - g_main[g]) * Kgr[g] for g in range(len(Kgr)))
+            facs[mdt] = sla.cho_factor(M, check_finite=False)
+        if dt not in coefs:
+            coefs[dt] = ctx.coefficients(dt)
+        fac, (a, gc, gsum) = facs[mdt], coefs[dt]
         rhs = load.copy()
         for g in range(len(Kgr)):
             c = -gsum[g] * y
@@ -824,10 +836,8 @@ def _certify(ctx: _MarchContext, V: np.ndarray, KV: np.ndarray, rom: _Rom
     ng = len(ctx.Kq)
     KgV = [np.asarray(Kq @ V) for Kq in ctx.Kq]
     _, _, g_main = ctx.coefficients(ctx.main_dt)
-    dts = _step_sizes(ctx.t)
-    coefs = {}
-    for dt in np.unique(dts):
-        coefs[float(dt)] = ctx.coefficients(float(dt))
+    dts, mdts = _step_sizes(ctx.t, ctx.main_dt)
+    coefs = {float(dt): ctx.coefficients(float(dt)) for dt in np.unique(np.r_[dts, mdts])}
     Y, W = rom.Y, rom.W
     r, nb = Y.shape[0], Y.shape[1]
     # history coordinates before each step: c_g^n = sum_t a_t w_t^{n-1} - gsum_g y^{n-1}
@@ -835,6 +845,7 @@ def _certify(ctx: _MarchContext, V: np.ndarray, KV: np.ndarray, rom: _Rom
     Yp = np.concatenate([np.zeros_like(Y[..., :1]), Y[..., :-1]], axis=-1)
     a_s = np.array([coefs[float(d)][0] for d in dts])        # (steps, taus)
     g_s = np.array([coefs[float(d)][2] for d in dts])        # (steps, groups)
+    g_m = np.array([coefs[float(d)][2] for d in mdts])       # the steps' matrices
     skipped = np.zeros(nsteps, bool)
     skipped[0] = ctx.at_rest()
     worst: list[tuple[float, int, np.ndarray]] = []
@@ -843,7 +854,6 @@ def _certify(ctx: _MarchContext, V: np.ndarray, KV: np.ndarray, rom: _Rom
         st = np.arange(s0, min(s0 + _ROM_CHUNK, nsteps))
         k = len(st)
         b = ctx.loads(st).reshape(-1, nb * k)
-        R = None
         for g in range(ng):
             C = -g_s[st, g][None, None] * Yp[..., st]
             for i in range(len(ctx.taus)):
@@ -852,7 +862,7 @@ def _certify(ctx: _MarchContext, V: np.ndarray, KV: np.ndarray, rom: _Rom
             b = b - KgV[g] @ C.reshape(r, nb * k)
         R = b - KV @ Y[..., st].reshape(r, nb * k)
         for g in range(ng):
-            dY = (g_s[st, g] - g_main[g])[None, None] * Y[..., st]
+            dY = (g_m[st, g] - g_main[g])[None, None] * Y[..., st]
             R -= KgV[g] @ dY.reshape(r, nb * k)
         bn = np.linalg.norm(b, axis=0).reshape(nb, k)
         rn = np.linalg.norm(R, axis=0).reshape(nb, k)
