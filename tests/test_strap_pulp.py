@@ -201,3 +201,19 @@ def test_nonlinear_strap_tends_to_the_linear_one_at_small_load_and_departs_at_5_
     assert row["secant_sum_over_linear"] < 0.9
     assert row["local_sum_over_linear"] < row["secant_sum_over_linear"]
     assert row["pulp_p95_strain"] > 0.1 and big["linear"]["pulp_p95_strain"] > 0.1
+
+
+def test_wrap_kinematics_strain_is_bending_and_needs_large_rotations():
+    """The wrap map's exact strain (edge 3 mm): at most ~thickness / finger radius (0.6 / 9 =
+    0.067; measured max 0.076, p95 0.062), the gauges' centreline stretch between 0 and that
+    (measured 0.032), rotations up to ~pi, while the small strain of the same displacement
+    reads nonsense (measured max 2.05, gauges -0.33): a linear analysis cannot carry the
+    wrap."""
+    w = sp.wrap_kinematics(edge_length=3.0)
+    tr = w["thickness_mm"] / w["finger_radius_mm"]
+    assert 0.5 * tr < w["strap_p95_strain"] < w["strap_max_strain"] < 1.3 * tr
+    for ch in ("Ch1", "Ch2"):
+        assert 0.0 < w[f"{ch}_stretch_strain"] < tr
+        assert abs(w[f"{ch}_small_strain_reading"] - w[f"{ch}_stretch_strain"]) > 0.1
+    assert w["max_rotation_rad"] > 2.0
+    assert w["small_strain_reading_max"] > 5 * w["strap_max_strain"]

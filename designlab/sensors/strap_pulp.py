@@ -27,6 +27,7 @@ as such; the depth 3 mm is an assumption (volar soft tissue over the distal phal
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import numpy as np
@@ -333,7 +334,60 @@ def nonlinear_comparison(steps: int = 10, laws=("neo-Hooke",), part=None, protoc
     return out
 
 
-if __name__ == "__main__":      # python -m designlab.sensors.strap_pulp [--nonlinear] [NAME=VALUE]
+def wrap_kinematics(part=None, **settings) -> dict[str, Any]:
+    """The strains of the wrap itself (flat print -> worn, :func:`strap.wrap_points`), which the
+    linear model leaves out (the worn mesh is its stress-free reference): the map's exact
+    strain on the flat mesh, u = wrap(X) - X, H = grad u: the largest |principal stretch - 1|
+    (max and 95th percentile over the strap's quadrature points), the gauges' mean stretch
+    along the centreline |F d| - 1 (d the flat centreline direction), the largest rotation
+    of F's polar decomposition relative to the one at the apex (the tabs go round the finger:
+    ~pi), and for contrast the small strain (B u) of the same displacement (what a linear
+    analysis of the wrap would read). Kinematics only: the map
+    is the model's wrap (inner face isometric, thickness along the cone's normal: bending
+    about the inner face), not an equilibrium (a free band bends about its mid-plane)."""
+    from designlab.fem import Model
+    from designlab.fem.hyperelastic import Continuum
+    from designlab.geometry.strap import ArchStrap
+    from designlab.sensors import strap as st
+    from designlab.sensors.montecarlo_strap import elastic_materials
+
+    part = ArchStrap() if part is None else part
+    s = st.StrapModelSettings(**{"mesh_convergence": False, **settings})
+    flat = st.mesh_strap(part, s)
+    model = Model(flat, elastic_materials(part))
+    u = (st.wrap_points(part, flat.points, s.finger_radius) - flat.points).ravel()
+    H = Continuum.of(model, {}).displacement_gradient(u)
+    biot = _principal_biot(H.reshape(-1, 3, 3))
+    F = H.reshape(-1, 3, 3) + np.eye(3)
+    Uu, _, Vt = np.linalg.svd(F)
+    R = Uu @ Vt                                           # rotation of the polar decomposition
+    # relative to the rotation at the apex (the frames of the flat and worn meshes differ by
+    # a fixed rotation, which no strain depends on)
+    apex = np.argmin(np.linalg.norm(model.basis.x.reshape(-1, 3)
+                                    - [0.0, part.arch_height, 0.0], axis=1))
+    Rrel = np.einsum("kij,lj->kil", R, R[apex])
+    angle = np.arccos(np.clip((np.einsum("kii->k", Rrel) - 1) / 2, -1, 1))
+    small = _principal_abs(np.asarray(model.B @ u).reshape(-1, 6))
+    flat_s = dataclasses.replace(s, configuration="flat")
+    d = st.centreline_direction(part, flat_s)
+    out = {"finger_radius_mm": s.finger_radius, "thickness_mm": float(part.thickness),
+           "strap_max_strain": float(biot.max()),
+           "strap_p95_strain": float(np.percentile(biot, 95.0)),
+           "max_rotation_rad": float(angle.max()),
+           "small_strain_reading_max": float(small.max()),
+           "small_strain_reading_p95": float(np.percentile(small, 95.0))}
+    from designlab.fem.transducers import StrainGauge
+
+    for ch, reg in zip(st.CHANNELS, st.GAUGE_REGIONS):
+        g = StrainGauge(model, st.gauge_cells(part, flat, reg), direction=d, name=ch,
+                        gauge_factor=1.0)
+        out[f"{ch}_stretch_strain"] = _gauge_stretch_strain(g, H)
+        out[f"{ch}_small_strain_reading"] = float(g.strain(u))
+    return out
+
+
+if __name__ == "__main__":
+    # python -m designlab.sensors.strap_pulp [--nonlinear | --wrap] [NAME=VALUE ...]
     import json
     import sys
     import warnings
@@ -341,10 +395,13 @@ if __name__ == "__main__":      # python -m designlab.sensors.strap_pulp [--nonl
     from designlab.sensors.predict import model_settings
 
     warnings.simplefilter("ignore")
-    args = [a for a in sys.argv[1:] if a != "--nonlinear"]
+    args = [a for a in sys.argv[1:] if a not in ("--nonlinear", "--wrap")]
     extra = dict(a.split("=", 1) for a in args)
     base = model_settings("strap", extra)        # parses and checks NAME=VALUE as --setting
     extra = {k: getattr(base, k) for k in extra}
+    if "--wrap" in sys.argv[1:]:
+        print(json.dumps(wrap_kinematics(**extra), indent=1))
+        sys.exit(0)
     if "--nonlinear" in sys.argv[1:]:
         print(json.dumps(nonlinear_comparison(say=lambda m: print(m, file=sys.stderr,
                                                                   flush=True), **extra),
