@@ -257,9 +257,10 @@ def test_springs_couplings_and_cases_come_from_the_model():
     """A cantilever block with a grounded spring, a rigid coupling on its free end loaded
     through its master (force and moment), a distributing coupling on a side, two load
     cases combined with factors: at a small load the nonlinear solution equals
-    solve_static's combination of the cases to 1e-6 (measured 6.3e-8; at 100 x the load 6.3e-6: the check sees the
-    nonlinearity): the System's T (rigid masters), springs and loads are used as the linear
-    solver uses them; on_increment is called at every converged increment."""
+    solve_static's combination of the cases to 1e-6 (measured 6.3e-8; at 100 x the load
+    6.3e-6: the check sees the nonlinearity): the System's T (rigid masters), springs and
+    loads are used as the linear solver uses them; on_increment is called at every
+    converged increment."""
     mesh = box_tet_mesh(4, 2, 2, 4, 2, 2, material="soft").quadratic()
     m = Model(mesh, {"block": MAT})
     m.fix("xmin")
