@@ -231,7 +231,8 @@ PULP_LAWS = ("neo-Hooke", "SVK")
 
 
 def nonlinear_comparison(steps: int = 10, laws=("neo-Hooke",), part=None, protocol=None,
-                         say=lambda s: None, **settings) -> dict[str, Any]:
+                         shear: bool = False, say=lambda s: None,
+                         **settings) -> dict[str, Any]:
     """The strap with the solid pulp at the protocol's peak normal force (F_n only), linear
     (``solve_static``, as ``strap.run`` does) against geometrically nonlinear
     (:func:`designlab.fem.hyperelastic.solve_hyperelastic`): the strap's bodies as
@@ -250,7 +251,9 @@ def nonlinear_comparison(steps: int = 10, laws=("neo-Hooke",), part=None, protoc
     the curve (F_n, Ch1, Ch2) per increment, the secant and the
     local (last increment) sum sensitivity relative to the linear one, and the solver's
     summary; plus the linear sum sensitivity in mV/N (``strap.run``'s report on the same
-    mesh: the nonlinear mV/N is that times the ratio, the readout being linear in strain)."""
+    mesh: the nonlinear mV/N is that times the ratio, the readout being linear in strain).
+    ``shear``: also the difference channel (Ch1 - Ch2) under the protocol's shear F_x at the
+    peak F_n, nonlinear (one more solve of both loads) against the linear F_x case."""
     from designlab.fem.hyperelastic import Continuum, NeoHooke, solve_hyperelastic
     from designlab.fem.static import solve_static
     from designlab.geometry.strap import ArchStrap
@@ -330,6 +333,24 @@ def nonlinear_comparison(steps: int = 10, laws=("neo-Hooke",), part=None, protoc
                                              / (lin_sum / peak)) if len(c) > 1 else None
         row["sum_mV_per_N_secant"] = lin["sum_mV_per_N"] * row["secant_sum_over_linear"]
         row["solver"] = r.summary()
+        if shear:
+            # the difference channel's response to the protocol's shear at the peak normal
+            # force: (F_n, F_x) = (peak, shear) minus (peak, 0), against the linear shear case
+            sx = float(proto.shear_N)
+            say(f"{law}: F_n {peak:g} N + F_x {sx:g} N")
+            r2 = solve_hyperelastic(model, hyper, cases={"F_n": peak, "F_x": sx}, steps=steps,
+                                    solver=s.solver)
+            H2 = r2.displacement_gradient()
+            g2 = [_gauge_stretch_strain(gauges[c], H2) for c in ch]
+            d_nl = (g2[0] - g2[1]) - (c[-1, 1] - c[-1, 2])
+            ux = res.U[:n3, res.system.case_index("F_x")]
+            ex = [float(gauges[k].strain(ux)) for k in ch]
+            d_lin = sx * (ex[0] - ex[1])
+            row["shear"] = {"F_x_N": sx, "gauge_strain_at_peak_with_shear": g2,
+                            "diff_strain_of_shear": float(d_nl),
+                            "linear_diff_strain_of_shear": float(d_lin),
+                            "diff_over_linear": float(d_nl / d_lin),
+                            "solver": r2.summary()}
         out[law] = row
     return out
 
@@ -403,9 +424,8 @@ if __name__ == "__main__":
         print(json.dumps(wrap_kinematics(**extra), indent=1))
         sys.exit(0)
     if "--nonlinear" in sys.argv[1:]:
-        print(json.dumps(nonlinear_comparison(say=lambda m: print(m, file=sys.stderr,
-                                                                  flush=True), **extra),
-                         indent=1))
+        print(json.dumps(nonlinear_comparison(shear=True, say=lambda m: print(
+            m, file=sys.stderr, flush=True), **extra), indent=1))
         sys.exit(0)
     for row in comparison(**extra):
         print(json.dumps({k: round(v, 4) if isinstance(v, float) else v
