@@ -19,6 +19,12 @@ mixed formulation exists in :mod:`designlab.fem`): on a bonded layer they are wi
 a 4x finer mesh while TET4 locks (35 % too stiff; ``tests/test_strap_pulp.py``): use
 ``order = 2`` with the solid pulp (the report's ``finger.warning`` says so otherwise).
 
+Nonlinear (issue 16, item 2; ``docs/hyperelastic.md``): :func:`nonlinear_comparison`
+(``python -m designlab.sensors.strap_pulp --nonlinear``) solves the strap at the protocol's
+peak F_n with :mod:`designlab.fem.hyperelastic` (strap bodies St-Venant-Kirchhoff, the pulp
+neo-Hookean with the linear E and nu's mu and kappa) against the linear model;
+:func:`wrap_kinematics` (``--wrap``) the exact strain of the wrap map itself.
+
 No readable literature value for the fingertip pulp's modulus was found in this session (see
 ``docs/strap.md``): the default E is **not** a literature number but the Winkler default's
 unconfined equivalent ``tissue_stiffness x pulp_depth`` (0.02 N/mm^3 x 3 mm = 0.06 MPa), stated
