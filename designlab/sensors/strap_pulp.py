@@ -413,6 +413,153 @@ def wrap_kinematics(part=None, **settings) -> dict[str, Any]:
     return out
 
 
+def wrap_equilibrium(steps: int = 25, part=None, protocol=None, rtol: float = 1e-9,
+                     max_iter: int = 40, say=lambda s: None, **settings) -> dict[str, Any]:
+    """The wrap as an equilibrium, then the protocol's peak F_n on the wrapped strap.
+
+    The strap's cells keep the flat (printed) mesh as their reference; the pulp's cells the
+    worn one (the pulp is stress-free on the finger, not flat): one mesh, a per-cell reference
+    (the pulp's displacement gradient is taken from x - X_worn). Putting on: the nail plate
+    and the pulp's bone face are prescribed to :func:`strap.wrap_points` (the tabs on the
+    nail, the bone in place), Newton starts from the wrap map itself (u = wrap(X) - X
+    everywhere) and finds the equilibrium: the band springs back against the bonded pulp.
+    Then F_n up to the peak in ``steps`` increments (dead load along the worn pad normal,
+    distributing coupling on the pad). Strap St-Venant-Kirchhoff, pulp neo-Hookean (as
+    :func:`nonlinear_comparison`). Returns the gauges' centreline stretch (|F d| - 1 from
+    the flat print) in the map, after the wrap's equilibrium and at the peak, the signal
+    (peak minus wrapped) per channel and summed, the strap's and pulp's largest / p95
+    |principal stretch - 1| after the wrap, Newton iteration counts. Each increment is a
+    Newton loop with a backtracking line search, no step cuts: the first increments on the
+    prestressed band converge slowly (edge 3 mm, 0.2 N increments: 25, 19, 16 ... 4
+    iterations; 1 N increments did not converge in 40), hence 25 increments by default."""
+    import types
+
+    from designlab.fem import Model
+    from designlab.fem.assembly import cell_basis
+    from designlab.fem.hyperelastic import Continuum, NeoHooke
+    from designlab.fem.solvers import MANY_RHS, factorize
+    from designlab.fem.transducers import StrainGauge
+    from designlab.errors import ModelError
+    from designlab.geometry.strap import ArchStrap
+    from designlab.sensors import strap as st
+    from designlab.sensors.montecarlo_strap import elastic_materials
+    from designlab.sensors.protocols import StrapLoadTest
+
+    part = ArchStrap() if part is None else part
+    proto = StrapLoadTest() if protocol is None else protocol
+    s = st.StrapModelSettings(**{"mesh_convergence": False, **settings,
+                                 "finger_model": "solid"})
+    say("meshing")
+    flat = st.mesh_strap(part, s)
+    mesh = strap_with_pulp(part, flat, s)
+    worn = st.worn_mesh(part, mesh, s.finger_radius)
+    model = Model(mesh, st.finger_materials(s, elastic_materials(part)))
+
+    def wrap_u(x):
+        return st.wrap_points(part, x, s.finger_radius) - x
+
+    model.prescribe("nail_plate", wrap_u, case="wrap")
+    model.prescribe(BONE, wrap_u, case="wrap")
+    frame = st.pad_frame(part, s)
+    pad = model.distributing_coupling("pad", "finger_contact",
+                                      ref_point=(0.0, part.arch_height, 0.0))
+    model.force(pad, force=frame["n"], case="F_n")
+    system = model.build()
+    n3 = 3 * model.n_points
+    pulp = mesh.region == mesh.region_id(PULP)
+    bf, bw = model.basis, cell_basis(worn)
+    sel = pulp[:, None]
+    mixed = dataclasses.replace(bf, dNdx=np.where(sel[..., None, None], bw.dNdx, bf.dNdx),
+                                dx=np.where(sel, bw.dx, bf.dx),
+                                x=np.where(sel[..., None], bw.x, bf.x))
+    proxy = types.SimpleNamespace(basis=mixed, mesh=mesh,
+                                  region_materials=model.region_materials)
+    cont = Continuum.of(proxy, {PULP: NeoHooke.from_linear(s.pulp_modulus, s.pulp_poisson)})
+    w = wrap_u(mesh.points)
+    cells = mesh.cells
+
+    def grad(u):
+        ue = u[:n3].reshape(-1, 3)[cells]
+        ue[pulp] -= w[cells[pulp]]
+        return np.einsum("eai,eqaJ->eqiJ", ue, mixed.dNdx, optimize=True)
+
+    def forces(u, tangent):
+        P, A = cont.stress(grad(u), tangent)
+        fi = np.zeros(system.n_dofs)
+        fi[:n3] = cont.internal_force(P)
+        return fi, (system.K(cont.tangent(A)) if tangent else None)
+
+    T, Tt = system.T, system.T.T.tocsr()
+    F = system.F[:, system.case_index("F_n")]
+    g = system.G[:, system.case_index("wrap")]
+    d = st.centreline_direction(part, dataclasses.replace(s, configuration="flat"))
+    gauges = [StrainGauge(model, st.gauge_cells(part, flat, reg), direction=d, name=c,
+                          gauge_factor=1.0) for c, reg in zip(st.CHANNELS, st.GAUGE_REGIONS)]
+
+    def read(u):
+        H = grad(u)
+        return [_gauge_stretch_strain(gg, H) for gg in gauges]
+
+    def equilibrium(u, lam):
+        q = u[system.free_dofs] if T.nnz == T.shape[1] else None
+        if q is None:
+            raise ModelError("wrap_equilibrium: rigid couplings are not supported")
+        hist = []
+        for it in range(max_iter + 1):
+            u = T @ q + g
+            fi, K = forces(u, True)
+            r = Tt @ (fi - lam * F)
+            ref = max(np.linalg.norm(lam * F), np.linalg.norm(fi), 1e-300)
+            rn = np.linalg.norm(r) / ref
+            hist.append(rn)
+            if rn <= rtol:
+                return u, hist
+            dq = factorize(system.reduce(K), s.solver, n_rhs=MANY_RHS).solve(-r)
+            step = 1.0
+            for _ in range(8):
+                try:
+                    ft, _ = forces(T @ (q + step * dq) + g, False)
+                    if np.linalg.norm(Tt @ (ft - lam * F)) / ref < rn:
+                        break
+                except ModelError:
+                    pass
+                step *= 0.5
+            q = q + step * dq
+        raise ModelError(f"wrap_equilibrium: no convergence at F_n factor {lam:g} "
+                         f"(residuals {[float(v) for v in hist]})")
+
+    u_map = np.zeros(system.n_dofs)
+    u_map[:n3] = w.ravel()
+    out: dict[str, Any] = {"cells": int(mesh.n_cells), "dofs": int(model.n_dofs),
+                           "gauge_stretch_map": read(u_map)}
+    say("wrap equilibrium")
+    u, hist = equilibrium(u_map, 0.0)
+    out["wrap_iterations"] = len(hist) - 1
+    out["wrap_residuals"] = [float(v) for v in hist]
+    g0 = read(u)
+    out["gauge_stretch_wrapped"] = g0
+    biot = _principal_biot(grad(u).reshape(-1, 3, 3)).reshape(mesh.n_cells, -1)
+    out["strap_max_strain_wrapped"] = float(biot[~pulp].max())
+    out["strap_p95_strain_wrapped"] = float(np.percentile(biot[~pulp], 95.0))
+    out["pulp_max_strain_wrapped"] = float(biot[pulp].max())
+    out["pulp_p95_strain_wrapped"] = float(np.percentile(biot[pulp], 95.0))
+    peak = float(proto.normal_N)
+    curve, its = [], []
+    for k in range(1, steps + 1):
+        lam = peak * k / steps
+        say(f"F_n {lam:.3g} N")
+        u, hist = equilibrium(u, lam)
+        its.append(len(hist) - 1)
+        gk = read(u)
+        curve.append([lam, gk[0] - g0[0], gk[1] - g0[1]])
+    out["load_iterations"] = its
+    out["signal_curve"] = curve
+    out["signal_at_peak"] = [curve[-1][1], curve[-1][2], curve[-1][1] + curve[-1][2]]
+    biot = _principal_biot(grad(u).reshape(-1, 3, 3)).reshape(mesh.n_cells, -1)
+    out["pulp_p95_strain_at_peak"] = float(np.percentile(biot[pulp], 95.0))
+    return out
+
+
 if __name__ == "__main__":
     # python -m designlab.sensors.strap_pulp [--nonlinear | --wrap] [NAME=VALUE ...]
     import json
@@ -422,10 +569,14 @@ if __name__ == "__main__":
     from designlab.sensors.predict import model_settings
 
     warnings.simplefilter("ignore")
-    args = [a for a in sys.argv[1:] if a not in ("--nonlinear", "--wrap")]
+    args = [a for a in sys.argv[1:] if a not in ("--nonlinear", "--wrap", "--wrap-equilibrium")]
     extra = dict(a.split("=", 1) for a in args)
     base = model_settings("strap", extra)        # parses and checks NAME=VALUE as --setting
     extra = {k: getattr(base, k) for k in extra}
+    if "--wrap-equilibrium" in sys.argv[1:]:
+        print(json.dumps(wrap_equilibrium(say=lambda m: print(m, file=sys.stderr, flush=True),
+                                          **extra), indent=1))
+        sys.exit(0)
     if "--wrap" in sys.argv[1:]:
         print(json.dumps(wrap_kinematics(**extra), indent=1))
         sys.exit(0)
