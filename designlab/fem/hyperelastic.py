@@ -373,22 +373,20 @@ class HyperelasticResult:
 def solve_hyperelastic(model: Model, hyper: dict | None = None, cases=None, steps: int = 5,
                        rtol: float = 1e-9, max_iter: int = 25, max_cuts: int = 8,
                        max_halvings: int = 6, solver: str = "auto",
-                       u0: np.ndarray | None = None, on_increment=None) -> HyperelasticResult:
+                       on_increment=None) -> HyperelasticResult:
     """Large-deformation static equilibrium of ``model`` (see the module docstring).
 
     hyper: {body: NeoHooke}; other bodies are St-Venant-Kirchhoff with their Material.
     cases: {case: factor} (default: the model's only case, factor 1; a str: that case).
     steps: equal load increments; rtol: residual tolerance (relative); solver: as
-    :func:`~designlab.fem.solvers.factorize`. ``u0``: not supported yet (must be None).
-    ``on_increment(lam, u)``: called after every converged increment with the load factor and
+    :func:`~designlab.fem.solvers.factorize`. The solve starts from the reference
+    configuration (u = 0). ``on_increment(lam, u)``: called after every converged increment with the load factor and
     the displacement (n_dofs,) (e.g. to record a load-response curve)."""
     t0 = time.perf_counter()
     if not (isinstance(steps, (int, np.integer)) and steps >= 1):
         raise ParameterError("steps", steps, "an integer >= 1")
     if not (0 < rtol < 1):
         raise ParameterError("rtol", rtol, "in (0, 1)")
-    if u0 is not None:
-        raise ParameterError("u0", "array", "None (starts from the reference configuration)")
     system = model.build()
     if cases is None:
         if len(system.cases) != 1:
