@@ -462,6 +462,13 @@ def _warm_pictures() -> None:
     import pyvista.plotting  # noqa: F401
 
 
+def _stop_display() -> None:
+    """The painter's last job: the X server it started (if any) stopped and reaped."""
+    from designlab.geometry.render import _stop_xvfb
+
+    _stop_xvfb()
+
+
 def _warm_matplotlib() -> None:
     """The coarse mesh's process, once done (:func:`predict_and_write`): matplotlib imported
     for the plots it will draw."""
@@ -485,6 +492,10 @@ class _Pictures:
         return self.side if self.side is not None and not self.side._dead else self.painter
 
     def stop(self) -> None:
+        """Stop both; the painter first stops the X server it started (its child: it must be
+        reaped by the painter, or it is left as a zombie for init)."""
+        if not self.painter._dead:
+            self.painter.submit(_stop_display).get(timeout=10.0)
         for p in (self.painter, self.side):
             if p is not None:
                 p.stop()
@@ -588,10 +599,13 @@ class _Side:
         self.stop()
         return value
 
-    def _wait(self, index: int) -> Any:
+    def _wait(self, index: int, timeout: float | None = None) -> Any:
+        end = None if timeout is None else time.monotonic() + timeout
         while len(self._got) <= index and not self._dead:
             try:
-                while not self._recv.poll(1.0):
+                while not self._recv.poll(0.05 if end is not None else 1.0):
+                    if end is not None and time.monotonic() > end:
+                        return None
                     if not self._proc.is_alive() or self._stalled():
                         raise EOFError
                 ok, value = self._recv.recv()
@@ -634,8 +648,9 @@ class _Ticket:
     side: _Side
     index: int
 
-    def get(self) -> Any:
-        return self.side._wait(self.index)
+    def get(self, timeout: float | None = None) -> Any:
+        """The result (None: the job failed, or ``timeout`` s passed first)."""
+        return self.side._wait(self.index, timeout)
 
 
 def _side_main(fn, send, jobs, parent: int) -> None:
