@@ -1259,7 +1259,43 @@ def _error(exc: BaseException, prefix: str = "error:") -> None:
 def main(argv: Optional[List[str]] = None) -> None:
     """Console-script entry point: run the app; a user error (:class:`DesignlabError`, a bad
     option) is one line + exit 2; anything else one line naming a log file with the
-    traceback + exit 1; Ctrl-C exit 130. Messages are printed literally (no rich markup)."""
+    traceback + exit 1; Ctrl-C exit 130. Messages are printed literally (no rich markup).
+    Called without ``argv`` (the ``designlab`` command itself), the process then ends without
+    the interpreter's teardown (:func:`_exit_now`)."""
+    if argv is not None:
+        return _main(argv)
+    try:
+        _main(None)
+        code = 0
+    except SystemExit as exc:
+        code = exc.code
+    _exit_now(code)
+
+
+def _exit_now(code) -> None:
+    """End the process with ``code`` (a ``SystemExit`` code) after the exit handlers and a
+    flush of stdout/stderr, skipping the interpreter's teardown: once OpenCascade is loaded
+    its modules' destructors alone take 0.6-1 s (every file is written and closed by then)."""
+    import atexit
+    import os
+
+    if code is None:
+        code = 0
+    elif not isinstance(code, int):
+        print(code, file=sys.stderr)
+        code = 1
+    try:
+        atexit._run_exitfuncs()     # what normal exit runs first (X server, pools, logging)
+    finally:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):   # a closed pipe: nothing more to say
+                pass
+        os._exit(code)
+
+
+def _main(argv: Optional[List[str]]) -> None:
     import warnings
 
     # numeric warnings (overflow, invalid values) never flood the terminal: a result they

@@ -288,3 +288,21 @@ def test_usage_errors_are_one_line_exit_2(argv, text, capsys):
     err = capsys.readouterr().err.strip()
     assert e.value.code == 2
     assert text in err and "internal error" not in err and len(err.splitlines()) == 1
+
+
+def test_console_script_exit_runs_handlers_flushes_and_keeps_the_code():
+    """``designlab`` (main() without argv) ends without the interpreter's teardown: the exit
+    handlers still run, the output is complete, and the exit code is the command's."""
+    import subprocess
+    import sys
+
+    prog = ("import atexit, sys; atexit.register(lambda: print('handler ran', file=sys.stderr));"
+            "sys.argv = ['designlab'] + sys.argv[1:]; from designlab.cli import main; main()")
+    ok = subprocess.run([sys.executable, "-c", prog, "params", "strap"], capture_output=True,
+                        text=True, timeout=120)
+    assert ok.returncode == 0 and "handler ran" in ok.stderr
+    assert "edge_length" in ok.stdout or "strap parameters" in ok.stdout
+    bad = subprocess.run([sys.executable, "-c", prog, "params", "nope"], capture_output=True,
+                         text=True, timeout=120)
+    assert bad.returncode == 2 and "handler ran" in bad.stderr
+    assert "part='nope' is not allowed" in bad.stderr
