@@ -34,6 +34,16 @@ Viscoelastic histories (Prony series on the material; factor once per step size)
     hh = solve_history(model, hist)    # hh.U (n_dofs, n_steps), hh.t
     hh.wrench("xmin"), hh.twist(disc), hh.spring_force("button"), hh.displacement(step)
 
+Long histories can run on a certified reduced basis (``method="auto"|"reduced"``: the Galerkin
+march in basis coordinates, every step's full-order residual checked, the full march as the
+fallback; ``hh.march``, ``hh.rom_residual``, ``hh.linear(f)`` for a linear output).
+
+Large deformation (total Lagrangian; dead loads; Newton with increments)::
+
+    from designlab.fem.hyperelastic import NeoHooke, solve_hyperelastic
+    hr = solve_hyperelastic(model, {"pulp": NeoHooke.from_linear(0.06, 0.49)},
+                            cases={"default": 1.0}, steps=10)   # other bodies St Venant-Kirchhoff
+
 Transducers (``read(result)`` -> one row per load case or time step)::
 
     from designlab.fem.transducers import StrainGauge, ForceButton, RigidPose, ReactionWrench

@@ -8,7 +8,10 @@ The FEM model (mm, N, MPa, s):
   apex, the arch centreline a circle of radius ``finger_radius`` around the finger axis, every
   point keeps its distance to the inner face (which lies on the finger). The flat mesh is mapped
   onto that cone (:func:`wrap_points`, an isometry of the inner face) and used as the stress-free
-  reference (the pre-stress of wrapping is neglected: linear analysis);
+  reference (the pre-stress of wrapping is neglected: linear analysis; the finite-strain
+  wrap of :func:`designlab.sensors.strap_pulp.wrap_equilibrium` puts it at +4.3 % of the
+  5 N signal, and the linear model's 5 N gauge strain is ~22 % above the geometrically
+  nonlinear one: ``docs/hyperelastic.md``);
 * the tabs (``nail_plate`` facets) are fixed: they are held on the nail plate;
 * the finger pad (``finger_contact``, inner face around the apex) pushes the strap: ``F_n`` along
   the outward normal of the inner face at the pad centre, ``F_x`` along the strap centreline there
