@@ -867,11 +867,12 @@ def write_prediction(prediction: Prediction, out: str | Path,
         plots_job, deformed_job = None, None
         names: list[str] = []
         if pictures is not None:
-            plots_job = pictures.plotter.submit(_plots_job, prediction.sensor, result, prediction.metrics,
-                                       stage)
+            plots_job = pictures.plotter.submit(_plots_job, prediction.sensor, result,
+                                                prediction.metrics, stage)
         elif _two_cpus(parallel):
             plotter = _Side(lambda: [Path(f).name for f in
                                      sensor.plots(result, prediction.metrics, stage)])
+            plots_job = plotter._first
         else:
             names = [Path(f).name for f in sensor.plots(result, prediction.metrics, stage)]
             clock("plots")
@@ -924,12 +925,6 @@ def write_prediction(prediction: Prediction, out: str | Path,
             clock("deformed.png (waited for the painter)")
         if plots_job is not None:
             drawn = plots_job.get()
-            if drawn is None:               # the painter failed: draw here (raises its error)
-                drawn = [Path(f).name for f in sensor.plots(result, prediction.metrics, stage)]
-            names = drawn + names
-            clock("plots (waited for the painter)")
-        if plotter is not None:
-            drawn = plotter.result()
             if drawn is None:               # the child failed: draw here (raises its error)
                 drawn = [Path(f).name for f in sensor.plots(result, prediction.metrics, stage)]
             names = drawn + names
