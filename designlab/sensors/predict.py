@@ -63,7 +63,8 @@ class Prediction:
     load_cases: list[Any] = field(default_factory=list, repr=False)
     stresses: list[Any] = field(default_factory=list, repr=False)
     #: ``design.png`` rendered by the forked process of ``predict(parallel=True)``: PNG bytes,
-    #: or the render's error; None: :func:`write_prediction` renders it
+    #: or the render's error, or the ticket of :func:`predict_and_write`'s painter; None:
+    #: :func:`write_prediction` renders it
     design_png: "bytes | str | _Ticket | None" = field(default=None, repr=False)
 
     @property
@@ -449,24 +450,13 @@ DEFORMED_PNG_SIZE = (1000, 750)
 
 
 def _warm_pictures() -> None:
-    """The painter's first job (:func:`predict_and_write`): an X server for VTK if one is
-    needed (it dies with the painter), the drawing libraries (VTK/pyvista, matplotlib)
-    imported, while the caller imports and builds the CAD."""
-    from designlab.geometry.render import ensure_display
-
-    ensure_display()
+    """The painter's first job (:func:`predict_and_write`): the drawing libraries (VTK/pyvista,
+    matplotlib) imported while the caller imports and builds the CAD."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot  # noqa: F401
     import pyvista.plotting  # noqa: F401
-
-
-def _stop_display() -> None:
-    """The painter's last job: the X server it started (if any) stopped and reaped."""
-    from designlab.geometry.render import _stop_xvfb
-
-    _stop_xvfb()
 
 
 def _warm_matplotlib() -> None:
@@ -492,10 +482,6 @@ class _Pictures:
         return self.side if self.side is not None and not self.side._dead else self.painter
 
     def stop(self) -> None:
-        """Stop both; the painter first stops the X server it started (its child: it must be
-        reaped by the painter, or it is left as a zombie for init)."""
-        if not self.painter._dead:
-            self.painter.submit(_stop_display).get(timeout=10.0)
         for p in (self.painter, self.side):
             if p is not None:
                 p.stop()
@@ -990,6 +976,12 @@ def predict_and_write(name: Any, overrides: dict[str, Any] | None = None, *,
     :func:`predict` would fork (``parallel``, two CPUs, no FEM cache, gmsh not yet run)."""
     pictures = None
     if _use_parallel(parallel, kw.get("fem_cache")):
+        from designlab.geometry.render import ensure_display
+
+        # the X server (if one is needed) is this process's child: stopped and reaped at exit
+        # however the painter ends (started by the painter, a killed painter would leave it a
+        # zombie; stopped by the painter, a bad input would wait for the painter's imports)
+        ensure_display()
         pictures = _Pictures(_Side(_warm_pictures))
     try:
         prediction = predict(name, overrides, parallel=parallel, pictures=pictures, **kw)
