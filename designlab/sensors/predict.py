@@ -359,6 +359,10 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
                                                         "calibration_matrix") if k in report}
         report.update(sensor.apply_model(report, result, model_path, proto, sett, part=part))
     report.setdefault("geometric_condition_number", None)
+    if pictures is not None and pictures.plot_dir is not None:
+        # the plots read the report as it is now (the stress check adds nothing they show)
+        pictures.plots = pictures.plotter.submit(_plots_job, name, result, report,
+                                                 pictures.plot_dir)
     t0 = time.perf_counter()
     if progress:
         progress("stress")
@@ -476,6 +480,10 @@ class _Pictures:
 
     painter: _Side
     side: _Side | None = None
+    #: where the plots are drawn before the output is staged (beside ``--out``: one file
+    #: system), and their job, sent as soon as the report is complete (before the stress)
+    plot_dir: Path | None = None
+    plots: "_Ticket | None" = None
 
     @property
     def plotter(self) -> _Side:
@@ -852,7 +860,10 @@ def write_prediction(prediction: Prediction, out: str | Path,
         sensor = get_sensor(prediction.sensor)
         plots_job, deformed_job = None, None
         names: list[str] = []
-        if pictures is not None:
+        early = pictures is not None and pictures.plots is not None
+        if early:                           # drawn already, beside the stress check
+            plots_job = pictures.plots
+        elif pictures is not None:
             plots_job = pictures.plotter.submit(_plots_job, prediction.sensor, result,
                                                 prediction.metrics, stage)
         elif _two_cpus(parallel):
@@ -911,6 +922,9 @@ def write_prediction(prediction: Prediction, out: str | Path,
             clock("deformed.png (waited for the painter)")
         if plots_job is not None:
             drawn = plots_job.get()
+            if drawn is not None and early:
+                for n in drawn:
+                    os.replace(pictures.plot_dir / n, stage / n)
             if drawn is None:               # the child failed: draw here (raises its error)
                 drawn = [Path(f).name for f in sensor.plots(result, prediction.metrics, stage)]
             names = drawn + names
@@ -974,6 +988,10 @@ def predict_and_write(name: Any, overrides: dict[str, Any] | None = None, *,
     libraries while this one builds the part, then draws design.png, deformed.png and the plots
     while this one computes and writes (the same files as one process). Parallel when
     :func:`predict` would fork (``parallel``, two CPUs, no FEM cache, gmsh not yet run)."""
+    import os
+    import shutil
+    import tempfile
+
     pictures = None
     if _use_parallel(parallel, kw.get("fem_cache")):
         from designlab.geometry.render import ensure_display
@@ -983,6 +1001,12 @@ def predict_and_write(name: Any, overrides: dict[str, Any] | None = None, *,
         # zombie; stopped by the painter, a bad input would wait for the painter's imports)
         ensure_display()
         pictures = _Pictures(_Side(_warm_pictures))
+        final = Path(out).resolve()
+        try:    # named like write_prediction's staging folder: a killed run's is cleaned up
+            pictures.plot_dir = Path(tempfile.mkdtemp(
+                prefix=f".{final.name}.staging.{os.getpid()}.plots.", dir=final.parent))
+        except OSError:                     # no such folder yet, read-only...: plot later
+            pictures.plot_dir = None
     try:
         prediction = predict(name, overrides, parallel=parallel, pictures=pictures, **kw)
         if kw.get("progress"):
@@ -992,6 +1016,8 @@ def predict_and_write(name: Any, overrides: dict[str, Any] | None = None, *,
     finally:
         if pictures is not None:
             pictures.stop()
+            if pictures.plot_dir is not None:
+                shutil.rmtree(pictures.plot_dir, ignore_errors=True)
     return prediction, files
 
 
