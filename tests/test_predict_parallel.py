@@ -67,7 +67,7 @@ def test_jobs_larger_than_a_pipe_both_ways():
     tickets = [side.submit(np.multiply, big, k) for k in (2.0, 3.0, 4.0)]
     assert tickets[2].get()[-1] == 4.0 * big[-1]
     assert tickets[0].get()[1] == 2.0
-    assert side._first.get().shape == (300_000,)
+    assert side.first.get().shape == (300_000,)
     side.stop()
     assert not multiprocessing.active_children()
 
@@ -85,17 +85,26 @@ def test_a_failing_job_is_none_and_the_next_runs():
     assert not multiprocessing.active_children()
 
 
+def _once(fn):
+    """The first job's result of a child that runs ``fn``, the child stopped after."""
+    from designlab.sensors.predict import _Side
+
+    side = _Side(fn)
+    try:
+        return side.first.get()
+    finally:
+        side.stop()
+
+
 def test_side_failure_is_none_and_child_gone():
     """A child that raises gives None (the caller recomputes in-process) and is reaped."""
     import multiprocessing
 
-    from designlab.sensors.predict import _Side
-
     def boom():
         raise ValueError("no")
 
-    assert _Side(boom).result() is None
-    assert _Side(lambda: {"x": 1.5}).result() == {"x": 1.5}
+    assert _once(boom) is None
+    assert _once(lambda: {"x": 1.5}) == {"x": 1.5}
     assert not multiprocessing.active_children()
 
 
@@ -121,6 +130,6 @@ def test_a_stalled_child_is_killed_and_gives_none(monkeypatch):
 
     monkeypatch.setattr(_Side, "STALL_S", 2.0)
     t0 = time.perf_counter()
-    assert _Side(lambda: time.sleep(120)).result() is None
+    assert _once(lambda: time.sleep(120)) is None
     assert time.perf_counter() - t0 < 30
     assert not multiprocessing.active_children()

@@ -134,6 +134,25 @@ def neo_hooke_energy(H: np.ndarray, mu, kappa) -> np.ndarray:
     return 0.5 * mu * (J ** (-2.0 / 3.0) * (3.0 + i1) - 3.0) + 0.5 * kappa * j ** 2
 
 
+def uniaxial_closed_form(nh: "NeoHooke", stretch: float) -> tuple[float, float]:
+    """(P11 [MPa], lateral stretch t) of :class:`NeoHooke` in uniaxial stress at ``stretch``:
+    F = diag(stretch, t, t), P22 = 0 solved for t by Brent's method to 1e-15 (the reference
+    of the homogeneous-block checks)."""
+    from scipy.optimize import brentq
+
+    lam = float(stretch)
+
+    def P(t):
+        J = lam * t * t
+        I1 = lam * lam + 2 * t * t
+        a = nh.mu * J ** (-2 / 3)
+        p22 = a * (t - I1 / (3 * t)) + nh.kappa * J * (J - 1) / t
+        p11 = a * (lam - I1 / (3 * lam)) + nh.kappa * J * (J - 1) / lam
+        return p11, p22
+    t = brentq(lambda t: P(t)[1], 0.2, 3.0, xtol=1e-15, rtol=1e-15)
+    return P(t)[0], t
+
+
 def neo_hooke_stress(H: np.ndarray, mu, kappa, tangent: bool = True):
     """First Piola-Kirchhoff stress P (..., 3, 3) and, with ``tangent``, A = dP/dF
     (..., 3, 3, 3, 3) indexed [i, J, k, L], at displacement gradients H = F - I. ``mu``,

@@ -572,7 +572,6 @@ def long_time_displacements(model: Model, solver: str = "auto") -> np.ndarray:
 # --- reduced-order march ------------------------------------------------------------------
 
 
-
 def _reduced_ineligible(method: str, nsteps: int, A: np.ndarray, nb: int, has_G: bool,
                         main) -> str | None:
     """Why the reduced march does not run (None: it does)."""

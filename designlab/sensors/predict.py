@@ -322,10 +322,8 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
         kw["materials"] = mats
     side, side_out, design = None, None, None
     if pictures is not None:
-        from designlab.geometry.render import portable_items
-
         try:
-            design = pictures.painter.submit(_design_job, name, portable_items(part.build()))
+            design = pictures.painter.submit(_design_png, name, _portable(part))
         except Exception as exc:  # noqa: BLE001 - a render is a convenience (as in-process)
             design = f"{type(exc).__name__}: {exc}"
     if _use_parallel(parallel, fem_cache) and _wants_convergence(sensor, sett):
@@ -344,7 +342,7 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
             report = dict(result.report)
             if sensor.finish is not None:
                 sensor.finish(report, result, part, proto)
-            side_out = side._first.get() if side is not None else None
+            side_out = side.first.get() if side is not None else None
             if side_out is None or side_out.get("coarse") is None:
                 coarse, coarse_warnings = None, []   # computed here (also: the side failed)
             else:
@@ -423,9 +421,7 @@ def _wants_convergence(sensor, settings) -> bool:
 def _side_work(sensor, part, protocol, settings, kw, render: bool = True) -> dict[str, Any]:
     """What the forked process of ``predict(parallel=True)`` computes: the coarse run's
     convergence values and warnings (:func:`_coarse_values`), then (``render``) ``design.png``
-    (:func:`_render_design`; bytes, or the error as text)."""
-    import tempfile
-
+    (:func:`_design_png`; bytes, or the error as text)."""
     _serial_occ()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -433,20 +429,17 @@ def _side_work(sensor, part, protocol, settings, kw, render: bool = True) -> dic
     out: dict[str, Any] = {"coarse": coarse, "warnings": [str(w.message) for w in caught]}
     if not render:
         return out
-    with tempfile.TemporaryDirectory(prefix="designlab-") as d:
-        try:
-            _render_design(sensor.name, part, Path(d) / "design.png")
-            out["design_png"] = (Path(d) / "design.png").read_bytes()
-        except Exception as exc:  # noqa: BLE001 - a render is a convenience (as in-process)
-            out["design_png"] = f"{type(exc).__name__}: {exc}"
+    try:
+        out["design_png"] = _design_png(sensor.name, _portable(part))
+    except Exception as exc:  # noqa: BLE001 - a render is a convenience (as in-process)
+        out["design_png"] = f"{type(exc).__name__}: {exc}"
     return out
 
 
-def _render_design(name: str, part, path: Path) -> None:
-    """``design.png``: the part as built (bodies coloured, legend of body and material)."""
-    from designlab.geometry.render import render_bodies
+def _portable(part):
+    from designlab.geometry.render import portable_items
 
-    render_bodies(part.build(), path, size=DESIGN_PNG_SIZE, title=f"{name}: the design")
+    return portable_items(part.build())
 
 
 DESIGN_PNG_SIZE = (1000, 750)
@@ -456,10 +449,7 @@ DEFORMED_PNG_SIZE = (1000, 750)
 def _warm_pictures() -> None:
     """The painter's first job (:func:`predict_and_write`): the drawing libraries (VTK/pyvista,
     matplotlib) imported while the caller imports and builds the CAD."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot  # noqa: F401
+    _warm_matplotlib()
     import pyvista.plotting  # noqa: F401
 
 
@@ -495,9 +485,10 @@ class _Pictures:
                 p.stop()
 
 
-def _design_job(name: str, items) -> bytes:
-    """design.png of :func:`~designlab.geometry.render.portable_items` (the painter's job):
-    the PNG bytes, as :func:`_render_design` draws them."""
+def _design_png(name: str, items) -> bytes:
+    """``design.png`` of the part as built (bodies coloured, legend of body and material) from
+    its :func:`~designlab.geometry.render.portable_items`: the PNG bytes (drawn by the
+    painter, the coarse mesh's process or this one)."""
     import tempfile
 
     from designlab.geometry.render import render_items
@@ -543,8 +534,8 @@ def _serial_occ() -> None:
 
 
 class _Side:
-    """``fn()`` in a forked child while the caller goes on; :meth:`result` is its return value
-    (pickled through a pipe), or None when the child failed or died (the caller then computes
+    """``fn()`` in a forked child while the caller goes on; ``first.get()`` is its return
+    value (pickled through a pipe), or None when the child failed or died (the caller then computes
     in-process: same result, and the error, if any, raised where it belongs). The child dies
     with the parent (``PR_SET_PDEATHSIG``) and :meth:`stop` kills it if it is still running:
     it never outlives the call. ``fn=None``: a child that only takes jobs (:meth:`submit`).
@@ -568,7 +559,7 @@ class _Side:
         self._sent = 0 if fn is None else 1      # results the child owes, in order
         self._got: list[Any] = []                # results received (index = ticket)
         self._dead = False
-        self._first = _Ticket(self, 0) if fn is not None else None
+        self.first = _Ticket(self, 0) if fn is not None else None
 
     #: a child whose CPU time has not moved for this long (wall s) waits on something it will
     #: never get (a lock or a thread pool copied from the parent): it is killed and the work is
@@ -587,19 +578,10 @@ class _Side:
                 self._give_up()
         return ticket
 
-    def result(self) -> Any:
-        """The first job's (``fn``'s) result, then the child is stopped (one-shot use)."""
-        value = self._first.get() if self._first is not None else None
-        self.stop()
-        return value
-
-    def _wait(self, index: int, timeout: float | None = None) -> Any:
-        end = None if timeout is None else time.monotonic() + timeout
+    def _wait(self, index: int) -> Any:
         while len(self._got) <= index and not self._dead:
             try:
-                while not self._recv.poll(0.05 if end is not None else 1.0):
-                    if end is not None and time.monotonic() > end:
-                        return None
+                while not self._recv.poll(1.0):
                     if not self._proc.is_alive() or self._stalled():
                         raise EOFError
                 ok, value = self._recv.recv()
@@ -642,9 +624,9 @@ class _Ticket:
     side: _Side
     index: int
 
-    def get(self, timeout: float | None = None) -> Any:
-        """The result (None: the job failed, or ``timeout`` s passed first)."""
-        return self.side._wait(self.index, timeout)
+    def get(self) -> Any:
+        """The result (None: the job failed, or the child died or stalled)."""
+        return self.side._wait(self.index)
 
 
 def _side_main(fn, send, jobs, parent: int) -> None:
@@ -869,7 +851,7 @@ def write_prediction(prediction: Prediction, out: str | Path,
         elif _two_cpus(parallel):
             plotter = _Side(lambda: [Path(f).name for f in
                                      sensor.plots(result, prediction.metrics, stage)])
-            plots_job = plotter._first
+            plots_job = plotter.first
         else:
             names = [Path(f).name for f in sensor.plots(result, prediction.metrics, stage)]
             clock("plots")
@@ -1050,25 +1032,23 @@ def _design_render(prediction: Prediction, stage: Path) -> list[str]:
     """``design.png``: the part as built (bodies coloured, legend of body and material)."""
     from designlab.geometry.parts import make_part
 
+    from designlab.atomic import atomic_write_bytes
+
     done = prediction.design_png
     if isinstance(done, _Ticket):               # drawn by predict_and_write's painter
         done = prediction.design_png = done.get()
-    if isinstance(done, bytes):                 # rendered beside the run (predict parallel)
-        from designlab.atomic import atomic_write_bytes
-
-        atomic_write_bytes(stage / "design.png", done)
-        return ["design.png"]
+    if done is None:                            # nobody drew it (or the painter failed): here
+        try:
+            part = make_part(prediction.sensor, {k: (tuple(v) if isinstance(v, list) else v)
+                                                 for k, v in prediction.params.items()})
+            done = _design_png(prediction.sensor, _portable(part))
+        except Exception as exc:  # a render is a convenience; the prediction is the result
+            done = f"{type(exc).__name__}: {exc}"
     if isinstance(done, str):
         prediction.warnings.append(f"design.png not rendered: {done}")
         return []
-    try:
-        part = make_part(prediction.sensor, {k: (tuple(v) if isinstance(v, list) else v)
-                                             for k, v in prediction.params.items()})
-        _render_design(prediction.sensor, part, stage / "design.png")
-        return ["design.png"]
-    except Exception as exc:  # a render is a convenience; the prediction is the result
-        prediction.warnings.append(f"design.png not rendered: {type(exc).__name__}: {exc}")
-        return []
+    atomic_write_bytes(stage / "design.png", done)
+    return ["design.png"]
 
 
 def write_prediction_report(doc: dict[str, Any], folder: Path, final: Path,

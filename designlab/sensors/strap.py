@@ -422,7 +422,8 @@ def fem_key(part, protocol: StrapLoadTest, settings: StrapModelSettings, materia
                                                                            *PULP_SETTINGS}
     sett = {k: v for k, v in as_dict(settings).items() if k not in skip}
     viscous = _viscous(part, materials)
-    # stage 2: the stage also holds the long-time unit displacements (U_long) of the stress
+    # stage 3: the stage also holds the long-time unit displacements (U_long) of the stress
+    # and how the history was marched (march, rom_residual, rom_basis, long_time_residual)
     return key("strap-gauge-strain", stage=3, params=params, settings=sett,
                materials=repr(sorted(MATERIALS.items())),
                overrides=repr(sorted((materials or {}).items())),
@@ -697,16 +698,10 @@ def run(part=None, protocol: StrapLoadTest | None = None,
         report["strain_per_N"] = {c: {"F_n": float(unit[i, 0]), "F_x": float(unit[i, 1])}
                                   for i, c in enumerate(CHANNELS)}
     report["viscoelastic"] = bool(viscous)
-
-    def _num(k):
-        v = fem.get(k)
-        return None if v is None or not np.isfinite(float(v)) else float(v)
-
-    if viscous:     # how the history was marched (fem.viscoelastic.solve_history)
-        report["march"] = {"method": str(fem.get("march", "full")),
-                           "rom_residual": _num("rom_residual"),
-                           "basis": int(fem["rom_basis"]) if "rom_basis" in fem else None,
-                           "long_time_residual": _num("long_time_residual")}
+    if viscous:     # how the history was marched (fem.viscoelastic.solve_history; NaN: none)
+        report["march"] = {"method": str(fem["march"]), "basis": int(fem["rom_basis"]),
+                           **{k: (None if np.isnan(v := float(fem[k])) else v)
+                              for k in ("rom_residual", "long_time_residual")}}
     from designlab.fem.materials import stand_in_note
 
     stand = sorted({n for m in region_materials.values()
