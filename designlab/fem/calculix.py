@@ -8,6 +8,7 @@ written to an ``.inp`` deck (C3D4 / C3D10: TetMesh node order is the CalculiX or
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import shutil
@@ -134,6 +135,37 @@ def read_dat_displacements(path: str | Path, n_points: int) -> np.ndarray:
     return u
 
 
+@contextlib.contextmanager
+def ccx_workdir(workdir: str | Path | None = None, prefix: str = "designlab-ccx-"):
+    """The folder a ccx job runs in: ``workdir`` (created, kept) or a temporary one (removed
+    afterwards)."""
+    if workdir is None:
+        with tempfile.TemporaryDirectory(prefix=prefix) as d:
+            yield Path(d)
+    else:
+        wd = Path(workdir)
+        wd.mkdir(parents=True, exist_ok=True)
+        yield wd
+
+
+def run_ccx(wd: Path, threads: int = 1, timeout_s: float = 3600.0) -> tuple[str, float]:
+    """Run ``ccx -i job`` in ``wd`` on ``threads`` threads: (its log, also written to
+    ``ccx.log``; wall s). A non-zero exit, an ``*ERROR`` line or no ``job.dat``: ModelError."""
+    env = dict(os.environ, OMP_NUM_THREADS=str(threads), CCX_NPROC_EQUATION_SOLVER=str(threads),
+               CCX_NPROC_STIFFNESS=str(threads), CCX_NPROC_RESULTS=str(threads))
+    t0 = time.perf_counter()
+    proc = subprocess.run([ccx_path(), "-i", "job"], cwd=wd, env=env, capture_output=True,
+                          text=True, timeout=timeout_s)
+    wall = time.perf_counter() - t0
+    log = proc.stdout + proc.stderr
+    (wd / "ccx.log").write_text(log)
+    err = re.search(r"\*ERROR[^\n]*(?:\n[^\n]+)?", log)
+    if proc.returncode != 0 or err is not None or not (wd / "job.dat").exists():
+        msg = " ".join(err.group(0).split()) if err else f"exit code {proc.returncode}"
+        raise ModelError(f"CalculiX failed: {msg}")
+    return log, wall
+
+
 def solve_calculix(mesh: TetMesh, materials: dict[int, tuple[float, float]], prescribed,
                    forces: np.ndarray, threads: int = 1, workdir: str | Path | None = None,
                    timeout_s: float = 3600.0) -> CalculixResult:
@@ -143,31 +175,13 @@ def solve_calculix(mesh: TetMesh, materials: dict[int, tuple[float, float]], pre
     or ``{(node, dof): value}``; forces: (n, 3) nodal forces (N); threads: OMP/SPOOLES threads;
     workdir: keep the deck and outputs there (default: a temporary directory, removed).
     """
-    exe = ccx_path()
+    ccx_path()                      # one line when ccx is not installed, before any writing
     if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
         raise ParameterError("threads", threads, "an integer >= 1")
     t_total = time.perf_counter()
-    tmp = None
-    if workdir is None:
-        tmp = tempfile.TemporaryDirectory(prefix="designlab-ccx-")
-        wd = Path(tmp.name)
-    else:
-        wd = Path(workdir)
-        wd.mkdir(parents=True, exist_ok=True)
-    try:
+    with ccx_workdir(workdir) as wd:
         write_inp(wd / "job.inp", mesh, materials, prescribed, forces)
-        env = dict(os.environ, OMP_NUM_THREADS=str(threads), CCX_NPROC_EQUATION_SOLVER=str(threads),
-                   CCX_NPROC_STIFFNESS=str(threads), CCX_NPROC_RESULTS=str(threads))
-        t0 = time.perf_counter()
-        proc = subprocess.run([exe, "-i", "job"], cwd=wd, env=env, capture_output=True, text=True,
-                              timeout=timeout_s)
-        wall = time.perf_counter() - t0
-        log = proc.stdout + proc.stderr
-        (wd / "ccx.log").write_text(log)
-        err = re.search(r"\*ERROR[^\n]*(?:\n[^\n]+)?", log)
-        if proc.returncode != 0 or err is not None or not (wd / "job.dat").exists():
-            msg = " ".join(err.group(0).split()) if err else f"exit code {proc.returncode}"
-            raise ModelError(f"CalculiX failed: {msg}")
+        log, wall = run_ccx(wd, threads, timeout_s)
         version = re.search(r"Version\s+([\w.]+)", log)
         u = read_dat_displacements(wd / "job.dat", mesh.n_points)
         size = float(np.ptp(mesh.points, axis=0).max())
@@ -175,8 +189,5 @@ def solve_calculix(mesh: TetMesh, materials: dict[int, tuple[float, float]], pre
             # SPOOLES factors a singular matrix without complaint: catch the rigid-body blow-up
             raise ModelError("CalculiX displacements exceed 1000x the model size: the model is "
                              "under-constrained (rigid-body motion not prevented)")
-    finally:
-        if tmp is not None:
-            tmp.cleanup()
     return CalculixResult(u, wall, time.perf_counter() - t_total,
                           version.group(1) if version else "unknown", threads)

@@ -527,31 +527,21 @@ def solve_calculix_neo_hooke(mesh, hyper: dict, prescribed, forces: np.ndarray,
     NeoHooke} for every region; ``prescribed``, ``forces`` as
     :func:`designlab.fem.calculix.write_inp` (the deck is written by it and edited). Returns
     the (n_points, 3) displacements (mm) at the end of the step (7 significant digits)."""
-    import os
     import re
-    import subprocess
-    import tempfile
-    from pathlib import Path
 
-    from designlab.fem.calculix import ccx_path, read_dat_displacements, write_inp
+    from designlab.fem.calculix import (ccx_path, ccx_workdir, read_dat_displacements, run_ccx,
+                                        write_inp)
 
     if not (0 < increment <= 1):
         raise ParameterError("increment", increment, "in (0, 1]")
-    exe = ccx_path()
+    ccx_path()                      # one line when ccx is not installed, before any writing
     lin = {}
     for rid, h in hyper.items():
         if not isinstance(h, NeoHooke):
             raise ParameterError(f"hyper[{rid}]", h, "a NeoHooke(mu, kappa)")
         k, g = h.kappa, h.mu
         lin[int(rid)] = (9 * k * g / (3 * k + g), (3 * k - 2 * g) / (2 * (3 * k + g)))
-    tmp = None
-    if workdir is None:
-        tmp = tempfile.TemporaryDirectory(prefix="designlab-ccx-nl-")
-        wd = Path(tmp.name)
-    else:
-        wd = Path(workdir)
-        wd.mkdir(parents=True, exist_ok=True)
-    try:
+    with ccx_workdir(workdir, prefix="designlab-ccx-nl-") as wd:
         write_inp(wd / "job.inp", mesh, lin, prescribed, forces)
         text = (wd / "job.inp").read_text()
         for rid, h in hyper.items():
@@ -566,21 +556,9 @@ def solve_calculix_neo_hooke(mesh, hyper: dict, prescribed, forces: np.ndarray,
                             "*CONTROLS, PARAMETERS=TIME INCREMENTATION\n"
                             "50, 60, 9, 200, 10, 4, 12, 5, 6\n")
         (wd / "job.inp").write_text(text)
-        env = dict(os.environ, OMP_NUM_THREADS="1", CCX_NPROC_EQUATION_SOLVER="1",
-                   CCX_NPROC_STIFFNESS="1", CCX_NPROC_RESULTS="1")
-        proc = subprocess.run([exe, "-i", "job"], cwd=wd, env=env, capture_output=True,
-                              text=True, timeout=timeout_s)
-        log = proc.stdout + proc.stderr
-        (wd / "ccx.log").write_text(log)
-        err = re.search(r"\*ERROR[^\n]*(?:\n[^\n]+)?", log)
-        if proc.returncode != 0 or err is not None or not (wd / "job.dat").exists():
-            msg = " ".join(err.group(0).split()) if err else f"exit code {proc.returncode}"
-            raise ModelError(f"CalculiX failed: {msg}")
+        run_ccx(wd, 1, timeout_s)
         text = (wd / "job.dat").read_text()
         # the .dat holds one displacement block per increment: keep the last
         last = text.rfind(" displacements (vx,vy,vz)")
         (wd / "last.dat").write_text(text[last:])
         return read_dat_displacements(wd / "last.dat", mesh.n_points)
-    finally:
-        if tmp is not None:
-            tmp.cleanup()
