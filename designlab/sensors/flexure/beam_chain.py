@@ -99,6 +99,10 @@ class ChainSettings:
     seat: str = field(default="bonded", metadata=rng(choices=("bonded", "contact", "potted"),
                       doc="ground faces bonded (epoxy), only seated, or the whole dead turn "
                           "set in epoxy"))
+    seat_base: str = field(default="", metadata=rng(choices=("", "bonded", "contact", "potted"),
+                           doc="end condition of the base end only ('' = seat)"))
+    seat_tip: str = field(default="", metadata=rng(choices=("", "bonded", "contact", "potted"),
+                          doc="end condition of the tip end only ('' = seat)"))
     working_load_N: float = field(default=10.0, metadata=rng(0, 1000, unit="N", doc=(
         "axial compression of the second reference state (seed 002: maximum fingertip force "
         "10 N)")))
@@ -115,6 +119,11 @@ class ChainSettings:
 
     def __post_init__(self):
         validate(self)
+
+    @property
+    def end_seats(self) -> tuple[str, str]:
+        """(base, tip) end conditions: ``seat_base`` / ``seat_tip`` where set, else ``seat``."""
+        return self.seat_base or self.seat, self.seat_tip or self.seat
 
 
 @dataclass(frozen=True)
@@ -215,6 +224,15 @@ class ChainResult:
     @property
     def K_centre(self) -> np.ndarray:
         return self.at(self.centre)
+
+    def zero_coupling(self, loaded: bool = False) -> dict:
+        """Where on the axis the x/y moment-translation couplings vanish (the elastic centre
+        along z), mm above the spring centre: ``x`` from ``K[1, 3] / K[3, 3]``, ``y`` from
+        ``-K[0, 4] / K[4, 4]`` (``K`` at the centre), and their mean. Symmetric ends put it at
+        the centre; it moves towards the end that is rotationally more compliant."""
+        K = self.at(self.centre, loaded=loaded)
+        zx, zy = float(K[1, 3] / K[3, 3]), float(-K[0, 4] / K[4, 4])
+        return {"x_mm": zx, "y_mm": zy, "mean_mm": (zx + zy) / 2}
 
     @property
     def K_centre_si(self) -> np.ndarray:
@@ -553,14 +571,20 @@ class Chain(ActiveSet):
         c_base, c_tip = z, L - z                 # centreline heights above the seats
         if coil.ends == "plain":
             base_bond, tip_bond = np.array([0]), np.array([n - 1])
-        elif settings.seat == "bonded":
-            base_bond = np.nonzero((c_base < r) & (u < 1))[0]
-            tip_bond = np.nonzero((c_tip < r) & (u > N - 1))[0]
-        elif settings.seat == "potted":
-            base_bond = np.nonzero(u <= 1 + 1e-9)[0]
-            tip_bond = np.nonzero(u >= N - 1 - 1e-9)[0]
         else:
-            base_bond, tip_bond = np.array([0]), np.array([n - 1])
+            base_seat, tip_seat = settings.end_seats
+            if base_seat == "bonded":
+                base_bond = np.nonzero((c_base < r) & (u < 1))[0]
+            elif base_seat == "potted":
+                base_bond = np.nonzero(u <= 1 + 1e-9)[0]
+            else:
+                base_bond = np.array([0])
+            if tip_seat == "bonded":
+                tip_bond = np.nonzero((c_tip < r) & (u > N - 1))[0]
+            elif tip_seat == "potted":
+                tip_bond = np.nonzero(u >= N - 1 - 1e-9)[0]
+            else:
+                tip_bond = np.array([n - 1])
         self.base_bond, self.tip_bond = base_bond, tip_bond
         # T: reduced q = [free node dofs, master 6] -> full node dofs
         fixed = np.zeros(6 * n, bool)
@@ -711,6 +735,7 @@ def chain_stiffness(spring, settings: ChainSettings | None = None, *,
             "contacts": len(chain.contacts), "bonded_turns_per_end": chain.bonded_turns,
             "closed_during_perturbations": [min(closed), max(closed)],
             "length_mm": coil.length, "geometry": coil.label, "working_load": info_l,
+            "seats": dict(zip(("base", "tip"), settings.end_seats)),
             "seconds": time.perf_counter() - t0}
     return ChainResult(K, K_loaded, chain.master, np.array([0, 0, coil.length / 2]), coil,
                        settings, info, chain)

@@ -337,3 +337,67 @@ def report_tables(report: dict) -> list:
                      "on the 8 measured entries (relative errors), a quantity fitted to the "
                      "measurement. Goal metrics are in the camera frame.")
     return [values, errors, goals]
+
+
+#: the end conditions of the beam chain (:class:`~designlab.sensors.flexure.beam_chain.ChainSettings`
+#: ``seat_base`` / ``seat_tip``)
+END_SEATS = ("bonded", "contact", "potted")
+
+
+def rocking_at_elastic_centre(K: np.ndarray) -> tuple[float, float]:
+    """``1 / C[0, 0]``, ``1 / C[1, 1]`` with ``C = K^-1``: the rocking stiffness about x and y
+    where the moment-translation couplings vanish. The rotation block of the compliance does not
+    change when the frame is translated, so this does not depend on the camera offset (nor on any
+    error in the point the poses are expressed about); neither does the translation block of K."""
+    C = np.linalg.inv(np.asarray(K, float))
+    return float(1.0 / C[0, 0]), float(1.0 / C[1, 1])
+
+
+def end_condition_table(spring: HelicalSpring, paper: dict | None = None,
+                        seats=END_SEATS, working_load_N: float = 10.0) -> list[dict]:
+    """Every (base, tip) end condition of the beam chain, unloaded and at ``working_load_N``:
+    the camera-frame goal metrics at the paper's offset (mean |error| % over the measured
+    diagonal, coupling ratios model / measured), the zero-coupling point (mm above the spring
+    centre: x, y, mean), the offset-independent rocking stiffness at the elastic centre and the
+    lateral stiffness (SI), and the chain's camera-frame diagonal (SI)."""
+    from designlab.sensors.flexure.beam_chain import ChainSettings, chain_stiffness
+
+    paper = load_paper() if paper is None else paper
+    h = camera_offset(paper)
+    M = paper["K_c_measured"]
+    rows = []
+    for base in seats:
+        for tip in seats:
+            res = chain_stiffness(spring, ChainSettings(seat_base=base, seat_tip=tip,
+                                                        working_load_N=working_load_N))
+            states = [("unloaded", False)] + ([("loaded", True)] if res.K_loaded is not None else [])
+            for state, loaded in states:
+                K = to_si(res.at(res.centre, loaded=loaded))
+                Kc = to_frame(K, "camera", h)
+                zc = res.zero_coupling(loaded)
+                rows.append({
+                    "base": base, "tip": tip, "state": state,
+                    "working_load_N": working_load_N if loaded else 0.0,
+                    "diagonal_mean_abs_error_pct": float(np.mean(
+                        [abs(_pct(Kc[i, i], M[i, i])) for i in range(6)])),
+                    "coupling_model_over_measured": {
+                        n: float(Kc[i, j] / M[i, j]) for n, i, j in ENTRIES if i != j},
+                    "zero_coupling_mm": zc,
+                    "rocking_at_elastic_centre_si": rocking_at_elastic_centre(K),
+                    "lateral_si": (float(K[3, 3]), float(K[4, 4])),
+                    "camera_diagonal_si": np.diag(Kc).tolist(),
+                    "seconds": res.info["seconds"]})
+    return rows
+
+
+def meets_goals(row: dict, diagonal_pct: float = 15.0, coupling_factor: float = 1.5) -> bool:
+    """Issue 18's goals for one :func:`end_condition_table` row: diagonal error <= 15 % and both
+    couplings within a factor 1.5 of the measured."""
+    c = row["coupling_model_over_measured"].values()
+    return (row["diagonal_mean_abs_error_pct"] <= diagonal_pct
+            and all(1 / coupling_factor <= r <= coupling_factor for r in c))
+
+
+def coupling_misfit(row: dict) -> float:
+    """The larger ``|ln(model / measured)|`` of the two couplings (0: both exact)."""
+    return max(abs(float(np.log(r))) for r in row["coupling_model_over_measured"].values())

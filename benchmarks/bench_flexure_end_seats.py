@@ -1,0 +1,66 @@
+"""Asymmetric ends of the beam chain against seed 002's measured K_c (docs/flexure.md).
+
+    .venv/bin/python benchmarks/bench_flexure_end_seats.py
+
+Every (base, tip) end condition (bonded, contact, potted), unloaded and at the 10 N working
+load, frictionless chain: the camera-frame goal metrics at the paper's offset (11.09 mm), the
+zero-coupling point (mm above the spring centre, x / y), the rocking stiffness at the elastic
+centre (1 / C_ww, independent of the camera offset) and the lateral stiffness; then the held-out
+checks (the end condition chosen on the couplings only, its diagonal error held out, and the
+reverse). Prints wall and CPU seconds."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from designlab.sensors.flexure import report as fr
+from designlab.sensors.flexure.spring import VISIFLEX_CATALOG
+
+
+def line(r) -> str:
+    c, z = r["coupling_model_over_measured"], r["zero_coupling_mm"]
+    kb, kv = r["rocking_at_elastic_centre_si"], r["lateral_si"]
+    return (f"| {r['base']} | {r['tip']} | {'10 N' if r['state'] == 'loaded' else '0'} | "
+            f"{r['diagonal_mean_abs_error_pct']:.1f} % | {c['k_wx_vy']:.2f} / {c['k_wy_vx']:.2f} | "
+            f"{z['x_mm']:+.2f} / {z['y_mm']:+.2f} ({z['mean_mm']:+.2f}) | "
+            f"{kb[0]:.3f} / {kb[1]:.3f} | {kv[0]:.0f} / {kv[1]:.0f} | "
+            f"{'yes' if fr.meets_goals(r) else 'no'} |")
+
+
+def main() -> None:
+    t0, c0 = time.perf_counter(), time.process_time()
+    paper = fr.load_paper()
+    M = paper["K_c_measured"]
+    h = fr.camera_offset(paper)
+    zm = 1e3 * fr.zero_coupling_point(M)
+    kb = fr.rocking_at_elastic_centre(M)
+    print(f"paper offset {1e3 * h:.2f} mm; measured zero-coupling point {zm:.2f} mm above the "
+          f"camera = {zm - 1e3 * h:+.2f} mm from the spring centre; measured rocking at the "
+          f"elastic centre {kb[0]:.3f} / {kb[1]:.3f} N*m/rad, lateral {M[3, 3]:.0f} / "
+          f"{M[4, 4]:.0f} N/m")
+    rows = fr.end_condition_table(VISIFLEX_CATALOG, paper)
+    print("| base | tip | load | diag. | couplings / measured | zero-coupling x / y (mean), mm "
+          "| rocking at elastic centre, N*m/rad | lateral N/m | both goals |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(line(r))
+    for name, pool in (("all 18", rows), ("asymmetric only (12)", [r for r in rows if r["base"] != r["tip"]])):
+        a = min(pool, key=fr.coupling_misfit)
+        b = min(pool, key=lambda r: r["diagonal_mean_abs_error_pct"])
+        ca, cb = a["coupling_model_over_measured"], b["coupling_model_over_measured"]
+        print(f"{name}: chosen on the couplings: {a['base']}/{a['tip']} {a['state']} "
+              f"(couplings {ca['k_wx_vy']:.2f} / {ca['k_wy_vx']:.2f}) -> held-out diagonal "
+              f"{a['diagonal_mean_abs_error_pct']:.1f} %; chosen on the diagonal: "
+              f"{b['base']}/{b['tip']} {b['state']} ({b['diagonal_mean_abs_error_pct']:.2f} %) -> "
+              f"held-out couplings {cb['k_wx_vy']:.2f} / {cb['k_wy_vx']:.2f}")
+    kbs = np.array([r["rocking_at_elastic_centre_si"] for r in rows])
+    print(f"rocking at the elastic centre over all rows: {kbs.min():.3f}-{kbs.max():.3f} N*m/rad "
+          f"(measured / largest: {min(kb) / kbs.max():.2f}-{max(kb) / kbs.max():.2f}x)")
+    print(f"rows meeting both goals: {sum(fr.meets_goals(r) for r in rows)} of {len(rows)}")
+    print(f"total {time.perf_counter() - t0:.1f} s wall, {time.process_time() - c0:.1f} s CPU")
+
+
+if __name__ == "__main__":
+    main()
