@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 from designlab.sensors.flexure import report as fr
-from designlab.sensors.flexure.spring import VISIFLEX_CATALOG
+from designlab.sensors.flexure.spring import VISIFLEX_CATALOG, stiffness_zero_pitch, to_si
 
 
 def line(r) -> str:
@@ -58,6 +58,16 @@ def main() -> None:
     kbs = np.array([r["rocking_at_elastic_centre_si"] for r in rows])
     print(f"rocking at the elastic centre over all rows: {kbs.min():.3f}-{kbs.max():.3f} N*m/rad "
           f"(measured / largest: {min(kb) / kbs.max():.2f}-{max(kb) / kbs.max():.2f}x)")
+    ratio = [float(np.mean(r["rocking_at_elastic_centre_si"])) / r["camera_diagonal_si"][5]
+             for r in rows]
+    cf = to_si(stiffness_zero_pitch(VISIFLEX_CATALOG))
+    print(f"rocking at the elastic centre / axial (m^2, both offset-independent): measured "
+          f"{np.mean(kb) / M[5, 5]:.3e}, closed form {cf[0, 0] / cf[5, 5]:.3e}, chain rows "
+          f"{min(ratio):.3e}-{max(ratio):.3e} (measured / rows {np.mean(kb) / M[5, 5] / max(ratio):.2f}"
+          f"-{np.mean(kb) / M[5, 5] / min(ratio):.2f}x)")
+    print(f"torsion / axial (m^2): measured {M[2, 2] / M[5, 5]:.3e}, closed form "
+          f"{cf[2, 2] / cf[5, 5]:.3e}; measured zero-coupling x / y from the spring centre "
+          f"{1e3 * (M[1, 3] / M[3, 3] - h):+.2f} / {1e3 * (-M[0, 4] / M[4, 4] - h):+.2f} mm")
     print(f"rows meeting both goals: {sum(fr.meets_goals(r) for r in rows)} of {len(rows)}")
     print(f"total {time.perf_counter() - t0:.1f} s wall, {time.process_time() - c0:.1f} s CPU")
 

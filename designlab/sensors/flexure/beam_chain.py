@@ -24,7 +24,9 @@ face, ``c < r`` with ``c`` the centreline's height above the seat) is clamped to
 (seed 002: "epoxy interfaces between the housings and the flexure"); this is what the solid FEM
 does with the ground faces. ``seat="contact"``: only the wire's end node is bonded (the epoxy
 spot that locates the spring); the rest of the ground face sits on the seat with unilateral
-contact at zero gap.
+contact at zero gap. ``seat="potted"``: the whole dead turn clamped. ``seat_base`` /
+``seat_tip`` set one end's condition only (an asymmetric assembly; ``ChainResult.zero_coupling``
+shows the elastic centre moving towards the more compliant end).
 
 Contact (``contact=True``): node-to-wire pairs one turn apart over the dead turn and the ramp at
 each end (the dead turn against the first active turn, gap ``z(u + 1) - z(u) - d``), and
