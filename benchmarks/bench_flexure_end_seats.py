@@ -1,16 +1,18 @@
 """Asymmetric ends of the beam chain against seed 002's measured K_c (docs/flexure.md).
 
-    .venv/bin/python benchmarks/bench_flexure_end_seats.py
+    .venv/bin/python benchmarks/bench_flexure_end_seats.py [--discretisation]
 
 Every (base, tip) end condition (bonded, contact, potted), unloaded and at the 10 N working
 load, frictionless chain: the camera-frame goal metrics at the paper's offset (11.09 mm), the
 zero-coupling point (mm above the spring centre, x / y), the rocking stiffness at the elastic
 centre (1 / C_ww, independent of the camera offset) and the lateral stiffness; then the held-out
 checks (the end condition chosen on the couplings only, its diagonal error held out, and the
-reverse). Prints wall and CPU seconds."""
+reverse). ``--discretisation``: the same numbers per ``elements_per_turn`` (the 10 N state
+depends on which contact nodes close). Prints wall and CPU seconds."""
 
 from __future__ import annotations
 
+import sys
 import time
 
 import numpy as np
@@ -27,6 +29,42 @@ def line(r) -> str:
             f"{z['x_mm']:+.2f} / {z['y_mm']:+.2f} ({z['mean_mm']:+.2f}) | "
             f"{kb[0]:.3f} / {kb[1]:.3f} | {kv[0]:.0f} / {kv[1]:.0f} | "
             f"{'yes' if fr.meets_goals(r) else 'no'} |")
+
+
+def discretisation(paper) -> None:
+    """The default (bonded / bonded) chain per elements_per_turn: goal metrics unloaded and at
+    10 N, closed contacts at 10 N; and the 18-row summary per elements_per_turn."""
+    for n in (24, 36, 48, 72, 108, 144):
+        rows = fr.end_condition_table(VISIFLEX_CATALOG, paper, seats=("bonded",),
+                                      elements_per_turn=n)
+        print(f"elements_per_turn {n}: " + "; ".join(
+            f"{'10 N' if r['state'] == 'loaded' else 'unloaded'} diag "
+            f"{r['diagonal_mean_abs_error_pct']:.1f} %, couplings "
+            f"{r['coupling_model_over_measured']['k_wx_vy']:.2f} / "
+            f"{r['coupling_model_over_measured']['k_wy_vx']:.2f}, closed {r['closed_contacts']}"
+            for r in rows))
+    from designlab.sensors.flexure import beam_chain as bc
+
+    for n in (36, 144):
+        ch = bc.Chain(bc.as_built(VISIFLEX_CATALOG), bc.ChainSettings(elements_per_turn=n))
+        pre = ch.solve(f_master=np.r_[0.0, 0.0, -10.0, 0.0, 0.0, 0.0])
+        coil = np.array([c.kind == "coil" for c in ch.contacts])
+        gap = (ch.g0 + ch.N @ pre["q"])[coil]
+        print(f"elements_per_turn {n}, 10 N: the 8 smallest coil gaps (um) "
+              + " ".join(f"{1e3 * g:.1f}" for g in np.sort(gap)[:8]))
+    for n in (72, 108):
+        rows = fr.end_condition_table(VISIFLEX_CATALOG, paper, elements_per_turn=n)
+        zc = [r["zero_coupling_mm"]["mean_mm"] for r in rows]
+        kb = [max(r["rocking_at_elastic_centre_si"]) for r in rows]
+        print(f"all 18 rows, elements_per_turn {n}: both goals met by "
+              f"{sum(fr.meets_goals(r) for r in rows)}; zero-coupling mean {min(zc):+.2f} to "
+              f"{max(zc):+.2f} mm; largest rocking at the elastic centre {max(kb):.3f} N*m/rad; "
+              f"best diagonal {min(r['diagonal_mean_abs_error_pct'] for r in rows):.1f} %")
+        for r in sorted(rows, key=fr.coupling_misfit)[:3]:
+            c = r["coupling_model_over_measured"]
+            print(f"    coupling misfit {fr.coupling_misfit(r):.3f}: {r['base']}/{r['tip']} "
+                  f"{r['state']}, couplings {c['k_wx_vy']:.2f} / {c['k_wy_vx']:.2f}, diagonal "
+                  f"{r['diagonal_mean_abs_error_pct']:.1f} %")
 
 
 def main() -> None:
@@ -73,4 +111,9 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    if "--discretisation" in sys.argv:
+        t0, c0 = time.perf_counter(), time.process_time()
+        discretisation(fr.load_paper())
+        print(f"total {time.perf_counter() - t0:.1f} s wall, {time.process_time() - c0:.1f} s CPU")
+    else:
+        main()

@@ -354,7 +354,8 @@ def rocking_at_elastic_centre(K: np.ndarray) -> tuple[float, float]:
 
 
 def end_condition_table(spring: HelicalSpring, paper: dict | None = None,
-                        seats=END_SEATS, working_load_N: float = 10.0) -> list[dict]:
+                        seats=END_SEATS, working_load_N: float = 10.0,
+                        elements_per_turn: int = 36) -> list[dict]:
     """Every (base, tip) end condition of the beam chain, unloaded and at ``working_load_N``:
     the camera-frame goal metrics at the paper's offset (mean |error| % over the measured
     diagonal, coupling ratios model / measured), the zero-coupling point (mm above the spring
@@ -369,7 +370,8 @@ def end_condition_table(spring: HelicalSpring, paper: dict | None = None,
     for base in seats:
         for tip in seats:
             res = chain_stiffness(spring, ChainSettings(seat_base=base, seat_tip=tip,
-                                                        working_load_N=working_load_N))
+                                                        working_load_N=working_load_N,
+                                                        elements_per_turn=elements_per_turn))
             states = [("unloaded", False)] + ([("loaded", True)] if res.K_loaded is not None else [])
             for state, loaded in states:
                 K = to_si(res.at(res.centre, loaded=loaded))
@@ -378,6 +380,8 @@ def end_condition_table(spring: HelicalSpring, paper: dict | None = None,
                 rows.append({
                     "base": base, "tip": tip, "state": state,
                     "working_load_N": working_load_N if loaded else 0.0,
+                    "closed_contacts": (res.info["working_load"]["closed_contacts"] if loaded
+                                        else 0),
                     "diagonal_mean_abs_error_pct": float(np.mean(
                         [abs(_pct(Kc[i, i], M[i, i])) for i in range(6)])),
                     "coupling_model_over_measured": {
