@@ -32,11 +32,10 @@ import json
 import time
 from pathlib import Path
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, Collection
 
 import numpy as np
 
-from designlab.atomic import atomic_savefig
 from designlab.calibration.calibration_matrix import (condition_number, cross_talk_percent,
                                                       fit_calibration_matrix, geometric_matrix,
                                                       linearity_percent)
@@ -659,37 +658,58 @@ def gains(report: dict[str, Any], prediction: FingertipPrediction) -> tuple[dict
     return outs, {o: "V" for o in outs}
 
 
-def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path) -> list[Path]:
+def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path,
+          only: Collection[str] | None = None) -> list[Path]:
     """Hysteresis loops, reading vs weight per location, applied vs estimated (seed 001 Fig. 9).
-    The first three on a fixed grid (:func:`~designlab.sensors.plotstyle.figure`: constrained
-    layout cost ~1.2 s CPU of the four figures), the paper comparison constrained (a legend
-    beside each of its panels)."""
+    Every figure on a fixed grid (:func:`~designlab.sensors.plotstyle.figure`; constrained
+    layout cost ~1.2 s CPU of the four figures), saved without ``bbox_inches="tight"`` (drawn
+    once, not twice). ``only``: the file names to draw (:data:`PLOT_GROUPS`: ``designlab
+    predict`` has two processes draw a group each); None: all."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from designlab.atomic import atomic_path
+
+    def save(fig, name):
+        path = Path(out) / name
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, format="png", dpi=110)
+        plt.close(fig)
+        return path
+
+    def want(name):
+        return only is None or name in only
+
+    files = []
+    loops = report["loops"]
+    names = list(loops)
+    if want("hysteresis_loops.png"):
+        files.append(save(_loops_figure(loops, names), "hysteresis_loops.png"))
+    if want("hysteresis_by_location.png"):
+        files.append(save(_by_location_figure(report, names), "hysteresis_by_location.png"))
+    if want("applied_vs_estimated.png"):
+        files.append(save(_applied_figure(report), "applied_vs_estimated.png"))
+    contact = report.get("paper_comparison", {}).get("contact")
+    if contact and "goals" in contact and want("paper_comparison.png"):
+        files.append(save(paper_comparison_figure(contact, plt), "paper_comparison.png"))
+    return files
+
+
+#: the fingertip's plots in two groups of about equal drawing time (~0.6 s each), drawn by two
+#: processes in ``designlab predict`` (:func:`plots`'s ``only``)
+PLOT_GROUPS = (("hysteresis_loops.png", "hysteresis_by_location.png"),
+               ("applied_vs_estimated.png", "paper_comparison.png"))
+
+
+def _loops_figure(loops: dict[str, Any], names: list[str]):
+    """Readings vs weight, loading and unloading, per sensor (rotation 0)."""
     from matplotlib.lines import Line2D
 
     from designlab.sensors.plotstyle import (figure, legend_outside, loading_style,
                                              series_style, unloading_style)
 
-    def save(fig, name, tight=True):
-        # a figure whose margins are set (tight=False) is drawn once; bbox_inches="tight"
-        # draws it twice (once to measure)
-        if tight:
-            path = atomic_savefig(fig, Path(out) / name, dpi=110)
-        else:
-            from designlab.atomic import atomic_path
-
-            path = Path(out) / name
-            with atomic_path(path) as tmp:
-                fig.savefig(tmp, format="png", dpi=110)
-        plt.close(fig)
-        return path
-
-    files = []
-    loops = report["loops"]
-    names = list(loops)
     fig, axes = figure(1, 3, width=14, height=4.4, fixed=True, top=0.84)
     fig.subplots_adjust(left=0.05, right=0.9, bottom=0.12)
     for k, ax in enumerate(axes):
@@ -710,7 +730,12 @@ def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path) ->
     legend_outside(fig, handles=handles, title="load point")
     fig.suptitle("hysteresis loops: loading (solid, filled) and unloading (dashed, open), "
                  "rotation 0")
-    files.append(save(fig, "hysteresis_loops.png", tight=False))
+    return fig
+
+
+def _by_location_figure(report: dict[str, Any], names: list[str]):
+    """Hysteresis (eq. 1) per load point."""
+    from designlab.sensors.plotstyle import figure, series_style
 
     fig, ax = figure(width=7, height=4, fixed=True, top=0.9)
     fig.subplots_adjust(left=0.1, right=0.97, bottom=0.13)
@@ -722,7 +747,12 @@ def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path) ->
     ax.set_title(f"mean over sensors and rotations; overall "
                  f"{report['hysteresis_percent']['overall']:.3g} %")
     ax.grid(alpha=0.3, axis="y")
-    files.append(save(fig, "hysteresis_by_location.png", tight=False))
+    return fig
+
+
+def _applied_figure(report: dict[str, Any]):
+    """Applied vs estimated forces of the calibration (seed 001 Fig. 9)."""
+    from designlab.sensors.plotstyle import figure, legend_outside, series_style
 
     ae = report["applied_vs_estimated"]
     P, E = np.array(ae["applied_N"]), np.array(ae["estimated_N"])
@@ -737,12 +767,7 @@ def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path) ->
         ax.grid(alpha=0.3)
     legend_outside(axes[-1])
     fig.suptitle(f"calibration (seed 001 Fig. 9): cond(A) = {report['condition_number']:.1f}")
-    files.append(save(fig, "applied_vs_estimated.png", tight=False))
-    contact = report.get("paper_comparison", {}).get("contact")
-    if contact and "goals" in contact:
-        files.append(save(paper_comparison_figure(contact, plt), "paper_comparison.png",
-                          tight=False))
-    return files
+    return fig
 
 
 def paper_comparison_figure(contact: dict[str, Any], plt):
@@ -834,8 +859,8 @@ def load_cases(*args, **kw):
 SENSOR = Sensor(
     name="fingertip", paper="seed 001 (cantilever fingertip on a ball and three FSS015 sensors)",
     protocol=HangingWeightTest, settings=FingertipModelSettings, run=run, plots=plots,
-    gains=gains, finish=finish, design_protocol=design_protocol, cached=True,
-    apply_model=apply_model, load_cases=load_cases, uncertainty=MONTE_CARLO,
+    plot_groups=PLOT_GROUPS, gains=gains, finish=finish, design_protocol=design_protocol,
+    cached=True, apply_model=apply_model, load_cases=load_cases, uncertainty=MONTE_CARLO,
     convergence=("condition_number", "hysteresis_percent.overall",
                  "hysteresis_percent.overall_noise_free",
                  "hysteresis_percent.by_group_noise_free.G1"))

@@ -358,9 +358,14 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
         report.update(sensor.apply_model(report, result, model_path, proto, sett, part=part))
     report.setdefault("geometric_condition_number", None)
     if pictures is not None and pictures.plot_dir is not None:
-        # the plots read the report as it is now (the stress check adds nothing they show)
-        pictures.plots = pictures.plotter.submit(_plots_job, name, result, report,
-                                                 pictures.plot_dir)
+        # the plots read the report as it is now (the stress check adds nothing they show);
+        # a sensor whose plots come in groups has them drawn by both processes at once
+        both = [pictures.painter, pictures.plotter] if pictures.plotter is not pictures.painter \
+            else [pictures.painter]
+        groups = sensor.plot_groups if len(both) == 2 and sensor.plot_groups else (None,)
+        pictures.plots = [(g, both[i % len(both)].submit(_plots_job, name, result, report,
+                                                         pictures.plot_dir, g))
+                          for i, g in enumerate(groups)]
     t0 = time.perf_counter()
     if progress:
         progress("stress")
@@ -473,7 +478,8 @@ class _Pictures:
     #: where the plots are drawn before the output is staged (beside ``--out``: one file
     #: system), and their job, sent as soon as the report is complete (before the stress)
     plot_dir: Path | None = None
-    plots: "_Ticket | None" = None
+    #: [(the group of plots (None: all), its job)]
+    plots: "list[tuple[tuple[str, ...] | None, _Ticket]] | None" = None
 
     @property
     def plotter(self) -> _Side:
@@ -499,9 +505,14 @@ def _design_png(name: str, items) -> bytes:
         return path.read_bytes()
 
 
-def _plots_job(sensor_name: str, result, metrics, stage: Path) -> list[str]:
-    """The sensor's plots into ``stage`` (the painter's job): their file names."""
-    return [Path(f).name for f in get_sensor(sensor_name).plots(result, metrics, stage)]
+def _plots_job(sensor_name: str, result, metrics, stage: Path,
+               only: tuple[str, ...] | None = None) -> list[str]:
+    """The sensor's plots (``only`` this group of them: ``Sensor.plot_groups``) into ``stage``
+    (a drawing process's job): their file names."""
+    sensor = get_sensor(sensor_name)
+    files = sensor.plots(result, metrics, stage) if only is None else \
+        sensor.plots(result, metrics, stage, only=only)
+    return [Path(f).name for f in files]
 
 
 def _deformed_job(path: Path, mesh, u, kw: dict[str, Any]) -> str:
@@ -843,8 +854,8 @@ def write_prediction(prediction: Prediction, out: str | Path,
         plots_job, deformed_job = None, None
         names: list[str] = []
         early = pictures is not None and pictures.plots is not None
-        if early:                           # drawn already, beside the stress check
-            plots_job = pictures.plots
+        if early:                           # being drawn since before the stress check
+            pass
         elif pictures is not None:
             plots_job = pictures.plotter.submit(_plots_job, prediction.sensor, result,
                                                 prediction.metrics, stage)
@@ -902,11 +913,21 @@ def write_prediction(prediction: Prediction, out: str | Path,
             else:
                 names.append("deformed.png")
             clock("deformed.png (waited for the painter)")
-        if plots_job is not None:
+        if early:
+            drawn = []
+            for group, job in pictures.plots:
+                got = job.get()
+                if got is None:             # the child failed: draw here (raises its error)
+                    got = _plots_job(prediction.sensor, result, prediction.metrics, stage,
+                                     group)
+                else:
+                    for n in got:
+                        os.replace(pictures.plot_dir / n, stage / n)
+                drawn += got
+            names = drawn + names
+            clock("plots (waited for the drawing processes)")
+        elif plots_job is not None:
             drawn = plots_job.get()
-            if drawn is not None and early:
-                for n in drawn:
-                    os.replace(pictures.plot_dir / n, stage / n)
             if drawn is None:               # the child failed: draw here (raises its error)
                 drawn = [Path(f).name for f in sensor.plots(result, prediction.metrics, stage)]
             names = drawn + names

@@ -24,6 +24,8 @@ class Sensor:
     settings:  the model-settings dataclass (derives from :class:`~designlab.fem.settings.FEMSettings`)
     run:       ``run(part, protocol, settings, progress=...) -> result`` with ``result.report``
     plots:     ``plots(result, report, out_dir) -> [Path]``
+    plot_groups: the plots' file names in groups that ``plots(..., only=group)`` draws alone
+               (``designlab predict`` has two processes draw them); (): one call draws all
     gains:     ``gains(report, result) -> ({output: {input: gain}}, {output: unit})``: the virtual
                test as a linear model from the loads to the outputs (the loop's base)
     finish:    ``finish(report, result, part, protocol)``: paper comparison and extra keys, in place
@@ -59,6 +61,7 @@ class Sensor:
     convergence: tuple[str, ...] = ("condition_number", "hysteresis_percent.overall")
     load_cases: Callable[..., list["LoadCase"]] | None = None
     uncertainty: Any = None
+    plot_groups: tuple[tuple[str, ...], ...] = ()
 
     @property
     def part(self) -> type:
