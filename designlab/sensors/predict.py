@@ -515,6 +515,14 @@ def _plots_job(sensor_name: str, result, metrics, stage: Path,
     return [Path(f).name for f in files]
 
 
+def _vtu_job(path: Path, mesh, point_data, cell_data, field_data) -> bool:
+    """deformed.vtu (:func:`~designlab.fem.output.write_vtu`; the painter's job, or here)."""
+    from designlab.fem.output import write_vtu
+
+    write_vtu(path, mesh, point_data=point_data, cell_data=cell_data, field_data=field_data)
+    return True
+
+
 def _deformed_job(path: Path, mesh, u, kw: dict[str, Any]) -> str:
     """deformed.png (the painter's job): '' when drawn, else the error in words."""
     from designlab.fem.output import write_png
@@ -815,8 +823,8 @@ def write_prediction(prediction: Prediction, out: str | Path,
     the plots are drawn by a forked process while this one writes the VTU, the renders and the
     model (the same files; a failed child's plots are drawn here); None: when two CPUs are free
     to this process. ``pictures`` (:func:`predict_and_write`): forked processes that have the
-    drawing libraries imported draw the plots and deformed.png instead (what they fail to draw
-    is drawn here)."""
+    drawing libraries imported draw the plots and deformed.png and write deformed.vtu instead
+    (what they fail to draw or write is done here)."""
     import gc
     import os
     import re
@@ -867,9 +875,8 @@ def write_prediction(prediction: Prediction, out: str | Path,
             names = [Path(f).name for f in sensor.plots(result, prediction.metrics, stage)]
             clock("plots")
         mesh, u = getattr(result, "mesh", None), getattr(result, "displacement", None)
+        vtu_job = None
         if mesh is not None and u is not None:
-            from designlab.fem.output import write_vtu
-
             pdata, cdata = {"displacement": u}, {}
             for c, st in zip(prediction.load_cases, prediction.stresses):
                 if c.vtu:
@@ -877,15 +884,19 @@ def write_prediction(prediction: Prediction, out: str | Path,
                     pdata[f"von Mises {c.name} (MPa)"] = st.node
                     cdata[f"von Mises {c.name} (MPa)"] = st.cell
             regions = sorted(mesh.region_names)
-            write_vtu(stage / "deformed.vtu", mesh, point_data=pdata, cell_data=cdata,
-                      field_data={"region_ids": [int(r) for r in regions],
-                                  "region_names": [mesh.region_names[r] for r in regions],
-                                  "region_materials": [mesh.materials.get(
-                                      mesh.region_names[r], "") for r in regions],
-                                  "load_cases": [f"{c.name}: {c.description}"
-                                                 for c in prediction.load_cases if c.vtu]})
+            vtu = (stage / "deformed.vtu", mesh, pdata, cdata,
+                   {"region_ids": [int(r) for r in regions],
+                    "region_names": [mesh.region_names[r] for r in regions],
+                    "region_materials": [mesh.materials.get(mesh.region_names[r], "")
+                                         for r in regions],
+                    "load_cases": [f"{c.name}: {c.description}"
+                                   for c in prediction.load_cases if c.vtu]})
+            if pictures is not None:        # the painter has pyvista imported: it writes it
+                vtu_job = pictures.painter.submit(_vtu_job, *vtu)
+            else:
+                _vtu_job(*vtu)
+                clock("deformed.vtu")
             names.append("deformed.vtu")
-            clock("deformed.vtu")
             first = prediction.load_cases[0] if prediction.load_cases else None
             if first is not None:
                 u = np.asarray(first.displacement)
@@ -904,6 +915,8 @@ def write_prediction(prediction: Prediction, out: str | Path,
         clock("model.json")
         names += _design_render(prediction, stage)
         clock("design.png")
+        if vtu_job is not None and vtu_job.get() is None:   # the painter failed: write here
+            _vtu_job(*vtu)
         if deformed_job is not None:
             err = deformed_job.get()
             if err is None:                 # the painter failed: draw here
