@@ -64,6 +64,9 @@ def test_least_squares_error_is_at_most_one_and_the_ratio_at_most_the_ceiling():
                                                      + r["readout_term_rms_N"][ax] + 1e-12)
             assert r["relative_error_per_axis"][ax] == pytest.approx(
                 r["absolute_rms_error_N"][ax] / r["rms_applied_N"][ax], rel=1e-12)
+            # in-sample least squares: relative error = sqrt(1 - gain) (sum P_est^2 = sum P_est P)
+            assert r["relative_error_per_axis"][ax] == pytest.approx(
+                math.sqrt(1.0 - r["least_squares_gain"][ax]), rel=1e-9)
 
 
 def test_eq3_target_is_the_normal_component():
