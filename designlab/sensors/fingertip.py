@@ -627,8 +627,11 @@ def finish(report: dict[str, Any], prediction: FingertipPrediction, part,
             from designlab.params import as_dict
 
             cache = prediction.cache if prediction.cache is not None else FEMCache()
+            # fig9: the P_z-error goal in the paper's definition (eq. 3 normal components):
+            # comparisons stored before it lack fig9_errors
             ckey = key_of("fingertip-paper-comparison", fem=prediction.fem_key,
-                          contact=as_dict(cs), rotations=list(prediction.settings.rotations_deg))
+                          contact=as_dict(cs), rotations=list(prediction.settings.rotations_deg),
+                          fig9="paper_eq3_normal_component")
             stored = cache.get_or_compute(ckey, compute)
         else:
             stored = compute()
