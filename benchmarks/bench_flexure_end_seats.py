@@ -7,8 +7,9 @@ load, frictionless chain: the camera-frame goal metrics at the paper's offset (1
 zero-coupling point (mm above the spring centre, x / y), the rocking stiffness at the elastic
 centre (1 / C_ww, independent of the camera offset) and the lateral stiffness; then the held-out
 checks (the end condition chosen on the couplings only, its diagonal error held out, and the
-reverse). ``--discretisation``: the same numbers per ``elements_per_turn`` (the 10 N state
-depends on which contact nodes close). Prints wall and CPU seconds."""
+reverse). ``--discretisation``: the default chain per ``elements_per_turn`` with node contacts
+(before) and line contacts (default), the line contacts' sensitivities, and the 18 rows at 72
+and 144 beams per turn. Prints wall and CPU seconds."""
 
 from __future__ import annotations
 
@@ -31,28 +32,75 @@ def line(r) -> str:
             f"{'yes' if fr.meets_goals(r) else 'no'} |")
 
 
+LEVELS = (24, 36, 48, 72, 108, 144)
+
+
 def discretisation(paper) -> None:
-    """The default (bonded / bonded) chain per elements_per_turn: goal metrics unloaded and at
-    10 N, closed contacts at 10 N; and the 18-row summary per elements_per_turn."""
-    for n in (24, 36, 48, 72, 108, 144):
-        rows = fr.end_condition_table(VISIFLEX_CATALOG, paper, seats=("bonded",),
-                                      elements_per_turn=n)
-        print(f"elements_per_turn {n}: " + "; ".join(
-            f"{'10 N' if r['state'] == 'loaded' else 'unloaded'} diag "
-            f"{r['diagonal_mean_abs_error_pct']:.1f} %, couplings "
-            f"{r['coupling_model_over_measured']['k_wx_vy']:.2f} / "
-            f"{r['coupling_model_over_measured']['k_wy_vx']:.2f}, closed {r['closed_contacts']}"
-            for r in rows))
+    """The default (bonded / bonded) chain per elements_per_turn, with the node contacts of
+    before (``contact_spacing_mm=0``) and the line contacts (default): goal metrics unloaded and
+    at 10 N, closed contacts at 10 N, the spread over the six levels; the line contacts'
+    sensitivity to their spacing, the refinement mesh, the window rule and the penalty; the 18
+    rows at 72 and 144 beams per turn."""
     from designlab.sensors.flexure import beam_chain as bc
 
-    for n in (36, 144):
-        ch = bc.Chain(bc.as_built(VISIFLEX_CATALOG), bc.ChainSettings(elements_per_turn=n))
-        pre = ch.solve(f_master=np.r_[0.0, 0.0, -10.0, 0.0, 0.0, 0.0])
-        coil = np.array([c.kind == "coil" for c in ch.contacts])
-        gap = (ch.g0 + ch.N @ pre["q"])[coil]
-        print(f"elements_per_turn {n}, 10 N: the 8 smallest coil gaps (um) "
-              + " ".join(f"{1e3 * g:.1f}" for g in np.sort(gap)[:8]))
-    for n in (72, 108):
+    def levels(label, **kw):
+        out = {"loaded": [], "unloaded": []}
+        for n in LEVELS:
+            rows = fr.end_condition_table(VISIFLEX_CATALOG, paper, seats=("bonded",),
+                                          elements_per_turn=n, **kw)
+            for r in rows:
+                out[r["state"]].append(r)
+        for state in ("loaded", "unloaded"):
+            e = [r["diagonal_mean_abs_error_pct"] for r in out[state]]
+            c = [r["coupling_model_over_measured"] for r in out[state]]
+            print(f"{label}, {'10 N' if state == 'loaded' else 'unloaded'}: diag "
+                  + " / ".join(f"{x:.2f}" for x in e) + f" % (spread {max(e) - min(e):.2f}); "
+                  "couplings " + " / ".join(f"{x['k_wx_vy']:.2f}-{x['k_wy_vx']:.2f}" for x in c)
+                  + ("; closed " + " / ".join(str(r["closed_contacts"]) for r in out[state])
+                     if state == "loaded" else ""))
+        return out
+
+    print("elements_per_turn " + " / ".join(map(str, LEVELS)))
+    levels("node contacts (contact_spacing_mm=0, before)", contact_spacing_mm=0.0)
+    levels("line contacts (default)")
+    M, h = paper["K_c_measured"], fr.camera_offset(paper)
+
+    def err(**kw):
+        out = []
+        for n in (36, 72, 144):
+            r = bc.chain_stiffness(VISIFLEX_CATALOG, bc.ChainSettings(elements_per_turn=n, **kw))
+            Kc = fr.to_frame(r.K_loaded_centre_si, "camera", h)
+            out.append(100 * np.mean([abs(Kc[i, i] / M[i, i] - 1) for i in range(6)]))
+        return " / ".join(f"{x:.2f}" for x in out)
+
+    print("line contacts, 10 N diag % at 36 / 72 / 144 beams per turn:")
+    for sp_, mesh in ((0.25, 0.25), (0.05, 0.25), (0.05, 0.1)):
+        print(f"    contact_spacing_mm {sp_}, contact_mesh_mm {mesh}: "
+              + err(contact_spacing_mm=sp_, contact_mesh_mm=mesh))
+    rule = (bc.REFINE_GAP_MM, bc.WINDOW_MARGIN_MM)
+    for gap, margin in ((0.05, 1.5), (0.3, 6.0)):
+        bc.REFINE_GAP_MM, bc.WINDOW_MARGIN_MM = gap, margin
+        print(f"    windows where the gap at rest < {gap} mm, +-{margin} mm: " + err())
+    bc.REFINE_GAP_MM, bc.WINDOW_MARGIN_MM = rule
+    line = bc.Chain._line_contacts
+    for f in (0.1, 10.0):
+        bc.Chain._line_contacts = lambda self, a, b, s, f=f: line(self, f * a, f * b, s)
+        print(f"    penalty x{f:g} (E* per unit length scaled): " + err())
+    bc.Chain._line_contacts = line
+    ch = bc.Chain(bc.as_built(VISIFLEX_CATALOG), bc.ChainSettings())
+    pre = ch.solve(f_master=np.r_[0.0, 0.0, -10.0, 0.0, 0.0, 0.0])
+    cl = pre["closed"]
+    us = np.array([c.u for c in ch.contacts])
+    kind = np.array([c.kind for c in ch.contacts])
+    for name, sel in (("base", us < ch.coil.turns / 2), ("tip", us >= ch.coil.turns / 2)):
+        m = cl & sel & (kind == "coil")
+        length = sum(1 for _ in np.nonzero(m)[0]) * ch.s.contact_spacing_mm
+        print(f"10 N, default: {name} coil contact zone u {us[m].min():.4f}-{us[m].max():.4f} "
+              f"(lower wire; {int(m.sum())} points, ~{length:.1f} mm), {pre['f_n'][m].sum():.3f} N")
+    print(f"10 N, default: seat contacts closed {int(np.count_nonzero(cl & (kind == 'seat')))}, "
+          f"{pre['f_n'][cl & (kind == 'seat')].sum():.4f} N; all contacts "
+          f"{pre['f_n'].sum():.4f} N against the 10 N load; {len(ch.u) - 1} beams")
+    for n in (72, 144):
         rows = fr.end_condition_table(VISIFLEX_CATALOG, paper, elements_per_turn=n)
         zc = [r["zero_coupling_mm"]["mean_mm"] for r in rows]
         kb = [max(r["rocking_at_elastic_centre_si"]) for r in rows]

@@ -117,12 +117,19 @@ def test_bad_input_one_line_errors():
 
 def test_coulomb_friction_bounds_at_the_working_load():
     """Friction at the closed coil/seat contacts (10 N): gross slip leaves the tangent 6x6 the
-    frictionless one (the fixed-set condensation equals the perturbation 6x6), full stick only
-    stiffens (K_stick - K_slip positive semidefinite), and the stick range mu f_n / k_t is far
-    below the 0.02 mm perturbation: the paper's 4 mm poses slide."""
+    frictionless one (the fixed-set condensation equals the perturbation 6x6 to 1e-6 with node
+    contacts; with line contacts the zones' edge points open and close under the
+    perturbations, so the secant differs from the fixed-set tangent: diagonal within 1 %,
+    measured 0.5 %), full stick only stiffens (K_stick - K_slip positive semidefinite), and the
+    stick range mu f_n / k_t is far below the 0.02 mm perturbation: the paper's 4 mm poses
+    slide."""
+    nodes = bc.friction_bounds(VISIFLEX_CATALOG, bc.ChainSettings(contact_spacing_mm=0.0),
+                               mu=0.3)
+    Kp, Ks = nodes["K_perturbation_centre"], nodes["K_slip_centre"]
+    np.testing.assert_allclose(Ks, Kp, rtol=1e-6, atol=1e-6 * np.abs(Kp).max())
     r = bc.friction_bounds(VISIFLEX_CATALOG, mu=0.3)
     Kp, Ks, Kt = r["K_perturbation_centre"], r["K_slip_centre"], r["K_stick_centre"]
-    np.testing.assert_allclose(Ks, Kp, rtol=1e-6, atol=1e-6 * np.abs(Kp).max())
+    np.testing.assert_allclose(np.diag(Ks), np.diag(Kp), rtol=0.01)
     ev = np.linalg.eigvalsh(fr.to_frame(r["K_stick_centre_si"], "spring", 0.0)
                             - fr.to_frame(r["K_slip_centre_si"], "spring", 0.0))
     assert ev.min() > -1e-9 * np.abs(ev).max() and ev.max() > 0

@@ -22,11 +22,15 @@ def frictionless():
 
 def test_zero_mu_is_the_frictionless_chain(frictionless):
     """mu = 0: the incremental frictional solve (10 force increments to the 10 N working load,
-    then the perturbations from that state) gives the frictionless 6x6, unloaded and loaded,
-    to 1e-9 (relative Frobenius norm; the loaded state's reactions agree to ~2e-9 N of 10 N)."""
+    then the perturbations from that state) gives the frictionless 6x6, unloaded and loaded:
+    to 1e-9 (relative Frobenius norm) with node contacts, to 1e-7 with the line contacts
+    (measured 3e-8: beams of 0.25 mm and 2887 stiff penalties leave more round-off)."""
     r = bc.friction_stiffness(VISIFLEX_CATALOG, mu=0.0)
     assert _rel(r.K, frictionless.K) < 1e-9
-    assert _rel(r.K_loaded, frictionless.K_loaded) < 1e-9
+    assert _rel(r.K_loaded, frictionless.K_loaded) < 1e-7
+    nodes = bc.ChainSettings(contact_spacing_mm=0.0)
+    a = bc.friction_stiffness(VISIFLEX_CATALOG, nodes, mu=0.0)
+    assert _rel(a.K_loaded, bc.chain_stiffness(VISIFLEX_CATALOG, nodes).K_loaded) < 1e-9
     wl = r.info["working_load"]
     assert wl["axial_deflection_mm"] == pytest.approx(
         frictionless.info["working_load"]["axial_deflection_mm"], rel=1e-9)
@@ -35,9 +39,12 @@ def test_zero_mu_is_the_frictionless_chain(frictionless):
 def test_large_mu_is_the_stuck_bound():
     """mu = 1e4: every closed contact sticks through the preload and the perturbations, and the
     6x6 at the working load is the stuck bound (fixed-set condensation with Mindlin's
-    tangential penalty) to 1e-6."""
-    b = bc.friction_bounds(VISIFLEX_CATALOG, mu=0.3)
-    big = bc.friction_stiffness(VISIFLEX_CATALOG, mu=1e4)
+    tangential penalty) to 1e-6. Node contacts (``contact_spacing_mm=0``): with line contacts
+    the preload at mu = 1e4 does not converge (a zone's edge point closes with a vanishing
+    normal force and slides with a traction slope mu k_n; the increment halving gives up)."""
+    nodes = bc.ChainSettings(contact_spacing_mm=0.0)
+    b = bc.friction_bounds(VISIFLEX_CATALOG, nodes, mu=0.3)
+    big = bc.friction_stiffness(VISIFLEX_CATALOG, nodes, mu=1e4)
     wl = big.info["working_load"]
     assert wl["stuck_contacts"] == wl["closed_contacts"] > 0
     assert _rel(big.at(big.centre, loaded=True), b["K_stick_centre"]) < 1e-6
@@ -55,8 +62,10 @@ def test_friction_lies_between_slip_and_stick():
         r = bc.friction_stiffness(VISIFLEX_CATALOG, mu=mu)
         diag[mu] = np.diag(r.at(r.centre, loaded=True))
         # a secant of two sliding paths, not a tangent: an entry may sit slightly below the
-        # frictionless one (k_wy at mu 0.3: -0.15 %)
-        assert np.all(diag[mu] >= slip * 0.99) and np.all(diag[mu] <= stick * (1 + 1e-9))
+        # frictionless one (k_wy at mu 0.3: -0.15 %); the bounds hold the working load's
+        # closed set, and the line contacts' zone edges open and close under the
+        # perturbations, so the secant may exceed the stuck bound slightly (k_wx +0.4 %)
+        assert np.all(diag[mu] >= slip * 0.99) and np.all(diag[mu] <= stick * 1.01)
         assert r.info["working_load"]["closed_contacts"] > 0
     assert np.all(diag[0.3][[2, 3, 4, 5]] > diag[0.1][[2, 3, 4, 5]])
     assert diag[0.3][3] < 0.999 * stick[3]          # mu = 0.3 is not stuck
@@ -107,7 +116,9 @@ def test_loops_about_the_relaxed_spring_fit_like_the_paper():
     slide), and the fitted diagonal moves by less than 5 %: the loop's band averages out."""
     L0 = bc.loop_stiffness(VISIFLEX_CATALOG, mu=0.0, points=2)
     L3 = bc.loop_stiffness(VISIFLEX_CATALOG, mu=0.3, points=2)
-    assert max(L0["half_width"].values()) < 1e-5      # N, N mm: the active set's +-tol band
+    # N, N mm: the active set's +-tol band (2e-8 mm of gap at each of the line contacts'
+    # points, measured 1.6e-4 N mm of a 100 N mm loop; 1e-5 with node contacts)
+    assert max(L0["half_width"].values()) < 1e-3
     assert L3["half_width"]["u_x"] > 0.01 and L3["half_width"]["th_x"] > 0.01
     d0, d3 = np.diag(L0["K"]), np.diag(L3["K"])
     assert np.all(np.abs(d3 / d0 - 1) < 0.05)

@@ -58,6 +58,7 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from threadpoolctl import threadpool_limits
 
 from designlab.errors import ModelError, ParameterError
 from designlab.fem.beam import beam_stiffness, circular_section
@@ -115,6 +116,15 @@ class ChainSettings:
         "loop_stiffness; chain_stiffness is frictionless). Default 0.3: dry steel on steel, "
         "kinetic (S. A. Hill, 'Coefficients of Friction', howwhy.nfshost.com, 2023: static 0.6, "
         "kinetic 0.3; oiled 0.05 / 0.03)")))
+    contact_spacing_mm: float = field(default=0.1, metadata=rng(0, 10, unit="mm", doc=(
+        "spacing of the contact points along the wire: a line contact (penalty E* per unit "
+        "length, each point E* x its length), the points placed independently of the beam "
+        "nodes and moving with the beams' shape functions; 0: one contact per beam node (the "
+        "scheme before 2026-11-25, whose 10 N state depends on elements_per_turn)")))
+    contact_mesh_mm: float = field(default=0.25, metadata=rng(0, 10, unit="mm", doc=(
+        "beam length (mm of wire) where a contact can close (within 0.1 mm of closing at rest, "
+        "plus 3 mm either side; line contacts only): a contact zone shorter than a beam is not "
+        "resolved by the beam's shape functions. 0: elements_per_turn everywhere")))
     perturbation_rad: float = field(default=2e-3, metadata=rng(0, 0.1, lo_open=True, unit="rad"))
     perturbation_mm: float = field(default=0.02, metadata=rng(0, 1, lo_open=True, unit="mm"))
     max_iterations: int = field(default=60, metadata=rng(2, 1000))
@@ -203,6 +213,7 @@ class _Contact:
     k_n: float              # penalty, N/mm
     kind: str               # "coil" or "seat"
     rt: np.ndarray | None = None   # (2, n_q): tangential (x, y) slip of the contact points
+    u: float | None = None         # turn count of the (lower) contact point (line contacts)
 
 
 @dataclass
@@ -254,11 +265,21 @@ def _block_diag(blocks: np.ndarray) -> np.ndarray:
     return out
 
 
-def _next_closed(g: np.ndarray, closed: np.ndarray, tol: float, seen: set):
+def _next_closed(g: np.ndarray, closed: np.ndarray, tol: float, seen: set, runs=None):
     """The next normal active set from the gaps ``g`` (mm): closed where ``g < -tol``, open
     where ``g > tol``, kept in between. A set met before (a cycle) flips only the contact with
-    the largest gap instead. Returns (set, whether it is unchanged)."""
+    the largest gap instead. ``runs`` (line contacts: an id per contact, equal for neighbours
+    along one contact line): from an all-open set only the deepest contact of each run of
+    penetrated neighbours closes (a line contact zone then grows from its centre instead of
+    shrinking from all the penetrated points, one edge point per solve). Returns (set, whether
+    it is unchanged)."""
     new = np.where(g < -tol, True, np.where(g > tol, False, closed))
+    if runs is not None and not closed.any() and np.count_nonzero(new) > 1:
+        pen = np.nonzero(new)[0]
+        brk = np.nonzero((np.diff(pen) > 1) | (np.diff(runs[pen]) != 0))[0] + 1
+        new = np.zeros_like(closed)
+        for seg in np.split(pen, brk):
+            new[seg[np.argmin(g[seg])]] = True
     if np.array_equal(new, closed):
         return closed, True
     key = new.tobytes()
@@ -287,11 +308,15 @@ class ActiveSet:
         most. Returns (q, g, closed, iterations)."""
         tol = 1e-6 * self.s.perturbation_mm
         seen = set()
-        for it in range(self.s.max_iterations):
-            q, g = step(closed)
-            closed, settled = _next_closed(g, closed, tol, seen)
-            if settled:
-                return q, g, closed, it + 1
+        runs = getattr(self, "runs", None)
+        # the solves' dense products are small: BLAS threads only cost (2x the wall time of
+        # `designlab flexure` on the shared 2-core machine)
+        with threadpool_limits(1, user_api="blas"):
+            for it in range(self.s.max_iterations):
+                q, g = step(closed)
+                closed, settled = _next_closed(g, closed, tol, seen, runs)
+                if settled:
+                    return q, g, closed, it + 1
         raise ModelError(f"beam chain: contact active set did not settle in "
                          f"{self.s.max_iterations} iterations")
 
@@ -311,9 +336,15 @@ class ActiveSet:
         N, kn, g0 = self.N, self.kn, self.g0
         system = {}
 
+        line = getattr(self, "runs", None) is not None
+
         def step(closed):
             w = kn * closed
-            A = (self.Kq + N.T @ sp.diags(w) @ N).tocsc()
+            if line:                 # many contacts, few closed: assemble the closed ones only
+                i = np.nonzero(closed)[0]
+                A = (self.Kq + N[i].T @ sp.diags(w[i]) @ N[i]).tocsc()
+            else:
+                A = (self.Kq + N.T @ sp.diags(w) @ N).tocsc()
             b = fext - N.T @ (w * g0)
             rhs = b[free] - (A[free][:, m] @ q[m] if q_master is not None else 0.0)
             Aff = A[free][:, free]
@@ -343,17 +374,33 @@ class ActiveSet:
         N = self.N.tocsr()
         kn, g0 = self.kn, self.g0
         x0 = lu.solve(fext)
+        line = getattr(self, "runs", None) is not None
 
         def step(closed):
             idx = np.nonzero(closed)[0]
             if not len(idx):
                 return x0, g0 + N @ x0
+            if len(idx) > 40:                               # many contacts: factor directly
+                Ni = N[idx]
+                A = (self.Kq + Ni.T @ sp.diags(kn[idx]) @ Ni).tocsc()
+                b = fext - Ni.T @ (kn[idx] * g0[idx])
+                lu_a = spla.splu(A)
+                q = lu_a.solve(b)
+                q += lu_a.solve(b - A @ q)                  # one refinement step
+                return q, g0 + N @ q
             U = N[idx].T.toarray()                          # (nq, k)
             KU = lu.solve(U)
             w = kn[idx]
-            xb = lu.solve(fext - U @ (w * g0[idx]))
             S = np.diag(1.0 / w) + U.T @ KU
-            q = xb - KU @ np.linalg.solve(S, U.T @ xb)
+
+            def wsolve(rhs):
+                xb = lu.solve(rhs)
+                return xb - KU @ np.linalg.solve(S, U.T @ xb)
+
+            b = fext - U @ (w * g0[idx])
+            q = wsolve(b)
+            if line:                                        # one refinement step (stiff
+                q += wsolve(b - self.Kq @ q - U @ (w * (U.T @ q)))   # short beams, penalties)
             return q, g0 + N @ q
 
         q, g, closed, its = self._settle(np.zeros(len(kn), bool), step)
@@ -546,29 +593,109 @@ class ActiveSet:
         return Kq[np.ix_(_PERM, _PERM)], info
 
 
+#: contact refinement: beams of at most ``contact_mesh_mm`` where a contact's initial gap is below
+#: this (mm), on every wire it involves, plus ``WINDOW_MARGIN_MM`` of wire on either side
+REFINE_GAP_MM = 0.1
+WINDOW_MARGIN_MM = 3.0
+
+
+def _held_turns(coil: Coil, seat: str, end: str, u: np.ndarray) -> np.ndarray:
+    """Where an end's wire is held by its end condition (the bond rule of :class:`Chain`)."""
+    c = coil.z_of_u(u) - coil.seat_lo if end == "base" else coil.seat_hi - coil.z_of_u(u)
+    near = u < 1 if end == "base" else u > coil.turns - 1
+    if seat == "bonded":
+        return near & (c < coil.r)
+    if seat == "potted":
+        return (u <= 1 + 1e-9) if end == "base" else (u >= coil.turns - 1 - 1e-9)
+    return np.zeros(len(u), bool)
+
+
+def _contact_windows(coil: Coil, settings: ChainSettings) -> list[tuple[float, float]]:
+    """Turn-count intervals of wire to mesh finely: where a coil or seat contact starts within
+    ``REFINE_GAP_MM`` of closing, on the wires it involves (not where an end holds the wire),
+    widened by ``WINDOW_MARGIN_MM``."""
+    N, r = coil.turns, coil.r
+    base, tip = settings.end_seats
+    fine = np.linspace(0.0, N, int(N * 2000) + 1)
+    held = _held_turns(coil, base, "base", fine) | _held_turns(coil, tip, "tip", fine)
+    z = coil.z_of_u(fine)
+    near = np.zeros(len(fine), bool)
+    du = fine[1] - fine[0]
+    shift = int(round(1.0 / du))                       # one turn up
+    g_coil = z[shift:] - z[:-shift] - 2 * r
+    lo_span = (fine[:-shift] <= 1 + RAMP) | (fine[:-shift] >= N - 2 - RAMP)
+    close = (g_coil <= REFINE_GAP_MM) & lo_span
+    # coil contacts: both wires, held or not (a held wire moves rigidly with its disc, and a
+    # coarse chord misplaces the contact point by its sagitta times the disc's tilt)
+    near[:-shift] |= close
+    near[shift:] |= close
+    seat = (((fine <= 1) & (z - coil.seat_lo - r <= REFINE_GAP_MM))
+            | ((fine >= N - 1) & (coil.seat_hi - z - r <= REFINE_GAP_MM)))
+    near |= seat & ~held
+    margin = WINDOW_MARGIN_MM / (2 * np.pi * coil.R)
+    out = []
+    idx = np.nonzero(near)[0]
+    if len(idx):
+        breaks = np.nonzero(np.diff(idx) > 1)[0]
+        for a, b in zip(np.r_[idx[0], idx[breaks + 1]], np.r_[idx[breaks], idx[-1]]):
+            out.append((max(fine[a] - margin, 0.0), min(fine[b] + margin, N)))
+    return out
+
+
+def _merge(windows) -> list[tuple[float, float]]:
+    out = []
+    for a, b in sorted(windows):
+        if out and a <= out[-1][1]:
+            out[-1] = (out[-1][0], max(out[-1][1], b))
+        else:
+            out.append((a, b))
+    return out
+
+
+def _refine(u: np.ndarray, windows, step: float) -> np.ndarray:
+    """The background nodes ``u`` with every window meshed uniformly at most ``step`` (turns);
+    background nodes closer than half a step to a window are dropped."""
+    parts = [u[[0, -1]]]
+    keep = np.ones(len(u), bool)
+    for a, b in windows:
+        k = max(int(math.ceil((b - a) / step - 1e-9)), 1)
+        parts.append(np.linspace(a, b, k + 1))
+        keep &= ~((u > a - step / 2) & (u < b + step / 2))
+    return np.unique(np.concatenate(parts + [u[keep]]))
+
+
 class Chain(ActiveSet):
     """Assembled chain: reduced stiffness, contact operators, active-set solves."""
 
-    def __init__(self, coil: Coil, settings: ChainSettings):
+    def __init__(self, coil: Coil, settings: ChainSettings, windows=()):
         self.coil, self.s = coil, settings
         R, r, N = coil.R, coil.r, coil.turns
         n_el = max(int(math.ceil(N * settings.elements_per_turn - 1e-9)), 4)
         u = np.linspace(0.0, N, n_el + 1)
-        self.u, self.h = u, N / n_el
+        self.h = N / n_el
+        line = (settings.contact and coil.ends == "closed_ground"
+                and settings.contact_spacing_mm > 0 and settings.contact_mesh_mm > 0)
+        self.windows = _merge(list(_contact_windows(coil, settings)) + list(windows)) if line else []
+        if self.windows:
+            u = _refine(u, self.windows, settings.contact_mesh_mm / (2 * np.pi * R))
+        self.u = u
+        n_el = len(u) - 1
         z = coil.z_of_u(u) - coil.seat_lo
         X = np.column_stack([R * np.cos(2 * np.pi * u), R * np.sin(2 * np.pi * u), z])
         self.X, L = X, coil.length
         self.master = np.array([0.0, 0.0, L])
         n = len(u)
         sec = circular_section(2 * r)
-        K = np.zeros((6 * n, 6 * n))
         self.ke = np.zeros((n_el, 12, 12))         # element stiffnesses (section forces)
         for e in range(n_el):
-            ke = beam_stiffness(X[e], X[e + 1], coil.E, coil.G, sec["A"], sec["Iy"], sec["Iz"],
-                                sec["J"], sec["As"])
-            self.ke[e] = ke
-            idx = np.r_[6 * e:6 * e + 12]
-            K[np.ix_(idx, idx)] += ke
+            self.ke[e] = beam_stiffness(X[e], X[e + 1], coil.E, coil.G, sec["A"], sec["Iy"],
+                                        sec["Iz"], sec["J"], sec["As"])
+        # sparse assembly: a node is shared by two beams at most, so each entry is the same
+        # sum (0 + a + b) as the dense one; exact zeros dropped as the dense -> CSR did
+        idx = 6 * np.arange(n_el)[:, None] + np.arange(12)[None, :]
+        K = sp.csr_matrix((self.ke.ravel(), (np.repeat(idx, 12, axis=1).ravel(),
+                                             np.tile(idx, (1, 12)).ravel())), shape=(6 * n, 6 * n))
+        K.eliminate_zeros()
         # ---- ends: bonded nodes (base fixed, tip rigid to the master)
         c_base, c_tip = z, L - z                 # centreline heights above the seats
         if coil.ends == "plain":
@@ -604,7 +731,8 @@ class Chain(ActiveSet):
             T[6 * k:6 * k + 6, m0:] = self._rigid(X[k])
         self.T, self.nq, self.m = T, nq, np.arange(m0, nq)
         Ts = sp.csr_matrix(T)
-        self.Kq = (Ts.T @ sp.csr_matrix(K) @ Ts).tocsr()
+        self.Kq = (Ts.T @ K @ Ts).tocsr()
+        self.K_full = K
         self.n_dofs = 6 * n
         # ---- contacts
         nu = coil.E / (2 * coil.G) - 1
@@ -616,14 +744,26 @@ class Chain(ActiveSet):
         self.contacts: list[_Contact] = []
         # line contact of one node spacing along the wire, mm (self.h is in turns)
         self.spacing = float(np.linalg.norm(np.diff(X, axis=0), axis=1).mean())
-        if settings.contact and coil.ends == "closed_ground":
-            self._coil_contacts(E_ss * self.spacing)
-            self._seat_contacts(E_seat * self.spacing, c_base, c_tip)
-        self.N = sp.csr_matrix(np.array([c.row for c in self.contacts]).reshape(-1, nq))
+        self._phi = 12 * coil.E * sec["Iy"] / (coil.G * sec["As"])      # x L^-2 per element
+        self.n_dofs = 6 * n
+        self._Ts = Ts
+        if settings.contact and coil.ends == "closed_ground" and settings.contact_spacing_mm > 0:
+            self._line_contacts(E_ss, E_seat, settings.contact_spacing_mm)
+            self.N, self.Rt = self._line_N, self._line_Rt
+        else:
+            if settings.contact and coil.ends == "closed_ground":
+                self._coil_contacts(E_ss * self.spacing)
+                self._seat_contacts(E_seat * self.spacing, c_base, c_tip)
+            self.N = sp.csr_matrix(np.array([c.row for c in self.contacts]).reshape(-1, nq))
+            self.Rt = sp.csr_matrix(np.array([c.rt for c in self.contacts]).reshape(-1, nq))
         self.kn = np.array([c.k_n for c in self.contacts])
         self.g0 = np.array([c.g0 for c in self.contacts])
-        self.Rt = sp.csr_matrix(np.array([c.rt for c in self.contacts]).reshape(-1, nq))
-        self.bonded_turns = (len(base_bond) + len(tip_bond)) * self.h / 2
+        if self.windows:            # bonded length per end, each node with the beam beyond it
+            du = np.diff(u)
+            self.bonded_turns = float(np.ptp(u[base_bond]) + du[min(base_bond.max(), n - 2)]
+                                      + np.ptp(u[tip_bond]) + du[max(tip_bond.min() - 1, 0)]) / 2
+        else:
+            self.bonded_turns = (len(base_bond) + len(tip_bond)) * self.h / 2
 
     # ------------------------------------------------------------------ section forces
     def section_forces(self, q: np.ndarray) -> dict[str, np.ndarray]:
@@ -672,6 +812,158 @@ class Chain(ActiveSet):
         s = (u - self.u[j]) / self.h
         return j, float(np.clip(s, 0.0, 1.0))
 
+    def _ops(self, us: np.ndarray, full: bool = False
+             ) -> tuple[sp.csr_matrix, sp.csr_matrix, np.ndarray]:
+        """Centreline displacement and section rotation at the turn counts ``us`` per reduced
+        dof: two sparse (3 k, n_q) operators (row ``3 i + c``: component ``c`` of point ``i``),
+        and whether each point's beam is held at both nodes (bonded). Inside a beam the
+        displacement follows the two-node Timoshenko beam's own shape functions (exact for a
+        beam loaded at its ends: linear along the chord, cubic across it with the shear
+        parameter ``phi = 12 EI / (kappa G A L^2)``; Przemieniecki, *Theory of Matrix
+        Structural Analysis*, 1968, sec. 5.6), the rotation is linear between the nodes.
+        ``full``: per node dof (6 n) instead of per reduced dof."""
+        u = self.u
+        us = np.asarray(us, float)
+        k = len(us)
+        e = np.clip(np.searchsorted(u, us, side="right") - 1, 0, len(u) - 2)
+        xi = np.clip((us - u[e]) / (u[e + 1] - u[e]), 0.0, 1.0)
+        d = self.X[e + 1] - self.X[e]
+        L = np.linalg.norm(d, axis=1)
+        t = d / L[:, None]
+        phi = self._phi / L ** 2
+        c = 1.0 / (1.0 + phi)
+        n1 = c * (1 - 3 * xi ** 2 + 2 * xi ** 3 + phi * (1 - xi))
+        n3 = 1.0 - n1
+        n2 = c * L * (xi - (2 + phi / 2) * xi ** 2 + xi ** 3 + phi / 2 * xi)
+        n4 = c * L * (-(1 - phi / 2) * xi ** 2 + xi ** 3 - phi / 2 * xi)
+        tt = t[:, :, None] * t[:, None, :]
+        P = np.eye(3) - tt
+        St = np.zeros((k, 3, 3))                        # skew(t): th x t = -St th
+        St[:, 0, 1], St[:, 0, 2], St[:, 1, 2] = -t[:, 2], t[:, 1], -t[:, 0]
+        St[:, 1, 0], St[:, 2, 0], St[:, 2, 1] = t[:, 2], -t[:, 1], t[:, 0]
+        w = lambda a: a[:, None, None]                  # noqa: E731
+        op = np.concatenate([w(1 - xi) * tt + w(n1) * P, -w(n2) * St,
+                             w(xi) * tt + w(n3) * P, -w(n4) * St], axis=2)        # (k, 3, 12)
+        I3 = np.broadcast_to(np.eye(3), (k, 3, 3))
+        Z3 = np.zeros((k, 3, 3))
+        rot = np.concatenate([Z3, w(1 - xi) * I3, Z3, w(xi) * I3], axis=2)
+        rows = np.repeat(np.arange(3 * k), 12)
+        cols = (6 * e[:, None, None] + np.arange(12)[None, None, :]).repeat(3, axis=1).ravel()
+        Ts = self._Ts if not full else sp.identity(self.n_dofs, format="csr")
+        shape = (3 * k, self.n_dofs)
+        D = sp.csr_matrix((op.ravel(), (rows, cols)), shape=shape) @ Ts
+        Rr = sp.csr_matrix((rot.ravel(), (rows, cols)), shape=shape) @ Ts
+        held = np.zeros(len(u), bool)
+        held[self.base_bond] = True
+        held[self.tip_bond] = True
+        return D.tocsr(), Rr.tocsr(), held[e] & held[e + 1]
+
+    def unresolved(self, closed: np.ndarray) -> list[tuple[float, float]]:
+        """Windows (turn counts) around the closed line contacts whose wire lies in a beam
+        longer than 1.5 ``contact_mesh_mm`` (a seat contact on a held beam excepted): where
+        the mesh should be refined. Empty for node contacts or ``contact_mesh_mm = 0``."""
+        mesh = self.s.contact_mesh_mm
+        if not (self.s.contact_spacing_mm > 0 and mesh > 0) or not np.any(closed):
+            return []
+        idx = np.nonzero(closed)[0]
+        pos = [(self.contacts[i].u, True) for i in idx]
+        pos += [(self.contacts[i].u + 1, True) for i in idx if self.contacts[i].kind == "coil"]
+        us = np.array([p for p, _ in pos])
+        e = np.clip(np.searchsorted(self.u, us, side="right") - 1, 0, len(self.u) - 2)
+        held = np.zeros(len(self.u), bool)
+        held[self.base_bond] = True
+        held[self.tip_bond] = True
+        seat = np.array([self.contacts[i].kind == "seat" for i in idx]
+                        + [False] * (len(us) - len(idx)))
+        long = (self.u[e + 1] - self.u[e]) * 2 * np.pi * self.coil.R > 1.5 * mesh
+        bad = long & ~(seat & held[e] & held[e + 1])
+        m = WINDOW_MARGIN_MM / (2 * np.pi * self.coil.R)
+        return _merge([(max(x - m, 0.0), min(x + m, self.coil.turns)) for x in us[bad]])
+
+    def _line_contacts(self, E_ss: float, E_seat: float, spacing: float):
+        """Line contacts resolved independently of the beam nodes: contact points at a fixed
+        spacing (mm of wire, the midpoints of equal steps in turn count) over the same spans as
+        the node contacts: the dead turn and ramp against the wire one turn above (gap
+        ``z(u + 1) - z(u) - d``), the dead turn against its seat (gap ``c - r``). Each point is
+        a penalty spring of ``E* x`` its length of wire (the line contact's stiffness per unit
+        length, Johnson 1985 sec. 5.6), its displacement interpolated by :meth:`_ops`; a point
+        whose beams are held entirely (bonded) is dropped. The closed contact *length*, not the
+        count of closed nodes, carries the load. Sets ``N``, ``Rt`` (sparse) and the contact
+        list (kind, gap, penalty, turn count; no dense rows)."""
+        c, r, N = self.coil, self.coil.r, self.coil.turns
+        fine = np.linspace(0.0, N, int(N * 2000) + 1)
+        zf = c.z_of_u(fine)
+        dsdu = np.hypot(2 * np.pi * c.R, np.gradient(zf, fine))
+
+        def points(lo, hi):
+            mid = np.interp((lo + hi) / 2, fine, dsdu)
+            n = max(int(math.ceil((hi - lo) * mid / spacing - 1e-9)), 1)
+            du = (hi - lo) / n
+            us = lo + (np.arange(n) + 0.5) * du
+            return us, np.interp(us, fine, dsdu) * du
+
+        span = 1.0 + RAMP
+        lo_spans = sorted([(0.0, min(span, N - 1.0)), (max(N - 1.0 - span, 0.0), N - 1.0)])
+        if lo_spans[1][0] <= lo_spans[0][1]:              # short springs: one span
+            lo_spans = [(lo_spans[0][0], max(lo_spans[0][1], lo_spans[1][1]))]
+        kinds, us_all, ws, g0s, rows, rts = [], [], [], [], [], []
+        for lo, hi in lo_spans:
+            us, w = points(lo, hi)
+            A, Ar, ha = self._ops(us)
+            B, Br, hb = self._ops(us + 1)
+            row = B[2::3] - A[2::3]                                   # upper - lower
+            rt = [B[0::3] - r * Br[1::3] - A[0::3] - r * Ar[1::3],     # upper at -r, lower at +r
+                  B[1::3] + r * Br[0::3] - A[1::3] + r * Ar[0::3]]
+            g0 = np.maximum(c.z_of_u(us + 1) - c.z_of_u(us) - 2 * r, 0.0)
+            keep = ~(ha & hb)
+            kinds += ["coil"] * int(keep.sum())
+            us_all.append(us[keep]), ws.append(E_ss * w[keep]), g0s.append(g0[keep])
+            rows.append(row[keep]), rts.append((rt[0][keep], rt[1][keep]))
+        for lo, hi, end in ((0.0, 1.0, "base"), (N - 1.0, N, "tip")):
+            us, w = points(lo, hi)
+            A, Ar, held = self._ops(us)
+            z = c.z_of_u(us) - c.seat_lo
+            if end == "base":
+                row = A[2::3]                                          # wire bottom - seat
+                rt = [A[0::3] - r * Ar[1::3], A[1::3] + r * Ar[0::3]]
+                g0 = z - r
+            else:
+                e = np.clip(np.searchsorted(self.u, us, side="right") - 1, 0, len(self.u) - 2)
+                xi = np.clip((us - self.u[e]) / (self.u[e + 1] - self.u[e]), 0.0, 1.0)[:, None]
+                p = (1 - xi) * self.X[e] + xi * self.X[e + 1] + np.array([0.0, 0.0, r]) - self.master
+                k = len(us)
+                S = np.zeros((3, k, 6))                 # seat point rigid with the master
+                S[0, :, 0], S[0, :, 4], S[0, :, 5] = 1.0, p[:, 2], -p[:, 1]
+                S[1, :, 1], S[1, :, 3], S[1, :, 5] = 1.0, -p[:, 2], p[:, 0]
+                S[2, :, 2], S[2, :, 3], S[2, :, 4] = 1.0, p[:, 1], -p[:, 0]
+                seat = [sp.csr_matrix((S[i].ravel(), (np.repeat(np.arange(k), 6),
+                                                      np.tile(self.m, k))), shape=(k, self.nq))
+                        for i in range(3)]
+                row = seat[2] - A[2::3]                                # seat - wire top
+                rt = [seat[0] - A[0::3] - r * Ar[1::3], seat[1] - A[1::3] + r * Ar[0::3]]
+                g0 = c.length - z - r
+            keep = ~held
+            kinds += ["seat"] * int(keep.sum())
+            us_all.append(us[keep]), ws.append(E_seat * w[keep]), g0s.append(np.maximum(g0, 0.0)[keep])
+            rows.append(row[keep]), rts.append((rt[0][keep], rt[1][keep]))
+        Nm = sp.vstack(rows).tocsr()
+        live = np.diff(Nm.indptr) > 0                   # drop rows that nothing moves
+        Rx = sp.vstack([a for a, _ in rts]).tocsr()
+        Ry = sp.vstack([b for _, b in rts]).tocsr()
+        us_all_parts = list(us_all)
+        us_all, kn, g0 = (np.concatenate(a) for a in (us_all, ws, g0s))
+        idx = np.nonzero(live)[0]
+        self._line_N = Nm[idx]
+        Rt = sp.vstack([Rx[idx], Ry[idx]]).tocsr()
+        n = len(idx)
+        order = np.ravel(np.column_stack([np.arange(n), n + np.arange(n)]))    # x0 y0 x1 y1 ...
+        self._line_Rt = Rt[order]
+        self.contacts = [_Contact(None, float(g0[i]), float(kn[i]), kinds[i], None, float(us_all[i]))
+                         for i in idx]
+        # one run id per contact line (span and kind); the points are in order along it
+        line_id = np.concatenate([np.full(len(a), k) for k, a in enumerate(us_all_parts)])
+        self.runs = line_id[idx]
+
     def _coil_contacts(self, k_n):
         """The wire at ``u`` against the wire one turn above, over each end's dead turn and
         ramp; contact points on the wire surfaces (``+-r`` along z)."""
@@ -705,6 +997,27 @@ class Chain(ActiveSet):
                 self.contacts.append(_Contact(row, max(float(c_tip[i]) - r, 0.0), k_n, "seat",
                                               seat[:2] - self._ut(i, r)))
 
+def resolved_chain(coil: Coil, settings: ChainSettings) -> tuple["Chain", dict | None]:
+    """The assembled chain and its frictionless working-load state (None without a working
+    load or contact). With line contacts, a contact closed at the working load in a beam
+    longer than 1.5 ``contact_mesh_mm`` (outside the windows meshed finely from the gaps at
+    rest) gets a window of its own and the chain is rebuilt (at most 3 times)."""
+    chain = Chain(coil, settings)
+    if not (settings.working_load_N > 0 and settings.contact and coil.ends == "closed_ground"):
+        return chain, None
+    f = np.r_[0.0, 0.0, -settings.working_load_N, 0.0, 0.0, 0.0]
+    extra: list = []
+    for _ in range(4):
+        pre = chain.solve(f_master=f)
+        add = chain.unresolved(pre["closed"])
+        if not add:
+            return chain, pre
+        extra += add
+        chain = Chain(coil, settings, extra)
+    raise ModelError("beam chain: the contact zones at the working load moved out of the "
+                     "refined windows 3 times")
+
+
 def chain_stiffness(spring, settings: ChainSettings | None = None, *,
                     geometry: str = "as_built") -> ChainResult:
     """6x6 of a spring flexure by the beam chain, unloaded and at the axial working load.
@@ -722,11 +1035,10 @@ def chain_stiffness(spring, settings: ChainSettings | None = None, *,
             check_working_load(spring, settings.working_load_N)
     else:
         coil = from_part(spring)
-    chain = Chain(coil, settings)
+    chain, pre = resolved_chain(coil, settings)
     K, closed = chain.stiffness()
     K_loaded, info_l = None, None
-    if settings.working_load_N > 0 and settings.contact and coil.ends == "closed_ground":
-        pre = chain.solve(f_master=np.r_[0.0, 0.0, -settings.working_load_N, 0.0, 0.0, 0.0])
+    if pre is not None:
         K_loaded, closed_l = chain.stiffness(ref=pre)
         info_l = {"axial_deflection_mm": float(-pre["q"][chain.m][2]),
                   "closed_contacts": int(np.count_nonzero(pre["closed"])),
@@ -752,10 +1064,7 @@ def condensed_6x6(chain: "Chain", closed: np.ndarray, kt: np.ndarray | None = No
     w = chain.kn * closed
     A = chain.Kq + chain.N.T @ sp.diags(w) @ chain.N
     if kt is not None:
-        for c, k in zip(chain.contacts, kt):
-            if k > 0:
-                R = sp.csr_matrix(c.rt)
-                A = A + k * (R.T @ R)
+        A = A + chain.Rt.T @ sp.diags(np.repeat(np.maximum(kt, 0.0), 2)) @ chain.Rt
     A = A.tocsc()
     m = chain.m
     f = np.setdiff1d(np.arange(chain.nq), m)
@@ -782,11 +1091,12 @@ def _tip_friction_band(chain: "Chain", closed: np.ndarray, fn: np.ndarray, mu: f
         q = np.zeros(chain.nq)
         q[m[j]] = 1.0
         q[f] = lu.solve(-Afm[:, j])
-        g = np.zeros(chain.nq)
-        for c, cl, F in zip(chain.contacts, closed, fn):
-            v = c.rt @ q if cl else None
-            if v is not None and np.linalg.norm(v) > 0:
-                g += c.rt.T @ (-mu * F * v / np.linalg.norm(v))
+        V = (chain.Rt @ q).reshape(-1, 2)
+        nv = np.linalg.norm(V, axis=1)
+        slide = closed & (nv > 0)
+        tr = np.zeros_like(V)
+        tr[slide] = -mu * fn[slide, None] * V[slide] / nv[slide, None]
+        g = chain.Rt.T @ tr.ravel()
         reaction = Afm.T @ lu.solve(g[f]) - g[m]         # what holds the master against them
         out[name] = float(reaction[j])
     return out
