@@ -62,6 +62,7 @@ def discretisation(paper) -> None:
 
     print("elements_per_turn " + " / ".join(map(str, LEVELS)))
     levels("node contacts (contact_spacing_mm=0, before)", contact_spacing_mm=0.0)
+    levels("line contacts, beams not refined (contact_mesh_mm=0)", contact_mesh_mm=0.0)
     levels("line contacts (default)")
     M, h = paper["K_c_measured"], fr.camera_offset(paper)
 
@@ -92,11 +93,18 @@ def discretisation(paper) -> None:
     cl = pre["closed"]
     us = np.array([c.u for c in ch.contacts])
     kind = np.array([c.kind for c in ch.contacts])
+    g = ch.g0 + ch.N @ pre["q"]
     for name, sel in (("base", us < ch.coil.turns / 2), ("tip", us >= ch.coil.turns / 2)):
         m = cl & sel & (kind == "coil")
-        length = sum(1 for _ in np.nonzero(m)[0]) * ch.s.contact_spacing_mm
+        length = int(m.sum()) * ch.s.contact_spacing_mm
+        uc = float(np.sum(us[m] * pre["f_n"][m]) / pre["f_n"][m].sum())
         print(f"10 N, default: {name} coil contact zone u {us[m].min():.4f}-{us[m].max():.4f} "
-              f"(lower wire; {int(m.sum())} points, ~{length:.1f} mm), {pre['f_n'][m].sum():.3f} N")
+              f"(lower wire; {int(m.sum())} points, ~{length:.1f} mm), {pre['f_n'][m].sum():.3f} N;"
+              f" gap at rest at its centre {1e3 * np.interp(uc, us[m], ch.g0[m]):.1f} um, deepest "
+              f"penetration {-1e3 * g[m].min():.2f} um")
+    print(f"10 N, default: tip disc tilt {np.degrees(np.abs(pre['q'][ch.m][3:5])).round(3)} deg "
+          f"(x, y); chord sagitta at 36 beams per turn "
+          f"{ch.coil.R * (1 - np.cos(np.pi / 36)):.3f} mm")
     print(f"10 N, default: seat contacts closed {int(np.count_nonzero(cl & (kind == 'seat')))}, "
           f"{pre['f_n'][cl & (kind == 'seat')].sum():.4f} N; all contacts "
           f"{pre['f_n'].sum():.4f} N against the 10 N load; {len(ch.u) - 1} beams")

@@ -1,12 +1,16 @@
 """Coulomb friction in the beam chain against seed 002's measured K_c (docs/flexure.md).
 
-    .venv/bin/python benchmarks/bench_flexure_friction.py [--quick | --end-conditions]
+    .venv/bin/python benchmarks/bench_flexure_friction.py [--quick | --end-conditions] [--line]
 
 Per friction coefficient: the frictional secant 6x6 (perturbations 0.02 mm / 2 mrad, unloaded and
 after the 10 N working load, ``friction_stiffness``), its amplitude dependence at the cited mu,
 and the paper's own fit (``loop_stiffness``: loops about the relaxed spring, F = K X); each in
 the camera frame at the paper's offset (11.09 mm) and with the fitted offset: mean |error| over
-the measured diagonal and the coupling ratios model / measured. Prints wall and CPU seconds."""
+the measured diagonal and the coupling ratios model / measured. Prints wall and CPU seconds.
+
+The friction runs use the node contacts (``contact_spacing_mm=0``, the chain the friction
+section of docs/flexure.md was measured with); ``--line``: the default line contacts instead,
+without mu = 1e4 (its preload does not converge with line contacts)."""
 
 from __future__ import annotations
 
@@ -53,13 +57,15 @@ def end_conditions(paper) -> None:
                   f"{d:.1f} % |")
 
 
-def main(quick: bool = False) -> None:
+def main(quick: bool = False, line: bool = False) -> None:
     paper = fr.load_paper()
     t0, c0 = time.perf_counter(), time.process_time()
-    mus = (0.0, 0.3) if quick else (0.0, 0.05, 0.1, 0.3, 0.6, 0.74, 1e4)
+    mus = (0.0, 0.3) if quick else (0.0, 0.05, 0.1, 0.3, 0.6, 0.74) + (() if line else (1e4,))
+    S = bc.ChainSettings(contact_spacing_mm=bc.ChainSettings().contact_spacing_mm if line else 0.0)
+    print(f"contacts: {'line (default)' if line else 'node (contact_spacing_mm=0)'}")
     print("secant 6x6, perturbations 0.02 mm / 2 mrad (friction_stiffness)")
     for mu in mus:
-        r = bc.friction_stiffness(VISIFLEX_CATALOG, mu=mu)
+        r = bc.friction_stiffness(VISIFLEX_CATALOG, S, mu=mu)
         wl = r.info["working_load"]
         print(f"mu {mu:g}: unloaded  {goals(r.K_centre_si, paper)}")
         print(f"mu {mu:g}: @10 N     {goals(r.K_loaded_centre_si, paper)}  "
@@ -68,11 +74,11 @@ def main(quick: bool = False) -> None:
     mu = bc.MU_STEEL
     print(f"amplitude dependence at mu {mu} (@10 N)")
     for a in ((1.0, 10.0) if quick else (1.0, 10.0, 50.0)):
-        r = bc.friction_stiffness(VISIFLEX_CATALOG, mu=mu, amplitude=a)
+        r = bc.friction_stiffness(VISIFLEX_CATALOG, S, mu=mu, amplitude=a)
         print(f"  x{a:g} ({0.02 * a:g} mm, {2 * a:g} mrad): {goals(r.K_loaded_centre_si, paper)}")
     print("the paper's fit: loops about the relaxed spring +-1 mm / +-0.05 rad, F = K X (loop_stiffness)")
     for mu, pre in ((0.0, 0.0), (0.3, 0.0), (0.74, 0.0)) if not quick else ((0.3, 0.0),):
-        L = bc.loop_stiffness(VISIFLEX_CATALOG, mu=mu, points=4, preload_N=pre)
+        L = bc.loop_stiffness(VISIFLEX_CATALOG, S, mu=mu, points=4, preload_N=pre)
         K = to_si(transform_stiffness(L["K"], transform(translation=L["master"] - L["centre"])))
         hw = L["half_width"]
         print(f"mu {mu:g}, preload {pre:g} N: {goals(K, paper)}")
@@ -87,4 +93,4 @@ if __name__ == "__main__":
     if "--end-conditions" in sys.argv:
         end_conditions(fr.load_paper())
     else:
-        main("--quick" in sys.argv)
+        main("--quick" in sys.argv, "--line" in sys.argv)

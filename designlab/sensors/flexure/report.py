@@ -355,17 +355,17 @@ def rocking_at_elastic_centre(K: np.ndarray) -> tuple[float, float]:
 
 def end_condition_table(spring: HelicalSpring, paper: dict | None = None,
                         seats=END_SEATS, working_load_N: float = 10.0,
-                        elements_per_turn: int = 36,
-                        contact_spacing_mm: float | None = None) -> list[dict]:
+                        elements_per_turn: int = 36, **chain_settings) -> list[dict]:
     """Every (base, tip) end condition of the beam chain, unloaded and at ``working_load_N``:
     the camera-frame goal metrics at the paper's offset (mean |error| % over the measured
     diagonal, coupling ratios model / measured), the zero-coupling point (mm above the spring
     centre: x, y, mean), the offset-independent rocking stiffness at the elastic centre and the
-    lateral stiffness (SI), and the chain's camera-frame diagonal (SI). ``contact_spacing_mm``:
-    the chain's contact-point spacing (None: the default; 0: one contact per beam node)."""
+    lateral stiffness (SI), and the chain's camera-frame diagonal (SI). ``chain_settings``:
+    further :class:`~designlab.sensors.flexure.beam_chain.ChainSettings` fields (e.g.
+    ``contact_spacing_mm=0``: one contact per beam node)."""
     from designlab.sensors.flexure.beam_chain import ChainSettings, chain_stiffness
 
-    extra = {} if contact_spacing_mm is None else {"contact_spacing_mm": contact_spacing_mm}
+    extra = dict(chain_settings)
 
     paper = load_paper() if paper is None else paper
     h = camera_offset(paper)
