@@ -395,13 +395,13 @@ def flexure(preset: str = typer.Option("visiflex-catalog", "--preset",
         for k, v in r["closed_form_vs_paper_pct"].items()), highlight=False)
     ci = chain.info
     if mu > 0:
-        console.print(f"chain with friction mu {ci['mu']:g}: {ci['contacts']} contact pairs, "
+        console.print(f"chain with friction mu {ci['mu']:g}: {ci['contacts']} contact points, "
                       f"secant of +-{ci['amplitude_mm_rad'][0]:g} mm / "
                       f"{1e3 * ci['amplitude_mm_rad'][1]:g} mrad, asymmetry "
                       f"{ci['asymmetry']:.2e}, {ci['seconds']:.2f} s", highlight=False)
     else:
         console.print(f"chain: {ci['geometry']}; {ci['elements']} beams, {ci['contacts']} "
-                      f"contact pairs, {ci['seconds']:.2f} s", highlight=False)
+                      f"contact points, {ci['seconds']:.2f} s", highlight=False)
     if fem_info is not None:
         console.print(f"FEM: {fem_info['n_nodes']} nodes, {fem_info['n_cells']} TET{fem_info['cell_nodes']}"
                       f", {fem_info['coil_pairs']} coil + {fem_info['seat_contacts']} seat contacts "
