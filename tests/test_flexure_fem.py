@@ -115,7 +115,7 @@ def test_solid_fem_with_contact_condenses_exactly_and_contact_stiffens():
     """The Visiflex helix (gmsh TET10) condensed on its contact nodes and the tip master:
     with every contact open it is the plain solid FEM (the 6x6 recorded in test_beam_chain from
     `fem_stiffness(VISIFLEX_CATALOG)`: 538.07, 538.16, 647.77 N*mm/rad, 4.5588, 4.5577,
-    2.4125 N/mm) within 0.5 %; with the meshed gaps (>= 0.4 mm) kept no contact
+    2.4125 N/mm) within 0.5 %; line contacts (the default): with the meshed gaps (>= 0.4 mm) kept no contact
     closes under the 0.02 mm / 2 mrad perturbations; at the 10 N working load contact stiffens
     the axial and lateral terms. Minutes on a shared machine (one factorisation per call)."""
     from designlab.sensors.flexure.beam_chain import ChainSettings
@@ -139,10 +139,54 @@ def test_solid_fem_with_contact_condenses_exactly_and_contact_stiffens():
     gain_solid = loaded / free
     gain_chain = np.diag(ch.at(ch.centre, loaded=True)) / np.diag(ch0.K_centre)
     assert gain_chain[5] == pytest.approx(gain_solid[5], rel=0.05)             # axial, ~1.3
-    # lateral: chain +24 %, solid +14 % (2026-11-25, both with k_n = E* x spacing in mm)
+    # lateral: chain +24 %, solid +14 % (2026-11-25, both with k_n = E* x spacing in mm; the
+    # solid with node contacts); solid with line contacts (default since 2026-11-26) +18 %
     assert gain_chain[3:5].mean() == pytest.approx(gain_solid[3:5].mean(), rel=0.10)
     assert np.all(gain_chain[:5] > 1.0) and np.all(gain_solid[[0, 1, 3, 4, 5]] > 1.0)
     kept = fem_contact_stiffness(VISIFLEX_CATALOG, gaps="meshed", mesh=res.mesh,
                                  settings=ChainSettings(working_load_N=0.0))
     assert kept.info["closed_during_perturbations"] == [0, 0]
     np.testing.assert_allclose(kept.K, kept.K_free, rtol=1e-9, atol=1e-9 * np.abs(kept.K).max())
+
+
+def test_contact_spacing_is_checked_before_meshing():
+    from designlab.errors import ParameterError
+    from designlab.sensors.flexure.helix_fem import fem_contact_stiffness
+    from designlab.sensors.flexure.spring import VISIFLEX_CATALOG
+
+    pytest.importorskip("build123d")
+    for bad in (-0.1, float("nan")):
+        with pytest.raises(ParameterError, match="contact_spacing_mm"):
+            fem_contact_stiffness(VISIFLEX_CATALOG, contact_spacing_mm=bad)
+
+
+@pytest.mark.slow
+def test_solid_line_contacts_remove_the_node_contacts_scatter():
+    """docs/flexure.md, "Solid FEM: contact discretisation": at the 10 N working load the node
+    contacts (one node per station, 36 per turn, the scheme before 2026-11-26) rock the tip 21 %
+    stiffer about y than about x (606 / 734 N*mm/rad) and their 10 N diagonal error scatters
+    14.8-22.0 % over 18-144 stations; line contacts (points every 0.5 mm of wire interpolated
+    between the contact line's nodes) are x/y symmetric within 3 % (718 / 703) and close more
+    contact points than stations. Same mesh for both (minutes on a shared machine)."""
+    from designlab.sensors.flexure.beam_chain import ChainSettings
+    from designlab.sensors.flexure.helix_fem import fem_contact_stiffness
+    from designlab.sensors.flexure.spring import VISIFLEX_CATALOG
+
+    cs = ChainSettings(seat="bonded")
+    node = fem_contact_stiffness(VISIFLEX_CATALOG, contact_spacing_mm=0.0, settings=cs)
+    line = fem_contact_stiffness(VISIFLEX_CATALOG, contact_spacing_mm=0.5, settings=cs,
+                                 mesh=node.mesh)
+    kn, kl = (np.diag(s.at(s.centre, "loaded")) for s in (node, line))
+    assert kn[1] / kn[0] > 1.15                       # node contacts: x/y asymmetry 21 %
+    assert abs(kl[1] / kl[0] - 1) < 0.05              # line contacts: 2 %
+    assert abs(kl[4] / kl[3] - 1) < 0.05
+    assert line.info["contact_spacing_mm"] == 0.5 and line.info["stations_per_turn"] is None
+    assert line.info["coil_pairs"] > 4 * node.info["coil_pairs"]
+    wl = line.info["working_load"]
+    assert wl["closed_contacts"] > node.info["working_load"]["closed_contacts"]
+    assert 1.0 < wl["closed_length_mm"] < 20.0
+    # with every contact open both are the same plain solid (condensed exactly)
+    np.testing.assert_allclose(line.K_free, node.K_free, rtol=1e-6)
+    # contact stiffens: axial +32 %, lateral +16 % at 10 N
+    free = np.diag(line.at(line.centre, "free"))
+    assert kl[5] > 1.2 * free[5] and kl[3] > 1.1 * free[3]

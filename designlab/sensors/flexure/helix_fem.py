@@ -232,10 +232,11 @@ def contact_candidates(mesh: TetMesh, flexure, stations_per_turn: int = 36,
 
 #: share of the contact FEM's wall time per stage (progress units of 1/1000 of the run), so the
 #: progress bar's ETA is a time estimate: `designlab flexure --fem` on the Visiflex catalogue
-#: spring (timings_s of its JSON, two runs on 2026-11-25: mesh 11-14 %, assembly 4 %,
-#: factorisation 11-20 %, back-substitutions 62-73 %, contact < 1 %; docs/flexure.md)
-_STAGES = (("mesh", 120), ("assemble", 40), ("factorise", 150), ("condense", 680),
-           ("contact", 10))
+#: spring with the line contacts (timings_s of its JSON, 2026-11-26, 131.5 s: mesh 8 %,
+#: assembly 3 %, factorisation 3 %, back-substitutions 44 %, contact active sets 41 %;
+#: docs/flexure.md "Solid FEM: contact discretisation")
+_STAGES = (("mesh", 80), ("assemble", 30), ("factorise", 30), ("condense", 450),
+           ("contact", 410))
 _PROGRESS_TOTAL = sum(w for _, w in _STAGES)
 #: back-substitution calls of the condensation (progress granularity: every call streams the
 #: whole factor once more, ~1.3 s CPU each for the Visiflex helix)
@@ -255,6 +256,7 @@ def _at(stage: str, fraction: float = 0.0) -> tuple[int, int]:
 def fem_contact_stiffness(spring, edge_length: float | None = None, order: int = 2,
                           quality: str = "default", solver: str = "auto",
                           gaps: str = "as_built", stations_per_turn: int = 36,
+                          contact_spacing_mm: float | None = None,
                           settings=None, mesh: TetMesh | None = None,
                           progress: Progress | None = None) -> ContactFEM:
     """Solid FEM 6x6 of a closed-and-ground spring with contact (the reference of the chain).
@@ -262,15 +264,24 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     The helix is meshed as the part builds it (gmsh, TET10; dead turns ``DEAD_GAP d`` clear of
     the first active turn so the solid does not touch itself), the ground faces clamped to the
     base and rigid with the tip master (bonded, as ``ChainSettings(seat="bonded")``). Contact,
-    unilateral and frictionless, node to node along z between the stations of the top contact
-    line of a turn and the bottom line one turn above (over each end's dead turn and ramp), and
-    between the dead turns' bottom (top) line and the base (tip) seat plane where not bonded.
+    unilateral and frictionless, along z between the top contact line of a turn and the bottom
+    line one turn above (over each end's dead turn and ramp), and between the dead turns'
+    bottom (top) line and the base (tip) seat plane where not bonded. Line contacts (default,
+    ``contact_spacing_mm`` > 0; None: ``settings.contact_spacing_mm``, 0.1 mm as the chain):
+    contact points every ``contact_spacing_mm`` of wire, independent of the mesh nodes, each
+    point's u_z interpolated linearly (in turn count) between the two nodes of its contact
+    line around it (the line: the node nearest the top / bottom of the wire per half tet
+    edge); points whose line nodes are all held (ground faces) are dropped.
+    ``contact_spacing_mm=0``: node contacts as before 2026-11-26, one node per station
+    (``stations_per_turn``) paired node to node; their 10 N state depends on the station
+    count (docs/flexure.md, "Solid FEM: contact discretisation").
     ``gaps="as_built"`` (default): the initial gap of each contact is the spring's as built at
     the same turn count (:func:`~designlab.sensors.flexure.beam_chain.as_built`: dead pitch d,
     gap 0 at the wire end, the chain's geometry), the meshed clearance being what the mesher
     needs to keep the solid from touching itself; ``"meshed"``: the part's own gaps
-    (dead turns ``DEAD_GAP d`` clear, pitch ramp from ``1 - RAMP / 2``: >= 0.4 mm for Visiflex). Penalty per contact ``k_n = E* h`` with ``h`` the
-    station spacing along the wire (the chain's rule; seat E* with the disc material of
+    (dead turns ``DEAD_GAP d`` clear, pitch ramp from ``1 - RAMP / 2``: >= 0.4 mm for
+    Visiflex). Penalty per contact ``k_n = E* h`` with ``h`` its length of wire (the point
+    spacing, or the station spacing; the chain's rule; seat E* with the disc material of
     ``settings.seat_material``).
 
     The linear model is condensed exactly on the contact nodes' z displacements and the master
@@ -303,6 +314,10 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     d, r = flexure.wire_diameter, flexure.wire_radius
     if gaps not in ("as_built", "meshed"):
         raise ParameterError("gaps", gaps, "as_built or meshed")
+    spacing = cs.contact_spacing_mm if contact_spacing_mm is None else float(contact_spacing_mm)
+    if not (np.isfinite(spacing) and spacing >= 0):
+        raise ParameterError("contact_spacing_mm", spacing,
+                             "a spacing >= 0 mm (0: one node contact per station)")
     L, N = float(flexure.length), flexure.total_coils
     timings = {}
     step("meshing the helix (gmsh)", *_at("mesh"))
@@ -316,7 +331,6 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     ref = model.rigid("tip_master", "flexure_tip", ref_point=(0.0, 0.0, L))
     system = model.build()
     base_nodes, tip_nodes = set(model.nodes("flexure_base")), set(model.nodes("flexure_tip"))
-    cand = contact_candidates(mesh, flexure, stations_per_turn)
     if gaps == "as_built":
         from designlab.sensors.flexure.beam_chain import as_built
 
@@ -325,37 +339,131 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
                                       pitch_angle=flexure.pitch_angle))
 
         def zc(u):
-            """As-built centreline height above the base seat at turn count u."""
-            return float(coil.z_of_u(u)) - coil.seat_lo
+            """As-built centreline height above the base seat at turn count(s) u."""
+            return np.asarray(coil.z_of_u(u), float) - coil.seat_lo
     else:
         z_lo = flexure._cut_planes()[0]
 
         def zc(u):
-            """Meshed centreline height above the base seat at turn count u."""
-            return float(flexure.centerline_z(u)[0]) - z_lo
+            """Meshed centreline height above the base seat at turn count(s) u."""
+            return np.asarray(flexure.centerline_z(np.atleast_1d(u)), float).reshape(
+                np.shape(u)) - z_lo
 
-    top, bot, su = cand["top"], cand["bottom"], cand["station_u"]
-    span = 1.0 + RAMP
-    pairs = []                                    # (lower node, upper node, gap0)
-    for k in range(len(su)):
-        k_up = k + stations_per_turn
-        if k_up >= len(su) or top[k] < 0 or bot[k_up] < 0:
-            continue
-        if not (su[k] <= span or su[k_up] >= N - span):
-            continue
-        i, j = top[k], bot[k_up]
-        # gap between the wire surfaces along z at the two nodes' stations (from the
-        # centreline, as the chain: a node a few degrees off the top would add up to 0.27 mm)
-        g = zc(cand["u"][j]) - zc(cand["u"][i]) - d
-        pairs.append((i, j, max(g, 0.0)))
-    seats = []                                    # (node, gap0, +1 base / -1 tip)
-    for k in range(len(su)):
-        if su[k] <= 1.0 and bot[k] >= 0 and bot[k] not in base_nodes:
-            seats.append((bot[k], max(zc(cand["u"][bot[k]]) - r, 0.0), 1))
-        if su[k] >= N - 1.0 and top[k] >= 0 and top[k] not in tip_nodes:
-            seats.append((top[k], max(L - zc(cand["u"][top[k]]) - r, 0.0), -1))
+    h_turn = np.hypot(np.pi * flexure.mean_diameter, flexure.dead_pitch)
+    # contacts: ({node: coefficient of its u_z}, tip seat point or None, initial gap mm,
+    # length of wire mm (penalty E* x length), kind, contact line id, turn count)
+    contacts = []
+    line_nodes = n_line = 0
+    if spacing > 0:
+        # line contacts: points every ``spacing`` mm of wire, independent of the mesh nodes;
+        # each point's u_z interpolated linearly in turn count between the two nodes of the
+        # contact line (top / bottom of the wire, one node per half tet edge of the mesh made:
+        # the median corner edge, gmsh's sweep is not always as fine as ``edge_length``)
+        pc = mesh.points[mesh.cells[:, :4]]
+        h_made = float(np.median(np.linalg.norm(pc[:, 1] - pc[:, 0], axis=1)))
+        n_line = int(np.ceil(2 * h_turn / h_made))
+        cand = contact_candidates(mesh, flexure, n_line)
+        lines = {}
+        for side in ("top", "bottom"):
+            nd = cand[side][cand[side] >= 0]
+            uu = cand["u"][nd]
+            o = np.lexsort((nd, uu))
+            lines[side] = (nd[o], uu[o])
+            line_nodes += len(nd)
+
+        def interp(side, us):
+            """{node: weight} per turn count in ``us`` (None off the line's ends)."""
+            nd, uu = lines[side]
+            out = []
+            for x in us:
+                if len(uu) < 2 or x < uu[0] or x > uu[-1]:
+                    out.append(None)
+                    continue
+                e = min(max(int(np.searchsorted(uu, x, side="right")) - 1, 0), len(uu) - 2)
+                du = uu[e + 1] - uu[e]
+                xi = 0.0 if du <= 0 else float((x - uu[e]) / du)
+                w = {}
+                for n, c in ((int(nd[e]), 1.0 - xi), (int(nd[e + 1]), xi)):
+                    if c:
+                        w[n] = w.get(n, 0.0) + c
+                out.append(w)
+            return out
+
+        fine = np.linspace(0.0, N, int(N * 2000) + 1)
+        dsdu = np.hypot(2 * np.pi * flexure.mean_diameter / 2, np.gradient(zc(fine), fine))
+
+        def points(lo, hi):
+            """Midpoints of equal steps in turn count over [lo, hi], ~``spacing`` mm of wire
+            each, and their lengths of wire (mm)."""
+            mid = np.interp((lo + hi) / 2, fine, dsdu)
+            n = max(int(np.ceil((hi - lo) * mid / spacing - 1e-9)), 1)
+            du = (hi - lo) / n
+            us = lo + (np.arange(n) + 0.5) * du
+            return us, np.interp(us, fine, dsdu) * du
+
+        span = 1.0 + RAMP
+        lo_spans = sorted([(0.0, min(span, N - 1.0)), (max(N - 1.0 - span, 0.0), N - 1.0)])
+        if lo_spans[1][0] <= lo_spans[0][1]:              # short springs: one span
+            lo_spans = [(lo_spans[0][0], max(lo_spans[0][1], lo_spans[1][1]))]
+        lid = 0
+        for lo, hi in lo_spans:
+            us, w = points(lo, hi)
+            g = np.maximum(zc(us + 1) - zc(us) - d, 0.0)
+            for a_, b_, gk, wk, uk in zip(interp("top", us), interp("bottom", us + 1), g, w, us):
+                if a_ is None or b_ is None:
+                    continue
+                coef = dict(b_)                               # upper wire bottom - lower top
+                for n, c in a_.items():
+                    coef[n] = coef.get(n, 0.0) - c
+                contacts.append((coef, None, float(gk), float(wk), "coil", lid, float(uk)))
+            lid += 1
+        R = flexure.mean_diameter / 2
+        for lo, hi, side in ((0.0, 1.0, 1), (N - 1.0, N, -1)):
+            us, w = points(lo, hi)
+            z = zc(us)
+            if side > 0:                                      # wire bottom above the base
+                for a_, gk, wk, uk in zip(interp("bottom", us), np.maximum(z - r, 0.0), w, us):
+                    if a_ is not None:
+                        contacts.append((a_, None, float(gk), float(wk), "seat", lid, float(uk)))
+            else:                                             # tip seat above the wire top
+                pts = np.column_stack([R * np.cos(2 * np.pi * us), R * np.sin(2 * np.pi * us),
+                                       z + r])
+                for a_, p_, gk, wk, uk in zip(interp("top", us), pts, np.maximum(L - z - r, 0.0), w,
+                                               us):
+                    if a_ is not None:
+                        contacts.append(({n: -c for n, c in a_.items()}, p_, float(gk),
+                                         float(wk), "seat", lid, float(uk)))
+            lid += 1
+    else:
+        # node contacts (before 2026-11-26): one node per station, node to node along z
+        cand = contact_candidates(mesh, flexure, stations_per_turn)
+        h_st = h_turn / stations_per_turn
+        top, bot, su = cand["top"], cand["bottom"], cand["station_u"]
+        span = 1.0 + RAMP
+        for k in range(len(su)):
+            k_up = k + stations_per_turn
+            if k_up >= len(su) or top[k] < 0 or bot[k_up] < 0:
+                continue
+            if not (su[k] <= span or su[k_up] >= N - span):
+                continue
+            i, j = int(top[k]), int(bot[k_up])
+            # gap between the wire surfaces along z at the two nodes' stations (from the
+            # centreline, as the chain: a node a few degrees off the top would add up to 0.27 mm)
+            g = float(zc(cand["u"][j]) - zc(cand["u"][i]) - d)
+            contacts.append(({j: 1.0, i: -1.0}, None, max(g, 0.0), h_st, "coil", 0,
+                             float(cand["u"][i])))
+        for k in range(len(su)):
+            if su[k] <= 1.0 and bot[k] >= 0 and bot[k] not in base_nodes:
+                n = int(bot[k])
+                contacts.append(({n: 1.0}, None, max(float(zc(cand["u"][n])) - r, 0.0), h_st,
+                                 "seat", 1, float(cand["u"][n])))
+            if su[k] >= N - 1.0 and top[k] >= 0 and top[k] not in tip_nodes:
+                n = int(top[k])
+                contacts.append(({n: -1.0}, mesh.points[n].copy(),
+                                 max(L - float(zc(cand["u"][n])) - r, 0.0), h_st, "seat", 2,
+                                 float(cand["u"][n])))
     # kept dofs: u_z of every contact node (slaves of the master are expressed through it)
-    nodes = sorted({n for p in pairs for n in p[:2]} | {s[0] for s in seats})
+    nodes = sorted({n for c in contacts for n in c[0]})
     nodes = [n for n in nodes if n not in base_nodes and n not in tip_nodes]
     npts = mesh.n_points
     keep = [3 * n + 2 for n in nodes] + list(ref.dofs(npts))
@@ -370,14 +478,12 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     timings["factorise"] = time.perf_counter() - t1
     # the condensation's back-substitutions in chunks, so the bar (and its ETA) moves
     t2 = time.perf_counter()
-    B = np.asarray(Lmap.T.todense())
-    X = np.empty_like(B)
+    C = np.empty((len(keep), len(keep)))
     chunks = np.array_split(np.arange(len(keep)), min(_CHUNKS, len(keep)))
     for c, cols in enumerate(chunks):
         step(f"condensing on {len(keep)} dofs ({cols[0]}/{len(keep)})",
              *_at("condense", c / len(chunks)))
-        X[:, cols] = lin.solve(B[:, cols])
-    C = np.asarray(Lmap @ X)
+        C[:, cols] = np.asarray(Lmap @ lin.solve(np.asarray(Lmap[cols].T.todense())))
     timings["back_substitution"] = time.perf_counter() - t2
     asym = float(np.abs(C - C.T).max() / np.abs(C).max())
     C = (C + C.T) / 2
@@ -405,21 +511,22 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     E_ss = mat.E / (2 * (1 - nu ** 2))
     seat_m = get_material(cs.seat_material)
     E_seat = 1.0 / ((1 - nu ** 2) / mat.E + (1 - seat_m.nu ** 2) / seat_m.E)
-    h_st = np.hypot(np.pi * flexure.mean_diameter, flexure.dead_pitch) / stations_per_turn
-    rows, kn, g0, kinds = [], [], [], []
-    for i, j, g in pairs:
-        row = uz(j) - uz(i)
-        if np.any(row):
-            rows.append(row), kn.append(E_ss * h_st), g0.append(g), kinds.append("coil")
-    for n, g, side in seats:
-        if side > 0:
-            row = uz(n)                                         # wire bottom above the base
-        else:
-            x = mesh.points[n] - master
-            seat = np.zeros(n_keep)
-            seat[m] = [0.0, 0.0, 1.0, x[1], -x[0], 0.0]
-            row = seat - uz(n)                                  # tip seat above the wire top
-        rows.append(row), kn.append(E_seat * h_st), g0.append(g), kinds.append("seat")
+    rows, kn, g0, kinds, runs, lens, us_c = [], [], [], [], [], [], []
+    held = base_nodes | tip_nodes
+    for coef, p_, g, w, kind, lid, uc in contacts:
+        if all(n in held for n in coef):                        # the wire held there (bonded)
+            continue
+        row = np.zeros(n_keep)
+        for n, c in coef.items():
+            row += c * uz(n)
+        if p_ is not None:                                      # the tip seat at p_
+            x = p_ - master
+            row[m] += [0.0, 0.0, 1.0, x[1], -x[0], 0.0]
+        if not np.any(row):
+            continue
+        rows.append(row), g0.append(g), kinds.append(kind), runs.append(lid), lens.append(w)
+        us_c.append(uc)
+        kn.append((E_ss if kind == "coil" else E_seat) * w)
 
     class _Solid(ActiveSet):
         pass
@@ -428,6 +535,8 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     prob.Kq, prob.nq, prob.m, prob.s = sp.csr_matrix(Kc), n_keep, m, cs
     prob.N = sp.csr_matrix(np.array(rows).reshape(-1, n_keep))
     prob.kn, prob.g0 = np.array(kn), np.array(g0)
+    if spacing > 0:
+        prob.runs = np.array(runs)              # line contacts grow from their deepest point
     perm = np.array([3, 4, 5, 0, 1, 2])
     K_free = np.linalg.inv(C[np.ix_(m, m)])[np.ix_(perm, perm)]
     K_free = (K_free + K_free.T) / 2
@@ -438,6 +547,8 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
         K_loaded, closed_l = prob.stiffness(ref=pre)
         info_l = {"axial_deflection_mm": float(-pre["q"][m][2]),
                   "closed_contacts": int(np.count_nonzero(pre["closed"])),
+                  "closed_length_mm": float(np.sum(np.array(lens)[pre["closed"]])),
+                  "closed_turns": [[kinds[c], round(us_c[c], 4)] for c in np.nonzero(pre["closed"])[0]],
                   "closed_during_perturbations": [min(closed_l), max(closed_l)]}
     timings["contact"] = time.perf_counter() - t1
     timings["total"] = time.perf_counter() - t0
@@ -447,7 +558,9 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
             "condensed_dofs": n_keep, "coil_pairs": kinds.count("coil"),
             "seat_contacts": kinds.count("seat"), "gaps": gaps,
             "closed_gaps_at_start": int(np.sum(np.array(g0) <= 0)),
-            "stations_per_turn": stations_per_turn, "asymmetry": asym,
+            "stations_per_turn": None if spacing > 0 else stations_per_turn,
+            "contact_spacing_mm": spacing, "line_nodes": line_nodes,
+            "line_bins_per_turn": n_line if spacing > 0 else None, "asymmetry": asym,
             "closed_during_perturbations": [min(closed), max(closed)],
             "working_load": info_l, "solver": type(lin).__name__, "timings_s": timings}
     return ContactFEM(K, K_loaded, K_free, master, np.array([0.0, 0.0, L / 2]), info, mesh)
