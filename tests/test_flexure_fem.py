@@ -140,7 +140,7 @@ def test_solid_fem_with_contact_condenses_exactly_and_contact_stiffens():
     gain_chain = np.diag(ch.at(ch.centre, loaded=True)) / np.diag(ch0.K_centre)
     assert gain_chain[5] == pytest.approx(gain_solid[5], rel=0.05)             # axial, ~1.3
     # lateral: chain +24 %, solid +14 % (2026-11-25, both with k_n = E* x spacing in mm; the
-    # solid with node contacts); solid with line contacts (default since 2026-11-26) +18 %
+    # solid with node contacts); solid with line contacts (default since 2026-11-25) +18 %
     assert gain_chain[3:5].mean() == pytest.approx(gain_solid[3:5].mean(), rel=0.10)
     assert np.all(gain_chain[:5] > 1.0) and np.all(gain_solid[[0, 1, 3, 4, 5]] > 1.0)
     kept = fem_contact_stiffness(VISIFLEX_CATALOG, gaps="meshed", mesh=res.mesh,
@@ -163,7 +163,7 @@ def test_contact_spacing_is_checked_before_meshing():
 @pytest.mark.slow
 def test_solid_line_contacts_remove_the_node_contacts_scatter():
     """docs/flexure.md, "Solid FEM: contact discretisation": at the 10 N working load the node
-    contacts (one node per station, 36 per turn, the scheme before 2026-11-26) rock the tip 21 %
+    contacts (one node per station, 36 per turn, the scheme before 2026-11-25) rock the tip 21 %
     stiffer about y than about x (606 / 734 N*mm/rad) and their 10 N diagonal error scatters
     14.8-22.0 % over 18-144 stations; line contacts (points every 0.5 mm of wire interpolated
     between the contact line's nodes) are x/y symmetric within 3 % (718 / 703) and close more

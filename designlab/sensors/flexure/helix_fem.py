@@ -232,7 +232,7 @@ def contact_candidates(mesh: TetMesh, flexure, stations_per_turn: int = 36,
 
 #: share of the contact FEM's wall time per stage (progress units of 1/1000 of the run), so the
 #: progress bar's ETA is a time estimate: `designlab flexure --fem` on the Visiflex catalogue
-#: spring with the line contacts (timings_s of its JSON, 2026-11-26, 131.5 s: mesh 8 %,
+#: spring with the line contacts (timings_s of its JSON, 2026-11-25, 131.5 s: mesh 8 %,
 #: assembly 3 %, factorisation 3 %, back-substitutions 44 %, contact active sets 41 %;
 #: docs/flexure.md "Solid FEM: contact discretisation")
 _STAGES = (("mesh", 80), ("assemble", 30), ("factorise", 30), ("condense", 450),
@@ -272,7 +272,7 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     point's u_z interpolated linearly (in turn count) between the two nodes of its contact
     line around it (the line: the node nearest the top / bottom of the wire per half tet
     edge); points whose line nodes are all held (ground faces) are dropped.
-    ``contact_spacing_mm=0``: node contacts as before 2026-11-26, one node per station
+    ``contact_spacing_mm=0``: node contacts as before 2026-11-25, one node per station
     (``stations_per_turn``) paired node to node; their 10 N state depends on the station
     count (docs/flexure.md, "Solid FEM: contact discretisation").
     ``gaps="as_built"`` (default): the initial gap of each contact is the spring's as built at
@@ -435,7 +435,7 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
                                          float(wk), "seat", lid, float(uk)))
             lid += 1
     else:
-        # node contacts (before 2026-11-26): one node per station, node to node along z
+        # node contacts (before 2026-11-25): one node per station, node to node along z
         cand = contact_candidates(mesh, flexure, stations_per_turn)
         h_st = h_turn / stations_per_turn
         top, bot, su = cand["top"], cand["bottom"], cand["station_u"]
