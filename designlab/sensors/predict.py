@@ -858,21 +858,18 @@ def write_prediction(prediction: Prediction, out: str | Path,
     gc.freeze()
     try:
         result = prediction.result
-        sensor = get_sensor(prediction.sensor)
         plots_job, deformed_job = None, None
         names: list[str] = []
+        plot_args = (prediction.sensor, result, prediction.metrics, stage)
+        # early: the groups are being drawn since before the stress check (predict_and_write)
         early = pictures is not None and pictures.plots is not None
-        if early:                           # being drawn since before the stress check
-            pass
-        elif pictures is not None:
-            plots_job = pictures.plotter.submit(_plots_job, prediction.sensor, result,
-                                                prediction.metrics, stage)
-        elif _two_cpus(parallel):
-            plotter = _Side(lambda: [Path(f).name for f in
-                                     sensor.plots(result, prediction.metrics, stage)])
+        if pictures is not None and not early:
+            plots_job = pictures.plotter.submit(_plots_job, *plot_args)
+        elif pictures is None and _two_cpus(parallel):
+            plotter = _Side(lambda: _plots_job(*plot_args))
             plots_job = plotter.first
-        else:
-            names = [Path(f).name for f in sensor.plots(result, prediction.metrics, stage)]
+        elif pictures is None:
+            names = _plots_job(*plot_args)
             clock("plots")
         mesh, u = getattr(result, "mesh", None), getattr(result, "displacement", None)
         vtu_job = None
@@ -931,8 +928,7 @@ def write_prediction(prediction: Prediction, out: str | Path,
             for group, job in pictures.plots:
                 got = job.get()
                 if got is None:             # the child failed: draw here (raises its error)
-                    got = _plots_job(prediction.sensor, result, prediction.metrics, stage,
-                                     group)
+                    got = _plots_job(*plot_args, group)
                 else:
                     for n in got:
                         os.replace(pictures.plot_dir / n, stage / n)
@@ -942,7 +938,7 @@ def write_prediction(prediction: Prediction, out: str | Path,
         elif plots_job is not None:
             drawn = plots_job.get()
             if drawn is None:               # the child failed: draw here (raises its error)
-                drawn = [Path(f).name for f in sensor.plots(result, prediction.metrics, stage)]
+                drawn = _plots_job(*plot_args)
             names = drawn + names
             clock("plots (waited for the plotting process)")
         doc = prediction.to_json()
