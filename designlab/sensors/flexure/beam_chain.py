@@ -664,6 +664,30 @@ def _contact_windows(coil: Coil, settings: ChainSettings) -> list[tuple[float, f
     return out
 
 
+def wire_contact_points(z_of_u: Callable, R: float, turns: float, spacing: float):
+    """Where line contacts sit along a helix of mean radius ``R`` (mm) and centreline height
+    ``z_of_u(u)`` over ``turns`` turns: ``(points, coil_spans)``. ``points(lo, hi)`` -> (turn
+    counts, lengths of wire in mm): the midpoints of equal steps in turn count over
+    [lo, hi], ~``spacing`` mm of wire each. ``coil_spans``: the turn-count ranges of the lower
+    wire of each coil-to-coil contact (the dead turn and its pitch ramp at both ends; one range
+    for a spring too short to have two). Shared by the beam chain and the solid FEM."""
+    fine = np.linspace(0.0, turns, int(turns * 2000) + 1)
+    dsdu = np.hypot(2 * np.pi * R, np.gradient(np.asarray(z_of_u(fine), float), fine))
+
+    def points(lo: float, hi: float):
+        mid = np.interp((lo + hi) / 2, fine, dsdu)
+        n = max(int(math.ceil((hi - lo) * mid / spacing - 1e-9)), 1)
+        du = (hi - lo) / n
+        us = lo + (np.arange(n) + 0.5) * du
+        return us, np.interp(us, fine, dsdu) * du
+
+    span = 1.0 + RAMP
+    spans = sorted([(0.0, min(span, turns - 1.0)), (max(turns - 1.0 - span, 0.0), turns - 1.0)])
+    if spans[1][0] <= spans[0][1]:                    # short springs: one span
+        spans = [(spans[0][0], max(spans[0][1], spans[1][1]))]
+    return points, spans
+
+
 def _merge(windows) -> list[tuple[float, float]]:
     out = []
     for a, b in sorted(windows):
@@ -913,21 +937,7 @@ class Chain(ActiveSet):
         count of closed nodes, carries the load. Sets ``N``, ``Rt`` (sparse) and the contact
         list (kind, gap, penalty, turn count; no dense rows)."""
         c, r, N = self.coil, self.coil.r, self.coil.turns
-        fine = np.linspace(0.0, N, int(N * 2000) + 1)
-        zf = c.z_of_u(fine)
-        dsdu = np.hypot(2 * np.pi * c.R, np.gradient(zf, fine))
-
-        def points(lo, hi):
-            mid = np.interp((lo + hi) / 2, fine, dsdu)
-            n = max(int(math.ceil((hi - lo) * mid / spacing - 1e-9)), 1)
-            du = (hi - lo) / n
-            us = lo + (np.arange(n) + 0.5) * du
-            return us, np.interp(us, fine, dsdu) * du
-
-        span = 1.0 + RAMP
-        lo_spans = sorted([(0.0, min(span, N - 1.0)), (max(N - 1.0 - span, 0.0), N - 1.0)])
-        if lo_spans[1][0] <= lo_spans[0][1]:              # short springs: one span
-            lo_spans = [(lo_spans[0][0], max(lo_spans[0][1], lo_spans[1][1]))]
+        points, lo_spans = wire_contact_points(c.z_of_u, c.R, N, spacing)
         kinds, us_all, ws, g0s, rows, rts = [], [], [], [], [], []
         for lo, hi in lo_spans:
             us, w = points(lo, hi)

@@ -298,7 +298,8 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     from designlab.fem.materials import get_material
     from designlab.fem.solvers import factorize
     from designlab.mesh.meshing import mesh_part
-    from designlab.sensors.flexure.beam_chain import ActiveSet, ChainSettings, RAMP
+    from designlab.sensors.flexure.beam_chain import (ActiveSet, ChainSettings, RAMP,
+                                                      wire_contact_points)
 
     cs = settings or ChainSettings()
     step = progress or (lambda text, done, total: None)
@@ -389,22 +390,7 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
                 out.append(w)
             return out
 
-        fine = np.linspace(0.0, N, int(N * 2000) + 1)
-        dsdu = np.hypot(2 * np.pi * flexure.mean_diameter / 2, np.gradient(zc(fine), fine))
-
-        def points(lo, hi):
-            """Midpoints of equal steps in turn count over [lo, hi], ~``spacing`` mm of wire
-            each, and their lengths of wire (mm)."""
-            mid = np.interp((lo + hi) / 2, fine, dsdu)
-            n = max(int(np.ceil((hi - lo) * mid / spacing - 1e-9)), 1)
-            du = (hi - lo) / n
-            us = lo + (np.arange(n) + 0.5) * du
-            return us, np.interp(us, fine, dsdu) * du
-
-        span = 1.0 + RAMP
-        lo_spans = sorted([(0.0, min(span, N - 1.0)), (max(N - 1.0 - span, 0.0), N - 1.0)])
-        if lo_spans[1][0] <= lo_spans[0][1]:              # short springs: one span
-            lo_spans = [(lo_spans[0][0], max(lo_spans[0][1], lo_spans[1][1]))]
+        points, lo_spans = wire_contact_points(zc, flexure.mean_diameter / 2, N, spacing)
         lid = 0
         for lo, hi in lo_spans:
             us, w = points(lo, hi)
