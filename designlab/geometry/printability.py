@@ -176,12 +176,12 @@ def _first_hits_embree(mesh: trimesh.Trimesh, starts: np.ndarray,
 
 def _first_hits_vtk(mesh: trimesh.Trimesh, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
     """Index of the first triangle each segment ``starts -> ends`` hits (-1: none), VTK."""
-    import vtk
     from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
+    from vtkmodules.vtkCommonCore import reference, vtkPoints
     from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData, vtkStaticCellLocator
 
     pd = vtkPolyData()
-    pts = vtk.vtkPoints()
+    pts = vtkPoints()
     pts.SetData(numpy_to_vtk(np.ascontiguousarray(mesh.vertices, dtype=np.float64), deep=True))
     pd.SetPoints(pts)
     conn = np.hstack([np.full((len(mesh.faces), 1), 3), mesh.faces]).astype(np.int64).ravel()
@@ -191,7 +191,7 @@ def _first_hits_vtk(mesh: trimesh.Trimesh, starts: np.ndarray, ends: np.ndarray)
     loc = vtkStaticCellLocator()
     loc.SetDataSet(pd)
     loc.BuildLocator()
-    t, sub, cid = vtk.reference(0.0), vtk.reference(0), vtk.reference(0)
+    t, sub, cid = reference(0.0), reference(0), reference(0)
     x, pc = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
     out = np.full(len(starts), -1, dtype=np.int64)
     for i in range(len(starts)):
