@@ -340,6 +340,8 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
             warnings.simplefilter("always")
             result = sensor.run(part, proto, sett, progress=progress, **kw)
             report = dict(result.report)
+            early = _early_plots(sensor, pictures, name, result, report, model_path)
+            cases = _early_deformed(sensor, pictures, part, proto, sett, result, cache, report)
             if sensor.finish is not None:
                 sensor.finish(report, result, part, proto)
             side_out = side.first.get() if side is not None else None
@@ -358,21 +360,14 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
         report.update(sensor.apply_model(report, result, model_path, proto, sett, part=part))
     report.setdefault("geometric_condition_number", None)
     if pictures is not None and pictures.plot_dir is not None:
-        # the plots read the report as it is now (the stress check adds nothing they show);
-        # a sensor whose plots come in groups has them drawn by both processes at once
-        both = [pictures.painter, pictures.plotter] if pictures.plotter is not pictures.painter \
-            else [pictures.painter]
-        groups = sensor.plot_groups if len(both) == 2 and sensor.plot_groups else (None,)
-        pictures.plots = [(g, both[i % len(both)].submit(_plots_job, name, result, report,
-                                                         pictures.plot_dir, g))
-                          for i, g in enumerate(groups)]
+        pictures.plots = _late_plots(sensor, pictures, name, result, report, early)
     t0 = time.perf_counter()
     if progress:
         progress("stress")
     if records:
         report["measured_materials"] = [dataclasses.asdict(r) for r in records]
     cases, stresses, stress_warn = _stress(sensor, part, proto, sett, result, cache, report,
-                                           mats or None)
+                                           mats or None, cases)
     report["timings_s"] = {"cad": t_cad, **report.get("timings_s", {}),
                            "stress": time.perf_counter() - t0}
     report["timings_s"]["total"] = float(sum(v for v in report["timings_s"].values()
@@ -480,6 +475,8 @@ class _Pictures:
     plot_dir: Path | None = None
     #: [(the group of plots (None: all), its job)]
     plots: "list[tuple[tuple[str, ...] | None, _Ticket]] | None" = None
+    #: deformed.png's job, sent as soon as the run is done (into ``plot_dir``)
+    deformed: "_Ticket | None" = None
 
     @property
     def plotter(self) -> _Side:
@@ -503,6 +500,59 @@ def _design_png(name: str, items) -> bytes:
         path = Path(d) / "design.png"
         render_items(items, path, size=DESIGN_PNG_SIZE, title=f"{name}: the design")
         return path.read_bytes()
+
+
+def _early_plots(sensor, pictures: "_Pictures | None", name: str, result, report, model_path
+                 ) -> list:
+    """The plot groups that read only the run's report (``Sensor.plots_before_finish``) sent
+    to the painter as soon as the run is done, while this process finishes the report (paper
+    comparison, error bar, stress), alternately to the painter and the coarse mesh's process:
+    [(process, group, job)]. None are early with a loop model (its
+    corrections change what they show) or without a second drawing process."""
+    if (pictures is None or pictures.plot_dir is None or model_path is not None
+            or pictures.plotter is pictures.painter or not sensor.plots_before_finish):
+        return []
+    both = (pictures.painter, pictures.plotter)     # alternately, the painter first
+    groups = [g for g in sensor.plot_groups if set(g) <= sensor.plots_before_finish]
+    return [(both[i % 2], g, both[i % 2].submit(_plots_job, name, result, report,
+                                                 pictures.plot_dir, g))
+            for i, g in enumerate(groups)]
+
+
+def _late_plots(sensor, pictures: "_Pictures", name: str, result, report, early: list) -> list:
+    """The plot groups not drawn early (:func:`_early_plots`) sent with the finished report:
+    all groups, [(group, job)] (the early ones first). The report is read as it is now (the
+    stress check adds nothing the plots show); a sensor whose plots come in groups has them
+    drawn by both processes at once, each group to the process with fewer groups so far (ties:
+    the coarse mesh's process, as the painter also draws deformed.png and writes the VTU)."""
+    both = [pictures.painter, pictures.plotter] if pictures.plotter is not pictures.painter \
+        else [pictures.painter]
+    if early:
+        drawing = {g for _, g, _ in early}
+        groups = tuple(g for g in sensor.plot_groups if g not in drawing)
+    else:
+        groups = sensor.plot_groups if len(both) == 2 and sensor.plot_groups else (None,)
+    taken = [sum(p is both[0] for p, _, _ in early), sum(p is both[-1] for p, _, _ in early)]
+    late = []
+    for g in groups:
+        k = 0 if taken[0] < taken[-1] else len(both) - 1
+        taken[k] += 1
+        late.append((g, both[k].submit(_plots_job, name, result, report, pictures.plot_dir, g)))
+    return [(g, t) for _, g, t in early] + late
+
+
+def _early_deformed(sensor, pictures: "_Pictures | None", part, protocol, settings, result,
+                    cache, report) -> list | None:
+    """deformed.png sent to the painter as soon as the run is done (it shows the first load
+    case, which needs the run alone): the load cases (None: not sent, they are made later)."""
+    mesh, u = getattr(result, "mesh", None), getattr(result, "displacement", None)
+    if pictures is None or pictures.plot_dir is None or mesh is None or u is None:
+        return None
+    cases = _load_cases(sensor, part, protocol, settings, result, cache, report)
+    u, png = _deformed_args(sensor.name, mesh, u, cases)
+    pictures.deformed = pictures.painter.submit(
+        _deformed_job, pictures.plot_dir / "deformed.png", mesh, u, png)
+    return cases
 
 
 def _plots_job(sensor_name: str, result, metrics, stage: Path,
@@ -727,27 +777,47 @@ def measured_materials(part, measured) -> tuple[dict[str, Any], list]:
     return mats, records
 
 
-def _stress(sensor, part, protocol, settings, result, cache, report, materials=None):
-    """The load cases of the virtual test (``Sensor.load_cases``, else the result's one
-    displacement), their von Mises stress and the ``stress`` section of the report (None when
-    the prediction has no mesh); ``materials``: the run's body overrides (measured)."""
-    from designlab.fem.stress import case_stresses, stress_report, stress_warnings
+def _load_cases(sensor, part, protocol, settings, result, cache, report) -> list:
+    """The load cases of the virtual test: ``Sensor.load_cases``, else the result's one
+    displacement ([] without one)."""
     from designlab.sensors.sensor import LoadCase
+
+    if sensor.load_cases is not None:
+        return sensor.load_cases(part, protocol, settings, result, cache)
+    if getattr(result, "displacement", None) is None:
+        return []
+    info = report.get("vtu_load") or {}
+    text = ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
+                     for k, v in info.items())
+    return [LoadCase("design load", "the largest load of the virtual test"
+                     + (f" ({text})" if text else ""), result.displacement)]
+
+
+def _deformed_args(sensor_name: str, mesh, u, cases) -> tuple[np.ndarray, dict[str, Any]]:
+    """deformed.png's displacement (the first load case's, else ``u``) and drawing settings."""
+    first = cases[0] if cases else None
+    if first is not None:
+        u = np.asarray(first.displacement)
+    png = {"size": DEFORMED_PNG_SIZE, "title": sensor_name,
+           "loads": [(first.point, first.direction, first.force_N)]
+           if first is not None and first.point is not None else (),
+           "case": first.description if first is not None else ""}
+    return np.asarray(u), png
+
+
+def _stress(sensor, part, protocol, settings, result, cache, report, materials=None,
+            cases=None):
+    """The load cases of the virtual test (``cases``, else :func:`_load_cases`), their von
+    Mises stress and the ``stress`` section of the report (None when the prediction has no
+    mesh); ``materials``: the run's body overrides (measured)."""
+    from designlab.fem.stress import case_stresses, stress_report, stress_warnings
 
     mesh = getattr(result, "mesh", None)
     if mesh is None:                    # a mesh-free model may give its own (the flexure's wire)
         report.setdefault("stress", None)
         return [], [], []
-    if sensor.load_cases is not None:
-        cases = sensor.load_cases(part, protocol, settings, result, cache)
-    elif getattr(result, "displacement", None) is not None:
-        info = report.get("vtu_load") or {}
-        text = ", ".join(f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}"
-                         for k, v in info.items())
-        cases = [LoadCase("design load", "the largest load of the virtual test"
-                          + (f" ({text})" if text else ""), result.displacement)]
-    else:
-        cases = []
+    if cases is None:
+        cases = _load_cases(sensor, part, protocol, settings, result, cache, report)
     if not cases:
         report["stress"] = None
         return [], [], []
@@ -894,16 +964,12 @@ def write_prediction(prediction: Prediction, out: str | Path,
                 _vtu_job(*vtu)
                 clock("deformed.vtu")
             names.append("deformed.vtu")
-            first = prediction.load_cases[0] if prediction.load_cases else None
-            if first is not None:
-                u = np.asarray(first.displacement)
-            png = {"size": DEFORMED_PNG_SIZE, "title": prediction.sensor,
-                   "loads": [(first.point, first.direction, first.force_N)]
-                   if first is not None and first.point is not None else (),
-                   "case": first.description if first is not None else ""}
-            if pictures is not None:
+            u, png = _deformed_args(prediction.sensor, mesh, u, prediction.load_cases)
+            if pictures is not None and pictures.deformed is not None:   # sent by predict
+                deformed_job = pictures.deformed
+            elif pictures is not None:
                 deformed_job = pictures.painter.submit(_deformed_job, stage / "deformed.png",
-                                                       mesh, np.asarray(u), png)
+                                                       mesh, u, png)
             else:
                 _deformed_png(prediction, stage, mesh, u, png, names)
                 clock("deformed.png")
@@ -921,6 +987,8 @@ def write_prediction(prediction: Prediction, out: str | Path,
             elif err:
                 prediction.warnings.append(f"deformed.png not rendered: {err}")
             else:
+                if deformed_job is pictures.deformed:       # drawn beside the staging folder
+                    os.replace(pictures.plot_dir / "deformed.png", stage / "deformed.png")
                 names.append("deformed.png")
             clock("deformed.png (waited for the painter)")
         if early:

@@ -26,6 +26,9 @@ class Sensor:
     plots:     ``plots(result, report, out_dir) -> [Path]``
     plot_groups: the plots' file names in groups that ``plots(..., only=group)`` draws alone
                (``designlab predict`` has two processes draw them); (): one call draws all
+    plots_before_finish: the plots that read only ``run``'s report (not ``finish``'s keys, the
+               error bar or a loop model's corrections): their groups are drawn while the
+               report is finished
     gains:     ``gains(report, result) -> ({output: {input: gain}}, {output: unit})``: the virtual
                test as a linear model from the loads to the outputs (the loop's base)
     finish:    ``finish(report, result, part, protocol)``: paper comparison and extra keys, in place
@@ -62,6 +65,7 @@ class Sensor:
     load_cases: Callable[..., list["LoadCase"]] | None = None
     uncertainty: Any = None
     plot_groups: tuple[tuple[str, ...], ...] = ()
+    plots_before_finish: frozenset[str] = frozenset()
 
     @property
     def part(self) -> type:
