@@ -164,6 +164,60 @@ def fem_stiffness(spring, edge_length: float | None = None, order: int = 2,
                          progress=sub)
 
 
+# ------------------------------------------------------------------ the helix mesh
+
+#: largest relative error of the meshed wire volume against the B-rep's (the mesher's own check,
+#: ``mesh_bodies_detailed(volume_rtol=0.05)``)
+WIRE_VOLUME_RTOL = 0.05
+
+
+def helix_mesh(flexure, edge_length: float | None = None, order: int = 2,
+               quality: str = "default") -> tuple[TetMesh, dict]:
+    """TET4/TET10 mesh of the spring part's wire (gmsh) and how it was sized.
+
+    ``edge_length`` None: the default mesh of ``designlab flexure --fem`` (asked at the wire
+    radius; gmsh's first try at that size facets the wire section and loses more than 5 % of
+    its volume, so the mesher's fallback sizes the wire from its curvature, 12 edges per 2 pi
+    of radius: median corner edge 0.54 mm on the Visiflex wire, r = 1.015 mm, for every edge
+    asked from 0.7 mm up; docs/flexure.md, "Solid FEM: contact discretisation"). ``edge_length``
+    given (mm): that size, honoured (the mesher's first try, whatever the volume), and a mesh
+    whose wire volume is off the B-rep's by more than :data:`WIRE_VOLUME_RTOL` (the section
+    too coarse to carry it: 0.7 mm and up on the Visiflex wire; 0.65 mm passes) is a
+    ParameterError naming the volume lost, instead of the same fallback mesh for every size.
+    The part's end refinement (edge r / 2 within 4 r of the wire ends) applies where it is finer.
+    Info: ``edge_asked_mm``, ``median_edge_mm`` (corner edges), ``sized_by``, ``volume_error``.
+    """
+    from designlab.mesh.meshing import mesh_part_detailed
+
+    if edge_length is None:
+        res = mesh_part_detailed(flexure, order=order, edge_length=flexure.wire_radius,
+                                 quality=quality, mesher="gmsh")
+    else:
+        h = float(edge_length)
+        if not (np.isfinite(h) and h > 0):
+            raise ParameterError("edge_length", edge_length, "a number > 0 mm")
+        # volume_rtol 1: the first try (this size, no curvature sizing) is taken as it comes
+        res = mesh_part_detailed(flexure, order=order, edge_length=h, quality=quality,
+                                 mesher="gmsh", volume_rtol=1.0)
+    mesh = res.mesh
+    v_mesh = float(mesh.corner_volumes.sum())
+    v_brep = float(sum(res.body_volumes.values()))
+    err = v_mesh / v_brep - 1.0
+    pc = mesh.points[mesh.cells[:, :4]]
+    info = {"edge_asked_mm": None if edge_length is None else float(edge_length),
+            "median_edge_mm": float(np.median(np.linalg.norm(pc[:, 1] - pc[:, 0], axis=1))),
+            "sized_by": res.attempts[-1] if res.attempts else "", "volume_error": err}
+    if edge_length is not None and (len(res.attempts) != 1 or abs(err) > WIRE_VOLUME_RTOL):
+        raise ParameterError(
+            "edge_length", edge_length,
+            f"an edge that meshes the wire section (r = {flexure.wire_radius:g} mm) within "
+            f"{100 * WIRE_VOLUME_RTOL:g} % of its volume: at {float(edge_length):g} mm the "
+            f"mesh has {100 * err:+.1f} % (about 10 edges around the section, <= "
+            f"{2 * np.pi * flexure.wire_radius / 10:.2g} mm, pass); or None for the default "
+            "mesh sized by the wire's curvature")
+    return mesh, info
+
+
 # ------------------------------------------------------------------ contact in the solid FEM
 
 @dataclass(frozen=True)
@@ -241,6 +295,10 @@ _PROGRESS_TOTAL = sum(w for _, w in _STAGES)
 #: back-substitution calls of the condensation (progress granularity: every call streams the
 #: whole factor once more, ~1.3 s CPU each for the Visiflex helix)
 _CHUNKS = 4
+#: largest dense right-hand-side block of one back-substitution call, bytes: finer meshes take
+#: more calls (4 calls of 0.74 GB on the default mesh, as before; a 192267-node mesh peaked at
+#: 12.5 GB in 4 calls before this bound, the 248694-node one at 9.2 GB in 15 calls with it)
+_RHS_BYTES = 1 << 30
 
 
 def _at(stage: str, fraction: float = 0.0) -> tuple[int, int]:
@@ -289,7 +347,8 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     :class:`~designlab.sensors.flexure.beam_chain.ActiveSet` then runs on that small system:
     symmetric perturbations about the unloaded state and about ``settings.working_load_N``
     (force-controlled axial preload), like the chain. Geometrically linear. ``mesh``: a mesh
-    of this part already made (the same call otherwise meshes it).
+    of this part already made (the same call otherwise meshes it with :func:`helix_mesh`:
+    ``edge_length`` None the default curvature-sized mesh, a number that edge, honoured).
     """
     import time
 
@@ -297,7 +356,6 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
 
     from designlab.fem.materials import get_material
     from designlab.fem.solvers import factorize
-    from designlab.mesh.meshing import mesh_part
     from designlab.sensors.flexure.beam_chain import (ActiveSet, ChainSettings, RAMP,
                                                       wire_contact_points)
 
@@ -311,7 +369,8 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     if flexure.ends != "closed_ground":
         raise ParameterError("ends", flexure.ends, "closed_ground for the contact FEM (plain "
                              "ends have no dead turn)")
-    h_mesh = flexure.wire_radius if edge_length is None else float(edge_length)
+    if edge_length is not None and not (np.isfinite(float(edge_length)) and edge_length > 0):
+        raise ParameterError("edge_length", edge_length, "a number > 0 mm")
     d, r = flexure.wire_diameter, flexure.wire_radius
     if gaps not in ("as_built", "meshed"):
         raise ParameterError("gaps", gaps, "as_built or meshed")
@@ -322,8 +381,9 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     L, N = float(flexure.length), flexure.total_coils
     timings = {}
     step("meshing the helix (gmsh)", *_at("mesh"))
+    mesh_info = None
     if mesh is None:
-        mesh = mesh_part(flexure, order=order, edge_length=h_mesh, quality=quality, mesher="gmsh")
+        mesh, mesh_info = helix_mesh(flexure, edge_length, order=order, quality=quality)
     timings["mesh"] = time.perf_counter() - t0
     step("contact lines and assembly", *_at("assemble"))
     t1 = time.perf_counter()
@@ -465,7 +525,8 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     # the condensation's back-substitutions in chunks, so the bar (and its ETA) moves
     t2 = time.perf_counter()
     C = np.empty((len(keep), len(keep)))
-    chunks = np.array_split(np.arange(len(keep)), min(_CHUNKS, len(keep)))
+    n_calls = max(_CHUNKS, int(np.ceil(8.0 * Kr.shape[0] * len(keep) / _RHS_BYTES)))
+    chunks = np.array_split(np.arange(len(keep)), min(n_calls, len(keep)))
     for c, cols in enumerate(chunks):
         step(f"condensing on {len(keep)} dofs ({cols[0]}/{len(keep)})",
              *_at("condense", c / len(chunks)))
@@ -548,5 +609,6 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
             "contact_spacing_mm": spacing, "line_nodes": line_nodes,
             "line_bins_per_turn": n_line if spacing > 0 else None, "asymmetry": asym,
             "closed_during_perturbations": [min(closed), max(closed)],
-            "working_load": info_l, "solver": type(lin).__name__, "timings_s": timings}
+            "working_load": info_l, "solver": type(lin).__name__,
+            "back_substitution_calls": len(chunks), "mesh": mesh_info, "timings_s": timings}
     return ContactFEM(K, K_loaded, K_free, master, np.array([0.0, 0.0, L / 2]), info, mesh)
