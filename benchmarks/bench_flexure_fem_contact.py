@@ -12,20 +12,33 @@ goal metrics at the paper's offset (mean |error| over the measured diagonal, cou
 model / measured), unloaded and at the 10 N working load, the contact counts (node contacts:
 ``--stations`` per turn, and how many stations have no node on the top contact line; line
 contacts: ``--spacings`` mm between points along the wire), the condensed dofs, the spring-centre diagonal at 10 N, wall and CPU s.
+
+Mesh convergence (docs/flexure.md, "Solid FEM: contact discretisation"): ``--edges`` takes
+``default`` (the curvature-sized mesh of ``designlab flexure --fem``) or edge lengths in mm,
+honoured (``helix_fem.helix_mesh``); ``--json-out FILE`` appends one JSON line per run (one
+process per edge keeps ``/usr/bin/time`` peak memory per mesh), and
+
+    .venv/bin/python benchmarks/bench_flexure_fem_contact.py --richardson FILE
+
+prints, per contact setting, the Richardson extrapolation of the goal metrics and the
+spring-centre diagonals over the three finest edges of FILE when their ratios are equal
+(within 2 %): observed order ``p = ln((f1 - f2) / (f2 - f3)) / ln(ratio)`` and the limit
+``f3 + (f3 - f2) / (ratio^p - 1)`` for a monotone sequence (``f1, f2, f3`` coarse to fine),
+"not monotone" otherwise.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import time
 
 import numpy as np
 
-from designlab.mesh.meshing import mesh_part
 from designlab.sensors.flexure import report as fr
 from designlab.sensors.flexure.beam_chain import ChainSettings
 from designlab.sensors.flexure.helix_fem import (contact_candidates, fem_contact_stiffness,
-                                                 flexure_from_spring)
+                                                 flexure_from_spring, helix_mesh)
 from designlab.sensors.flexure.spring import VISIFLEX_CATALOG
 
 
@@ -36,13 +49,27 @@ def main(argv=None) -> None:
     ap.add_argument("--spacings", default="0.5,0.25,0.1",
                     help="line contacts: point spacings along the wire, mm, comma separated "
                          "(empty: none)")
-    ap.add_argument("--edges", default=str(VISIFLEX_CATALOG.wire_radius),
-                    help="tet edge lengths, mm, comma separated")
+    ap.add_argument("--edges", default="default",
+                    help="tet edge lengths, mm, comma separated; 'default': the mesh of "
+                         "designlab flexure --fem (sized by the wire's curvature)")
     ap.add_argument("--gaps", default="as_built", choices=("as_built", "meshed"))
+    ap.add_argument("--json-out", default=None, help="append one JSON line per run to this file")
+    ap.add_argument("--richardson", default=None,
+                    help="extrapolate the runs of this JSON-lines file (no FEM run)")
+    ap.add_argument("--mesh-survey", default=None,
+                    help="edge lengths, mm, comma separated: mesh the helix (TET4) with the "
+                         "mesher's own fallbacks, as before helix_mesh, and print what each "
+                         "try made (no FEM run)")
     a = ap.parse_args(argv)
+    if a.richardson:
+        richardson_table(a.richardson)
+        return
+    if a.mesh_survey:
+        mesh_survey([float(e) for e in a.mesh_survey.split(",")])
+        return
     runs = ([("nodes", int(s)) for s in a.stations.split(",") if s]
             + [("line", float(s)) for s in a.spacings.split(",") if s])
-    edges = [float(e) for e in a.edges.split(",")]
+    edges = [None if e.strip() == "default" else float(e) for e in a.edges.split(",")]
     paper = fr.load_paper()
     flex = flexure_from_spring(VISIFLEX_CATALOG)
     print("| edge mm | nodes | contacts | condensed dofs | coil + seat contacts | "
@@ -51,9 +78,11 @@ def main(argv=None) -> None:
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for h in edges:
         w0, c0 = time.perf_counter(), time.process_time()
-        mesh = mesh_part(flex, order=2, edge_length=h, quality="default", mesher="gmsh")
-        print(f"<!-- mesh edge {h:g} mm: {mesh.n_points} nodes, "
-              f"{time.perf_counter() - w0:.1f} s wall, {time.process_time() - c0:.1f} s CPU -->",
+        mesh, minfo = helix_mesh(flex, h, order=2)
+        mesh_s = (time.perf_counter() - w0, time.process_time() - c0)
+        print(f"<!-- mesh edge {h} mm: {mesh.n_points} nodes, {mesh.n_cells} cells, median "
+              f"corner edge {minfo['median_edge_mm']:.3f} mm, volume {100 * minfo['volume_error']:+.2f} %, "
+              f"{minfo['sized_by']}; {mesh_s[0]:.1f} s wall, {mesh_s[1]:.1f} s CPU -->",
               flush=True)
         for kind, n in runs:
             w0, c0 = time.perf_counter(), time.process_time()
@@ -78,13 +107,101 @@ def main(argv=None) -> None:
             c0s = " / ".join(f"{v:.2f}" for v in g0["coupling_model_over_measured"].values())
             c1s = " / ".join(f"{v:.2f}" for v in g1["coupling_model_over_measured"].values())
             wl = i["working_load"]
-            print(f"| {h:g} | {i['n_nodes']} | {where} | {i['condensed_dofs']} | "
+            if a.json_out:
+                row = {"edge_mm": h, "median_edge_mm": minfo["median_edge_mm"],
+                       "volume_error": minfo["volume_error"], "sized_by": minfo["sized_by"],
+                       "n_nodes": i["n_nodes"], "n_cells": i["n_cells"], "dofs": i["dofs"],
+                       "contacts": kind, "n": n, "condensed_dofs": i["condensed_dofs"],
+                       "closed_10N": wl["closed_contacts"],
+                       "closed_length_10N_mm": wl["closed_length_mm"],
+                       "diag_error_0N_pct": g0["diagonal_mean_abs_error_pct"],
+                       "diag_error_10N_pct": g1["diagonal_mean_abs_error_pct"],
+                       "couplings_0N": list(g0["coupling_model_over_measured"].values()),
+                       "couplings_10N": list(g1["coupling_model_over_measured"].values()),
+                       "diag_centre_10N": d.tolist(),
+                       "diag_centre_0N": np.diag(sol.at(sol.centre, "unloaded")).tolist(),
+                       "diag_centre_free": np.diag(sol.at(sol.centre, "free")).tolist(),
+                       "mesh_s": mesh_s, "wall_s": wall, "cpu_s": cpu,
+                       "back_substitution_calls": i["back_substitution_calls"],
+                       "timings_s": i["timings_s"]}
+                with open(a.json_out, "a") as fh:
+                    fh.write(json.dumps(row) + "\n")
+            print(f"| {h} | {i['n_nodes']} | {where} | {i['condensed_dofs']} | "
                   f"{i['coil_pairs']} + {i['seat_contacts']} | "
                   f"{wl['closed_contacts']} ({wl['closed_length_mm']:.1f} mm) | "
                   f"{g0['diagonal_mean_abs_error_pct']:.1f} / "
                   f"{g1['diagonal_mean_abs_error_pct']:.1f} % | {c0s} | {c1s} | "
                   f"{d[0]:.0f} / {d[1]:.0f} / {d[3]:.2f} / {d[4]:.2f} / {d[5]:.2f} | "
                   f"{wall:.1f} | {cpu:.1f} |", flush=True)
+
+
+def mesh_survey(edges) -> None:
+    """Per edge asked: the mesher's tries (``MeshResult.attempts``: size, curvature sizing, the
+    volume check), the mesh kept (corner nodes, cells, median corner edge, wire volume error)."""
+    from designlab.mesh.meshing import mesh_part_detailed
+
+    flex = flexure_from_spring(VISIFLEX_CATALOG)
+    print("| edge asked mm | corner nodes | cells | median corner edge mm | wire volume | tries |")
+    print("|---|---|---|---|---|---|")
+    for h in edges:
+        res = mesh_part_detailed(flex, order=1, edge_length=h, quality="default", mesher="gmsh")
+        m = res.mesh
+        pc = m.points[m.cells]
+        med = float(np.median(np.linalg.norm(pc[:, 1] - pc[:, 0], axis=1)))
+        vol = float(m.corner_volumes.sum()) / sum(res.body_volumes.values()) - 1
+        print(f"| {h:g} | {m.n_points} | {m.n_cells} | {med:.3f} | {100 * vol:+.2f} % | "
+              f"{'; '.join(res.attempts)} |", flush=True)
+
+
+def richardson(f1: float, f2: float, f3: float, ratio: float) -> dict:
+    """Richardson extrapolation of ``f1, f2, f3`` (coarse to fine, edge ratio ``ratio``): the
+    observed order ``p`` and the limit, or ``monotone: False`` when the differences change sign
+    (or vanish) and nothing is extrapolated."""
+    d1, d2 = f1 - f2, f2 - f3
+    if d1 == 0 or d2 == 0 or (d1 > 0) != (d2 > 0):
+        return {"monotone": False}
+    p = float(np.log(d1 / d2) / np.log(ratio))
+    limit = f3 + (f3 - f2) / (ratio ** p - 1.0)
+    return {"monotone": True, "p": p, "limit": float(limit), "finest_minus_limit": float(f3 - limit)}
+
+
+def richardson_table(path: str) -> None:
+    """Print the extrapolation of the runs in the JSON-lines file ``path`` (see the module doc)."""
+    rows = [json.loads(line) for line in open(path) if line.strip()]
+    groups: dict = {}
+    for r in rows:
+        if r["edge_mm"] is not None:
+            groups.setdefault((r["contacts"], r["n"]), {})[r["edge_mm"]] = r
+    for (kind, n), by_edge in groups.items():
+        edges = sorted(by_edge, reverse=True)[-3:]
+        if len(edges) < 3:
+            print(f"{kind} {n}: {len(edges)} edge(s), need 3")
+            continue
+        r1, r2 = edges[0] / edges[1], edges[1] / edges[2]
+        print(f"\n{kind} {n}: edges {edges} mm (ratios {r1:.3f}, {r2:.3f}), nodes "
+              f"{[by_edge[e]['n_nodes'] for e in edges]}")
+        if abs(r1 / r2 - 1) > 0.02:
+            print("  ratios differ by more than 2 %: not extrapolated")
+            continue
+        ratio = float(np.sqrt(r1 * r2))
+        names = {"wire volume error %": lambda r: 100 * r["volume_error"],
+                 "diag. error 10 N %": lambda r: r["diag_error_10N_pct"],
+                 "diag. error 0 N %": lambda r: r["diag_error_0N_pct"]}
+        for k in range(2):
+            names[f"coupling {k + 1} at 10 N (x measured)"] = lambda r, k=k: r["couplings_10N"][k]
+            names[f"coupling {k + 1} at 0 N (x measured)"] = lambda r, k=k: r["couplings_0N"][k]
+        for state in ("free", "0N", "10N"):
+            for j, e in enumerate(("k_wx", "k_wy", "k_wz", "k_vx", "k_vy", "k_vz")):
+                names[f"{e} {state}"] = lambda r, j=j, s=state: r[f"diag_centre_{s}"][j]
+        print("| quantity | " + " | ".join(f"{e:g} mm" for e in edges)
+              + " | observed order | extrapolated | finest - extrapolated |")
+        print("|---|---|---|---|---|---|---|")
+        for name, get in names.items():
+            f = [float(get(by_edge[e])) for e in edges]
+            x = richardson(*f, ratio)
+            tail = (f"{x['p']:.2f} | {x['limit']:.4g} | {x['finest_minus_limit']:+.3g}"
+                    if x["monotone"] else "not monotone | - | -")
+            print(f"| {name} | " + " | ".join(f"{v:.4g}" for v in f) + f" | {tail} |")
 
 
 if __name__ == "__main__":
