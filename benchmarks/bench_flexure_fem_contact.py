@@ -4,6 +4,7 @@
     .venv/bin/python benchmarks/bench_flexure_fem_contact.py [--stations 18,36,72,144]
                                                              [--spacings 0.5,0.25,0.1]
                                                              [--edges 1.015] [--gaps as_built]
+                                                             [--curved]
 
 One process, sequential: per tet edge length (mm; the default is the wire radius, as
 ``designlab flexure --fem``) the Visiflex catalogue helix is meshed once (gmsh, TET10) and
@@ -25,6 +26,10 @@ spring-centre diagonals over the three finest edges of FILE when their ratios ar
 (within 2 %): observed order ``p = ln((f1 - f2) / (f2 - f3)) / ln(ratio)`` and the limit
 ``f3 + (f3 - f2) / (ratio^p - 1)`` for a monotone sequence (``f1, f2, f3`` coarse to fine),
 "not monotone" otherwise.
+
+``--curved``: TET10 with the wire surface's mid-edge nodes on the B-rep (``helix_mesh(...,
+curved=True)``, the same corners and cells); the JSON lines carry ``curved`` and the
+extrapolation groups the runs by it (docs/flexure.md, "Solid FEM: contact discretisation").
 """
 
 from __future__ import annotations
@@ -53,6 +58,8 @@ def main(argv=None) -> None:
                     help="tet edge lengths, mm, comma separated; 'default': the mesh of "
                          "designlab flexure --fem (sized by the wire's curvature)")
     ap.add_argument("--gaps", default="as_built", choices=("as_built", "meshed"))
+    ap.add_argument("--curved", action="store_true",
+                    help="curved TET10: mid-edge nodes of the wire surface on the B-rep")
     ap.add_argument("--json-out", default=None, help="append one JSON line per run to this file")
     ap.add_argument("--richardson", default=None,
                     help="extrapolate the runs of this JSON-lines file (no FEM run)")
@@ -78,10 +85,13 @@ def main(argv=None) -> None:
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for h in edges:
         w0, c0 = time.perf_counter(), time.process_time()
-        mesh, minfo = helix_mesh(flex, h, order=2)
+        mesh, minfo = helix_mesh(flex, h, order=2, curved=a.curved)
         mesh_s = (time.perf_counter() - w0, time.process_time() - c0)
         print(f"<!-- mesh edge {h} mm: {mesh.n_points} nodes, {mesh.n_cells} cells, median "
-              f"corner edge {minfo['median_edge_mm']:.3f} mm, volume {100 * minfo['volume_error']:+.2f} %, "
+              f"corner edge {minfo['median_edge_mm']:.3f} mm, curved {a.curved}, volume "
+              f"{100 * minfo['volume_error']:+.2f} % (corners {100 * minfo['volume_error_corners']:+.2f} %), "
+              f"min Jacobian / corner {minfo.get('min_jacobian_ratio', float('nan')):.3f} "
+              f"({minfo['straightened_cells']} cells straightened), "
               f"{minfo['sized_by']}; {mesh_s[0]:.1f} s wall, {mesh_s[1]:.1f} s CPU -->",
               flush=True)
         for kind, n in runs:
@@ -89,7 +99,8 @@ def main(argv=None) -> None:
             sol = fem_contact_stiffness(VISIFLEX_CATALOG, edge_length=h, gaps=a.gaps,
                                         stations_per_turn=int(n) if kind == "nodes" else 36,
                                         contact_spacing_mm=0.0 if kind == "nodes" else n,
-                                        mesh=mesh, settings=ChainSettings(seat="bonded"))
+                                        mesh=mesh, settings=ChainSettings(seat="bonded"),
+                                        curved=a.curved)
             wall, cpu = time.perf_counter() - w0, time.process_time() - c0
             rep = fr.flexure_report(VISIFLEX_CATALOG, paper=paper,
                                     K_fem_spring_si=sol.centre_si("unloaded"),
@@ -109,7 +120,10 @@ def main(argv=None) -> None:
             wl = i["working_load"]
             if a.json_out:
                 row = {"edge_mm": h, "median_edge_mm": minfo["median_edge_mm"],
-                       "volume_error": minfo["volume_error"], "sized_by": minfo["sized_by"],
+                       "curved": a.curved, "volume_error": minfo["volume_error"],
+                       "volume_error_corners": minfo["volume_error_corners"],
+                       "min_jacobian_ratio": minfo.get("min_jacobian_ratio"),
+                       "straightened_cells": minfo["straightened_cells"], "sized_by": minfo["sized_by"],
                        "n_nodes": i["n_nodes"], "n_cells": i["n_cells"], "dofs": i["dofs"],
                        "contacts": kind, "n": n, "condensed_dofs": i["condensed_dofs"],
                        "closed_10N": wl["closed_contacts"],
@@ -171,8 +185,10 @@ def richardson_table(path: str) -> None:
     groups: dict = {}
     for r in rows:
         if r["edge_mm"] is not None:
-            groups.setdefault((r["contacts"], r["n"]), {})[r["edge_mm"]] = r
-    for (kind, n), by_edge in groups.items():
+            groups.setdefault((bool(r.get("curved", False)), r["contacts"], r["n"]),
+                              {})[r["edge_mm"]] = r
+    for (curved, kind, n), by_edge in groups.items():
+        kind = f"{'curved' if curved else 'straight'} TET10, {kind}"
         edges = sorted(by_edge, reverse=True)[-3:]
         if len(edges) < 3:
             print(f"{kind} {n}: {len(edges)} edge(s), need 3")

@@ -9,7 +9,10 @@ back to ``edge_length`` over a shell of ``(edge_length - e) / grading``), combin
 
 Same input, same mesh, bit for bit: one thread, a fixed random seed, the 2-D Frontal-Delaunay
 and 3-D Delaunay algorithms, no configuration files read. Linear tetrahedra come out; the
-caller makes TET10 with straight mid-edge nodes.
+caller makes TET10 with straight mid-edge nodes. Opt-in curved TET10 (:func:`curve_tet10`):
+the same gmsh mesh made again, raised to order 2 by gmsh (``setOrder(2)``, new nodes on the
+B-rep, ``Mesh.SecondOrderLinear`` 0), and its mid-edge nodes copied onto the straight mesh's by
+corner pair; nothing else changes (node and cell numbering, facet sets).
 
 Named faces: a part can name B-rep faces of its bodies (``{set name: [(body index, face), ...]}``,
 the faces as build123d/OCP shapes). Each becomes a physical surface group; after ``fragment``
@@ -38,6 +41,12 @@ DETERMINISTIC = {
     "Mesh.Optimize": 1, "Mesh.OptimizeNetgen": 0, "Mesh.ElementOrder": 1,
 }
 
+
+#: gmsh's 10-node tetrahedron (element type 11: corners, then the mid-nodes of (0,1), (1,2),
+#: (2,0), (3,0), (3,2), (3,1)) -> C3D10 order (corners, then (0,1), (1,2), (2,0), (0,3), (1,3),
+#: (2,3)); checked on an all-flat body (tests/test_mesh_curved.py: every mid-node on its edge's
+#: midpoint to 1e-9 mm)
+GMSH_TET10_TO_C3D10 = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
 
 #: a gmsh surface lies on a named B-rep face when a point inside it is this close (mm)
 NAMED_TOL = 1e-6
@@ -72,6 +81,85 @@ def tetrahedralize(shapes: Sequence, names: Sequence[str], edge_length: float,
     with _LOCK:
         return _tetrahedralize(shapes, names, edge_length, refinement, grading, min_edge,
                                curvature, named_faces)
+
+
+def curve_tet10(mesh, shapes: Sequence, names: Sequence[str], edge_length: float,
+                refinement: Sequence[tuple] = (), grading: float = 0.5,
+                min_edge: float | None = None, curvature: int = 0,
+                optimize: int = 0):
+    """``mesh`` (a straight TET10 :class:`~designlab.mesh.tetmesh.TetMesh` that
+    :func:`tetrahedralize` made from these arguments) with its mid-edge nodes on the B-rep.
+
+    gmsh meshes the bodies again with the same arguments (the same TET4 mesh: the options of
+    :data:`DETERMINISTIC`), ``setOrder(2)`` puts each new node of a boundary edge on its B-rep
+    curve or surface (``Mesh.SecondOrderLinear`` 0; interior edges stay straight), and each
+    mid-node of ``mesh`` takes the position of gmsh's mid-node of the same corner pair. Node
+    and cell numbering, regions and facet sets are ``mesh``'s. ``optimize``: gmsh's
+    ``Mesh.HighOrderOptimize`` (0 none, the default; 2 elastic + optimisation), which may also
+    move interior mid-nodes. A corner or an edge of ``mesh`` not in gmsh's mesh (other
+    arguments than the straight mesh's) -> :class:`MeshingError`."""
+    from designlab.mesh.tetmesh import TET10_EDGES, TetMesh
+
+    if mesh.order != 2:
+        raise MeshingError("curve_tet10 needs a TET10 mesh (TetMesh.quadratic())")
+    with _LOCK:
+        pts, cells, _ = _tetrahedralize(shapes, names, edge_length, refinement, grading,
+                                        min_edge, curvature, None, cell_order=2, optimize=optimize)
+    # gmsh corner node -> mesh node, by exact coordinates (the same gmsh run made both)
+    corner = np.unique(cells[:, :4])
+    ours = np.unique(mesh.cells[:, :4])
+    key_g = {pts[i].tobytes(): i for i in corner}
+    to_mesh = np.full(len(pts), -1, np.int64)
+    missing = 0
+    for j in ours:
+        i = key_g.get(mesh.points[j].tobytes())
+        if i is None:
+            missing += 1
+        else:
+            to_mesh[i] = j
+    if missing or len(corner) != len(ours):
+        raise MeshingError(f"curve_tet10: gmsh's mesh is not the straight mesh's ({missing} of "
+                           f"{len(ours)} corners not found, {len(corner)} gmsh corners): pass "
+                           "the arguments that made it")
+    n = mesh.n_points
+    g_pairs = to_mesh[cells[:, TET10_EDGES]].reshape(-1, 2)
+    g_key = np.sort(g_pairs, axis=1) @ np.array([n, 1], np.int64)
+    g_mid = cells[:, 4:].reshape(-1)
+    m_key = np.sort(mesh.cells[:, TET10_EDGES].reshape(-1, 2), axis=1) @ np.array([n, 1], np.int64)
+    m_mid = mesh.cells[:, 4:].reshape(-1)
+    uk, first = np.unique(g_key, return_index=True)
+    pos = np.searchsorted(uk, m_key)
+    pos = np.minimum(pos, len(uk) - 1)
+    if not np.array_equal(uk[pos], m_key):
+        raise MeshingError("curve_tet10: an edge of the straight mesh is not in gmsh's mesh")
+    points = mesh.points.copy()
+    points[m_mid] = pts[g_mid[first[pos]]]
+    return TetMesh(points, mesh.cells, mesh.region, dict(mesh.region_names),
+                   dict(mesh.materials), dict(mesh.facet_sets), dict(mesh.point_sets))
+
+
+def tet10_jacobians(points: np.ndarray, cells: np.ndarray, xi: np.ndarray) -> np.ndarray:
+    """(m, q) determinants of the TET10 (C3D10) map's Jacobian at reference points ``xi``
+    (q, 3) (mm^3 per unit reference volume; > 0 for a valid, positively oriented cell)."""
+    from designlab.fem.elements import tet_element
+
+    dN = tet_element(10).dN(np.asarray(xi, float))               # (q, 10, 3)
+    J = np.einsum("eai,qaj->eqij", points[cells], dN, optimize=True)
+    return np.linalg.det(J)
+
+
+#: reference coordinates of the 10 C3D10 nodes
+TET10_NODES_XI = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [.5, 0, 0], [.5, .5, 0],
+                           [0, .5, 0], [0, 0, .5], [.5, 0, .5], [0, .5, .5]], float)
+
+
+def tet10_volume(points: np.ndarray, cells: np.ndarray) -> float:
+    """Volume of a TET10 mesh with its mid-nodes where they are (mm^3): the Jacobian (a cubic
+    of the reference coordinates) integrated exactly (degree-3 rule)."""
+    from designlab.fem.elements import tet_quadrature
+
+    q = tet_quadrature(3)
+    return float((tet10_jacobians(points, cells, q.points) @ q.weights).sum())
 
 
 def _face_points(tags: Sequence[int], node_tags: np.ndarray, points: np.ndarray
@@ -142,7 +230,7 @@ def _named_triangles(named_faces, volumes_of, node_tags, points, diag: float
 
 
 def _tetrahedralize(shapes, names, edge_length, refinement, grading, min_edge, curvature,
-                    named_faces=None):
+                    named_faces=None, cell_order=1, optimize=0):
     import gmsh
     from build123d import export_brep
 
@@ -212,6 +300,12 @@ def _tetrahedralize(shapes, names, edge_length, refinement, grading, min_edge, c
             gmsh.model.mesh.generate(3)
         except Exception as exc:
             raise MeshingError(f"gmsh failed on bodies {', '.join(names)}: {exc}") from None
+        if cell_order == 2:
+            gmsh.option.setNumber("Mesh.SecondOrderLinear", 0)
+            gmsh.option.setNumber("Mesh.HighOrderOptimize", int(optimize))
+            gmsh.model.mesh.setOrder(2)
+            if gmsh.option.getNumber("Mesh.SecondOrderLinear") != 0:
+                raise MeshingError("gmsh: Mesh.SecondOrderLinear is not 0")
         node_tags, xyz, _ = gmsh.model.mesh.getNodes()
         node_tags = np.asarray(node_tags, np.int64)
         order = np.argsort(node_tags)
@@ -222,10 +316,12 @@ def _tetrahedralize(shapes, names, edge_length, refinement, grading, min_edge, c
             for v in vols:
                 types, _, enodes = gmsh.model.mesh.getElements(3, v)
                 for t, nodes in zip(types, enodes):
-                    if t != 4:
+                    if t != (4 if cell_order == 1 else 11):
                         raise MeshingError(f"body {names[k]!r}: gmsh made elements of type {t}, "
-                                           "not linear tetrahedra")
-                    c = np.searchsorted(node_tags, np.asarray(nodes, np.int64)).reshape(-1, 4)
+                                           f"not tetrahedra of order {cell_order}")
+                    c = np.searchsorted(node_tags, np.asarray(nodes, np.int64))
+                    c = (c.reshape(-1, 4) if cell_order == 1
+                         else c.reshape(-1, 10)[:, GMSH_TET10_TO_C3D10])
                     cells.append(c)
                     region.append(np.full(len(c), k, np.int64))
         if not cells or not sum(len(c) for c in cells):

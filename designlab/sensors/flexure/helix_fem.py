@@ -166,13 +166,17 @@ def fem_stiffness(spring, edge_length: float | None = None, order: int = 2,
 
 # ------------------------------------------------------------------ the helix mesh
 
+#: curved (isoparametric) TET10 for the helix by default (:func:`helix_mesh` ``curved``);
+#: docs/flexure.md, "Solid FEM: contact discretisation"
+CURVED_DEFAULT = False
+
 #: largest relative error of the meshed wire volume against the B-rep's (the mesher's own check,
 #: ``mesh_bodies_detailed(volume_rtol=0.05)``)
 WIRE_VOLUME_RTOL = 0.05
 
 
 def helix_mesh(flexure, edge_length: float | None = None, order: int = 2,
-               quality: str = "default") -> tuple[TetMesh, dict]:
+               quality: str = "default", curved: bool = False) -> tuple[TetMesh, dict]:
     """TET4/TET10 mesh of the spring part's wire (gmsh) and how it was sized.
 
     ``edge_length`` None: the default mesh of ``designlab flexure --fem`` (asked at the wire
@@ -185,7 +189,16 @@ def helix_mesh(flexure, edge_length: float | None = None, order: int = 2,
     too coarse to carry it: 0.7 mm and up on the Visiflex wire; 0.65 mm passes) is a
     ParameterError naming the volume lost, instead of the same fallback mesh for every size.
     The part's end refinement (edge r / 2 within 4 r of the wire ends) applies where it is finer.
-    Info: ``edge_asked_mm``, ``median_edge_mm`` (corner edges), ``sized_by``, ``volume_error``.
+    ``curved`` (TET10 only): the mid-edge nodes of the wire's surface on the B-rep (gmsh's
+    second-order nodes, :func:`designlab.mesh.brep.curve_tet10`; the same corners, cells and
+    sets), instead of straight; a cell that this inverts (Jacobian <= 0 at a node or
+    quadrature point) gets its mid-nodes back on the chords (:func:`straighten_inverted`;
+    ``straightened_cells`` in the info). The 5 % check above stays on the corner volume.
+    Info: ``edge_asked_mm``, ``median_edge_mm`` (corner edges), ``sized_by``, ``curved``,
+    ``volume_error`` (of the mesh returned: TET10 volume integrated exactly, the corner
+    tetrahedra for TET4), ``volume_error_corners`` and, for TET10, ``min_jacobian_ratio``
+    (smallest Jacobian determinant at the nodes and the element's quadrature points over the
+    cell's corner-tetrahedron one; <= 0 is an inverted cell).
     """
     from designlab.mesh.meshing import mesh_part_detailed
 
@@ -200,13 +213,27 @@ def helix_mesh(flexure, edge_length: float | None = None, order: int = 2,
         res = mesh_part_detailed(flexure, order=order, edge_length=h, quality=quality,
                                  mesher="gmsh", volume_rtol=1.0)
     mesh = res.mesh
+    if curved:
+        if order != 2:
+            raise ParameterError("curved", curved, "False for TET4 (order 1)")
+        mesh, n_straightened = _curve(flexure, mesh, res, quality)
     v_mesh = float(mesh.corner_volumes.sum())
     v_brep = float(sum(res.body_volumes.values()))
     err = v_mesh / v_brep - 1.0
     pc = mesh.points[mesh.cells[:, :4]]
     info = {"edge_asked_mm": None if edge_length is None else float(edge_length),
             "median_edge_mm": float(np.median(np.linalg.norm(pc[:, 1] - pc[:, 0], axis=1))),
-            "sized_by": res.attempts[-1] if res.attempts else "", "volume_error": err}
+            "sized_by": res.attempts[-1] if res.attempts else "", "curved": bool(curved),
+            "volume_error": err, "volume_error_corners": err,
+            "straightened_cells": n_straightened if curved else 0}
+    if mesh.order == 2:
+        from designlab.fem.elements import tet_element
+        from designlab.mesh import brep
+
+        info["volume_error"] = brep.tet10_volume(mesh.points, mesh.cells) / v_brep - 1.0
+        xi = np.vstack([brep.TET10_NODES_XI, tet_element(10).quadrature.points])
+        det = brep.tet10_jacobians(mesh.points, mesh.cells, xi)
+        info["min_jacobian_ratio"] = float((det.min(axis=1) / (6 * mesh.corner_volumes)).min())
     if edge_length is not None and (len(res.attempts) != 1 or abs(err) > WIRE_VOLUME_RTOL):
         raise ParameterError(
             "edge_length", edge_length,
@@ -216,6 +243,57 @@ def helix_mesh(flexure, edge_length: float | None = None, order: int = 2,
             f"{2 * np.pi * flexure.wire_radius / 10:.2g} mm, pass); or None for the default "
             "mesh sized by the wire's curvature")
     return mesh, info
+
+
+def _curve(flexure, mesh: TetMesh, res, quality: str) -> tuple[TetMesh, int]:
+    """``mesh`` (straight TET10 of ``res``, :func:`mesh_part_detailed` on ``flexure``) with
+    its surface mid-nodes on the B-rep: gmsh's successful attempt (its edge and curvature
+    sizing, read from the attempt log; the part's refinement scaled by ``quality``) made again
+    at order 2."""
+    import re
+
+    from designlab.mesh import brep
+    from designlab.mesh.meshing import PRESETS, _check_refinement
+
+    last = res.attempts[-1] if res.attempts else ""
+    m = re.search(r"^gmsh: edge \S+ mm, curvature (\d+): ok", last)
+    if res.mesher != "gmsh" or m is None:
+        raise ParameterError("curved", True, "a helix meshed by gmsh (this one: "
+                             f"{last or res.mesher})")
+    built = flexure.build()
+    names = list(flexure.mesh_bodies())
+    factor = PRESETS[quality][0]
+    refinement = [(c, r, factor * e) for c, r, e in _check_refinement(flexure.refinement())]
+    curved = brep.curve_tet10(mesh, [built[n].shape for n in names], names, res.edge_length,
+                              refinement, curvature=int(m.group(1)))
+    points, n_straightened = straighten_inverted(curved.points, mesh.points, mesh.cells)
+    return dataclasses.replace(curved, points=points), n_straightened
+
+
+def straighten_inverted(points: np.ndarray, straight: np.ndarray, cells: np.ndarray
+                        ) -> tuple[np.ndarray, int]:
+    """``points`` of a curved TET10 mesh with the mid-nodes of every cell whose Jacobian
+    determinant is not positive at one of its nodes or quadrature points (degree 2) put back
+    where ``straight`` has them (the chord midpoints), repeated until no cell is inverted
+    (a node moved back is shared by its neighbours). Returns the points and how many cells
+    were straightened (0: ``points`` unchanged)."""
+    from designlab.fem.elements import tet_element
+    from designlab.mesh import brep
+
+    xi = np.vstack([brep.TET10_NODES_XI, tet_element(10).quadrature.points])
+    points = points.copy()
+    done = np.zeros(len(cells), bool)
+    check = np.arange(len(cells))
+    while len(check):
+        det = brep.tet10_jacobians(points, cells[check], xi)
+        bad = check[~(det.min(axis=1) > 0)]
+        if not len(bad):
+            break
+        done[bad] = True
+        mids = np.unique(cells[bad, 4:])
+        points[mids] = straight[mids]
+        check = np.nonzero(np.isin(cells[:, 4:], mids).any(axis=1))[0]
+    return points, int(done.sum())
 
 
 # ------------------------------------------------------------------ contact in the solid FEM
@@ -316,7 +394,8 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
                           gaps: str = "as_built", stations_per_turn: int = 36,
                           contact_spacing_mm: float | None = None,
                           settings=None, mesh: TetMesh | None = None,
-                          progress: Progress | None = None) -> ContactFEM:
+                          progress: Progress | None = None,
+                          curved: bool = CURVED_DEFAULT) -> ContactFEM:
     """Solid FEM 6x6 of a closed-and-ground spring with contact (the reference of the chain).
 
     The helix is meshed as the part builds it (gmsh, TET10; dead turns ``DEAD_GAP d`` clear of
@@ -348,7 +427,8 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     symmetric perturbations about the unloaded state and about ``settings.working_load_N``
     (force-controlled axial preload), like the chain. Geometrically linear. ``mesh``: a mesh
     of this part already made (the same call otherwise meshes it with :func:`helix_mesh`:
-    ``edge_length`` None the default curvature-sized mesh, a number that edge, honoured).
+    ``edge_length`` None the default curvature-sized mesh, a number that edge, honoured;
+    ``curved`` its wire surface's mid-edge nodes on the B-rep, :data:`CURVED_DEFAULT`).
     """
     import time
 
@@ -383,7 +463,8 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     step("meshing the helix (gmsh)", *_at("mesh"))
     mesh_info = None
     if mesh is None:
-        mesh, mesh_info = helix_mesh(flexure, edge_length, order=order, quality=quality)
+        mesh, mesh_info = helix_mesh(flexure, edge_length, order=order, quality=quality,
+                                     curved=curved and order == 2)
     timings["mesh"] = time.perf_counter() - t0
     step("contact lines and assembly", *_at("assemble"))
     t1 = time.perf_counter()
