@@ -213,6 +213,13 @@ def test_flexure_with_friction_in_the_chain(tmp_path, capsys):
     assert rc == 2 and "--mu" in se and len(se.strip().splitlines()) == 1
 
 
+def test_flexure_curved_only_with_the_solid_fem(capsys):
+    """``--curved`` (curved TET10 of the solid FEM) without ``--fem``: one line naming it,
+    exit 2 (the curved mesh itself: tests/test_mesh_curved.py, tests/test_flexure_fem.py)."""
+    rc, _, se = _run(["flexure", "--curved"], capsys)
+    assert rc == 2 and "--curved" in se and "--fem" in se and len(se.strip().splitlines()) == 1
+
+
 def test_sweep_identity_covers_the_config_and_the_uncertainty_table():
     """The fingerprint ``--out`` compares: the same config gives the same one; another swept
     range, setting, or Monte Carlo spec of a robust sweep gives another."""
