@@ -152,3 +152,23 @@ def tet_element(n_nodes: int) -> Element:
 def tri_element(n_nodes: int) -> Element:
     """TRI3 or TRI6 from the number of nodes per facet."""
     return {3: TRI3, 6: TRI6}[n_nodes]
+
+
+def tet10_jacobians(points: np.ndarray, cells: np.ndarray, xi: np.ndarray) -> np.ndarray:
+    """(m, q) determinants of the TET10 (C3D10) map's Jacobian at reference points ``xi``
+    (q, 3) (mm^3 per unit reference volume; > 0 for a valid, positively oriented cell)."""
+    dN = tet_element(10).dN(np.asarray(xi, float))               # (q, 10, 3)
+    J = np.einsum("eai,qaj->eqij", points[cells], dN, optimize=True)
+    return np.linalg.det(J)
+
+
+#: reference coordinates of the 10 C3D10 nodes
+TET10_NODES_XI = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [.5, 0, 0], [.5, .5, 0],
+                           [0, .5, 0], [0, 0, .5], [.5, 0, .5], [0, .5, .5]], float)
+
+
+def tet10_volume(points: np.ndarray, cells: np.ndarray) -> float:
+    """Volume of a TET10 mesh with its mid-nodes where they are (mm^3): the Jacobian (a cubic
+    of the reference coordinates) integrated exactly (degree-3 rule)."""
+    q = tet_quadrature(3)
+    return float((tet10_jacobians(points, cells, q.points) @ q.weights).sum())

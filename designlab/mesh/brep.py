@@ -138,30 +138,6 @@ def curve_tet10(mesh, shapes: Sequence, names: Sequence[str], edge_length: float
                    dict(mesh.materials), dict(mesh.facet_sets), dict(mesh.point_sets))
 
 
-def tet10_jacobians(points: np.ndarray, cells: np.ndarray, xi: np.ndarray) -> np.ndarray:
-    """(m, q) determinants of the TET10 (C3D10) map's Jacobian at reference points ``xi``
-    (q, 3) (mm^3 per unit reference volume; > 0 for a valid, positively oriented cell)."""
-    from designlab.fem.elements import tet_element
-
-    dN = tet_element(10).dN(np.asarray(xi, float))               # (q, 10, 3)
-    J = np.einsum("eai,qaj->eqij", points[cells], dN, optimize=True)
-    return np.linalg.det(J)
-
-
-#: reference coordinates of the 10 C3D10 nodes
-TET10_NODES_XI = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [.5, 0, 0], [.5, .5, 0],
-                           [0, .5, 0], [0, 0, .5], [.5, 0, .5], [0, .5, .5]], float)
-
-
-def tet10_volume(points: np.ndarray, cells: np.ndarray) -> float:
-    """Volume of a TET10 mesh with its mid-nodes where they are (mm^3): the Jacobian (a cubic
-    of the reference coordinates) integrated exactly (degree-3 rule)."""
-    from designlab.fem.elements import tet_quadrature
-
-    q = tet_quadrature(3)
-    return float((tet10_jacobians(points, cells, q.points) @ q.weights).sum())
-
-
 def _face_points(tags: Sequence[int], node_tags: np.ndarray, points: np.ndarray
                  ) -> tuple[dict[int, np.ndarray], dict[int, np.ndarray]]:
     """Per gmsh surface: its triangles (point indices) and a point inside it (the centroid of

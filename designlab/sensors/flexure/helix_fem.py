@@ -227,12 +227,12 @@ def helix_mesh(flexure, edge_length: float | None = None, order: int = 2,
             "volume_error": err, "volume_error_corners": err,
             "straightened_cells": n_straightened if curved else 0}
     if mesh.order == 2:
+        from designlab.fem import elements
         from designlab.fem.elements import tet_element
-        from designlab.mesh import brep
 
-        info["volume_error"] = brep.tet10_volume(mesh.points, mesh.cells) / v_brep - 1.0
-        xi = np.vstack([brep.TET10_NODES_XI, tet_element(10).quadrature.points])
-        det = brep.tet10_jacobians(mesh.points, mesh.cells, xi)
+        info["volume_error"] = elements.tet10_volume(mesh.points, mesh.cells) / v_brep - 1.0
+        xi = np.vstack([elements.TET10_NODES_XI, tet_element(10).quadrature.points])
+        det = elements.tet10_jacobians(mesh.points, mesh.cells, xi)
         info["min_jacobian_ratio"] = float((det.min(axis=1) / (6 * mesh.corner_volumes)).min())
     if edge_length is not None and (len(res.attempts) != 1 or abs(err) > WIRE_VOLUME_RTOL):
         raise ParameterError(
@@ -277,15 +277,15 @@ def straighten_inverted(points: np.ndarray, straight: np.ndarray, cells: np.ndar
     where ``straight`` has them (the chord midpoints), repeated until no cell is inverted
     (a node moved back is shared by its neighbours). Returns the points and how many cells
     were straightened (0: ``points`` unchanged)."""
+    from designlab.fem import elements
     from designlab.fem.elements import tet_element
-    from designlab.mesh import brep
 
-    xi = np.vstack([brep.TET10_NODES_XI, tet_element(10).quadrature.points])
+    xi = np.vstack([elements.TET10_NODES_XI, tet_element(10).quadrature.points])
     points = points.copy()
     done = np.zeros(len(cells), bool)
     check = np.arange(len(cells))
     while len(check):
-        det = brep.tet10_jacobians(points, cells[check], xi)
+        det = elements.tet10_jacobians(points, cells[check], xi)
         bad = check[~(det.min(axis=1) > 0)]
         if not len(bad):
             break
