@@ -28,10 +28,3 @@ def shared() -> Path:
     if not SHARED.is_dir():
         pytest.fail(f"../shared not found beside the project at {SHARED}")
     return SHARED
-
-
-def pytest_collection_modifyitems(config, items):
-    """The slow cases first, the collection's order otherwise (a stable sort): with the workers
-    stealing each other's queued tests (``--dist worksteal``, pyproject.toml), a case of minutes
-    does not start last while the other worker has nothing left to do."""
-    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
