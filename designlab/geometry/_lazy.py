@@ -1,7 +1,7 @@
 """Modules that build123d imports at its own import but uses inside a few functions only, put
-off until first used. ``sympy`` (~0.5 s CPU of the ~3-5 s ``import build123d`` on the 2-core
-machine, 2026-11-26): ``build123d.objects_curve`` imports it for one tangent-arc constructor,
-which no designlab part calls.
+off until first used. ``sympy``: ``build123d.objects_curve`` imports it for one tangent-arc
+constructor, which no designlab part calls (``import build123d`` 3.13 s CPU with it put off, 3.58
+s without, ``python benchmarks/bench_imports.py``, 2-core machine, 2026-11-26).
 
 A stand-in module is placed in ``sys.modules`` with the real module's ``__spec__`` (the import
 system reads ``__spec__`` on every ``import``, which is why :class:`importlib.util.LazyLoader`

@@ -89,7 +89,8 @@ def _opacity(body: Body, items) -> float:
 
 def _swatch(pl, x: int, y: int, side: int, color) -> None:
     """A filled square of ``color`` at pixel (x, y) (lower left) over the scene."""
-    # the classes' own modules: ``import vtk`` loads every VTK module (0.4 s CPU beyond pyvista's)
+    # the classes' own modules: ``import vtk`` loads every VTK module (0.16 s CPU beyond
+    # pyvista's, ``python benchmarks/bench_imports.py``)
     from vtkmodules.vtkCommonCore import vtkPoints
     from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
     from vtkmodules.vtkRenderingCore import vtkActor2D, vtkPolyDataMapper2D

@@ -72,6 +72,12 @@ class MeshResult:
     mesher: str = "gmsh"
     #: facet sets taken from named B-rep faces (the others come from the facet predicates)
     named_sets: tuple[str, ...] = ()
+    #: gmsh's curvature sizing of the successful attempt (elements per 2 pi of a curved face's
+    #: radius; 0: the size field alone), and the refinement spheres it was given (centre,
+    #: radius, edge; the quality preset applied): with ``edge_length``, the arguments that
+    #: make the same mesh again (:func:`designlab.mesh.brep.curve_tet10`)
+    curvature: int = 0
+    refinement: tuple = ()
 
     def region_volumes(self) -> dict[str, float]:
         """Mesh volume of each region, mm^3."""
@@ -422,7 +428,7 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
     log: list[str] = []
     named_in = _named_faces_by_index(named_faces, names)
 
-    def finish(points, cells, region, h, e, se, which, named=None):
+    def finish(points, cells, region, h, e, se, which, named=None, curvature=0):
         region_names = {k: n for k, n in enumerate(names)}
         mesh = TetMesh(points, cells, region, region_names, {b.name: b.material for b in items})
         boundary = mesh.boundary_facets()
@@ -437,7 +443,8 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
         if order == 2:
             mesh = mesh.quadratic()
         return MeshResult(mesh, h, e, se, {n: float(v) for n, v in zip(names, volumes)}, log,
-                          time.perf_counter() - t0, which, tuple(sorted(from_faces)))
+                          time.perf_counter() - t0, which, tuple(sorted(from_faces)),
+                          curvature=curvature, refinement=tuple(refinement))
 
     def volume_error(points, cells, region, what) -> bool:
         p = points[cells]
@@ -485,7 +492,8 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
                 continue
             log.append(f"{what}: ok, {len(cells)} cells")
             try:
-                return finish(points, cells, region, h, 0.0, float("nan"), "gmsh", named)
+                return finish(points, cells, region, h, 0.0, float("nan"), "gmsh", named,
+                              curvature)
             except MeshingError as exc:  # a small facet set no triangle of this mesh hits
                 log[-1] = f"{what}: {exc}"
         if mesher == "gmsh":

@@ -702,8 +702,8 @@ def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path,
 
 #: the fingertip's plots in groups that ``designlab predict``'s two drawing processes draw
 #: (:func:`plots`'s ``only``): the first two from the run's report while the report is finished,
-#: one by each; the paper comparison after (CPU s on the 2-core machine, 2026-11-26: 0.54 + 0.16,
-#: 0.25, 0.89; the painter also renders deformed.png, 0.6-0.9)
+#: one by each; the paper comparison, the longest to draw, after, by the process with fewer
+#: groups (the painter also renders deformed.png)
 PLOT_GROUPS = (("hysteresis_loops.png", "hysteresis_by_location.png"),
                ("applied_vs_estimated.png",), ("paper_comparison.png",))
 #: the plots drawn from the run's report alone (``paper_comparison.png`` needs :func:`finish`)

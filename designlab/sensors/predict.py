@@ -504,11 +504,11 @@ def _design_png(name: str, items) -> bytes:
 
 def _early_plots(sensor, pictures: "_Pictures | None", name: str, result, report, model_path
                  ) -> list:
-    """The plot groups that read only the run's report (``Sensor.plots_before_finish``) sent
-    to the painter as soon as the run is done, while this process finishes the report (paper
-    comparison, error bar, stress), alternately to the painter and the coarse mesh's process:
-    [(process, group, job)]. None are early with a loop model (its
-    corrections change what they show) or without a second drawing process."""
+    """The plot groups that read only the run's report (``Sensor.plots_before_finish``), sent
+    as soon as the run is done, alternately to the painter and the coarse mesh's process, while
+    this process finishes the report (paper comparison, error bar, stress): [(process, group,
+    job)]. None are early with a loop model (its corrections change what they show) or without
+    a second drawing process."""
     if (pictures is None or pictures.plot_dir is None or model_path is not None
             or pictures.plotter is pictures.painter or not sensor.plots_before_finish):
         return []
@@ -532,10 +532,10 @@ def _late_plots(sensor, pictures: "_Pictures", name: str, result, report, early:
         groups = tuple(g for g in sensor.plot_groups if g not in drawing)
     else:
         groups = sensor.plot_groups if len(both) == 2 and sensor.plot_groups else (None,)
-    taken = [sum(p is both[0] for p, _, _ in early), sum(p is both[-1] for p, _, _ in early)]
+    taken = [sum(p is q for p, _, _ in early) for q in both]
     late = []
     for g in groups:
-        k = 0 if taken[0] < taken[-1] else len(both) - 1
+        k = min(range(len(both)), key=lambda i: (taken[i], -i))    # fewer; ties: the last
         taken[k] += 1
         late.append((g, both[k].submit(_plots_job, name, result, report, pictures.plot_dir, g)))
     return [(g, t) for _, g, t in early] + late

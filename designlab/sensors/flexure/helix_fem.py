@@ -216,7 +216,7 @@ def helix_mesh(flexure, edge_length: float | None = None, order: int = 2,
     if curved:
         if order != 2:
             raise ParameterError("curved", curved, "False for TET4 (order 1)")
-        mesh, n_straightened = _curve(flexure, mesh, res, quality)
+        mesh, n_straightened = _curve(flexure, mesh, res)
     v_mesh = float(mesh.corner_volumes.sum())
     v_brep = float(sum(res.body_volumes.values()))
     err = v_mesh / v_brep - 1.0
@@ -245,27 +245,18 @@ def helix_mesh(flexure, edge_length: float | None = None, order: int = 2,
     return mesh, info
 
 
-def _curve(flexure, mesh: TetMesh, res, quality: str) -> tuple[TetMesh, int]:
+def _curve(flexure, mesh: TetMesh, res) -> tuple[TetMesh, int]:
     """``mesh`` (straight TET10 of ``res``, :func:`mesh_part_detailed` on ``flexure``) with
-    its surface mid-nodes on the B-rep: gmsh's successful attempt (its edge and curvature
-    sizing, read from the attempt log; the part's refinement scaled by ``quality``) made again
-    at order 2."""
-    import re
-
+    its surface mid-nodes on the B-rep: gmsh's successful attempt (its edge, curvature sizing
+    and refinement, as ``res`` records them) made again at order 2."""
     from designlab.mesh import brep
-    from designlab.mesh.meshing import PRESETS, _check_refinement
 
-    last = res.attempts[-1] if res.attempts else ""
-    m = re.search(r"^gmsh: edge \S+ mm, curvature (\d+): ok", last)
-    if res.mesher != "gmsh" or m is None:
-        raise ParameterError("curved", True, "a helix meshed by gmsh (this one: "
-                             f"{last or res.mesher})")
+    if res.mesher != "gmsh":
+        raise ParameterError("curved", True, f"a helix meshed by gmsh (this one: {res.mesher})")
     built = flexure.build()
     names = list(flexure.mesh_bodies())
-    factor = PRESETS[quality][0]
-    refinement = [(c, r, factor * e) for c, r, e in _check_refinement(flexure.refinement())]
     curved = brep.curve_tet10(mesh, [built[n].shape for n in names], names, res.edge_length,
-                              refinement, curvature=int(m.group(1)))
+                              list(res.refinement), curvature=res.curvature)
     points, n_straightened = straighten_inverted(curved.points, mesh.points, mesh.cells)
     return dataclasses.replace(curved, points=points), n_straightened
 
@@ -449,8 +440,6 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     if flexure.ends != "closed_ground":
         raise ParameterError("ends", flexure.ends, "closed_ground for the contact FEM (plain "
                              "ends have no dead turn)")
-    if edge_length is not None and not (np.isfinite(float(edge_length)) and edge_length > 0):
-        raise ParameterError("edge_length", edge_length, "a number > 0 mm")
     d, r = flexure.wire_diameter, flexure.wire_radius
     if gaps not in ("as_built", "meshed"):
         raise ParameterError("gaps", gaps, "as_built or meshed")
