@@ -22,9 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
 from designlab.errors import ParameterError
-from designlab.sensors.flexure.virtual import TWIST, WRENCH, evaluate, staircase
+from designlab.sensors.flexure.virtual import TWIST, WRENCH, evaluate, staircase_hysteresis
 
 INPUT_UNITS = {**{w: "Nmm" for w in WRENCH[:3]}, **{w: "N" for w in WRENCH[3:]}}
 OUTPUT_UNITS = {**{t: "rad" for t in TWIST[:3]}, **{t: "mm" for t in TWIST[3:]}}
@@ -112,21 +111,12 @@ def apply_model(report: dict[str, Any], prediction, model_path: str | Path, prot
 def _hysteresis(learned, C, K_design, protocol, settings) -> dict[str, Any]:
     """Eq. (1) per axis on the estimated wrench over a 0 -> max -> 0 staircase of each axis,
     through the compliance and the learned effects."""
-    t, a, step, seq = staircase(protocol, settings)
-    if protocol.steps < 2:
-        return {"overall": None, "by_location": {w: None for w in WRENCH},
-                "note": "needs steps >= 2 for a loop"}
-    amp = np.array([protocol.max_moment_Nmm] * 3 + [protocol.max_force_N] * 3)
-    ends = np.array([np.nonzero(step == k)[0][-1] for k in range(len(seq))])
-    by, loops = {}, {}
-    for i, name in enumerate(WRENCH):
+    def twist_of(name, t, load):
         Wt = np.zeros((t.size, 6))
-        Wt[:, i] = amp[i] * a
-        X = corrected_poses(learned, C, t, Wt)
-        reading = (X @ K_design.T)[ends, i]
-        lu, su, ld, sd = loop_from_steps(amp[i] * seq, reading)
-        by[name] = float(hysteresis_percent(lu, su, ld, sd))
-        loops[name] = {"applied": (amp[i] * seq).tolist(), "estimated": reading.tolist()}
-    return {"overall": float(np.mean(list(by.values()))), "by_location": by, "loops": loops,
-            "note": f"elastic flexure + learned effects: staircase of {protocol.steps} levels, "
-                    f"{settings.hold_s:g} s holds, reading at the end of each hold"}
+        Wt[:, WRENCH.index(name)] = load
+        return corrected_poses(learned, C, t, Wt)
+
+    return staircase_hysteresis(protocol, settings, K_design, twist_of,
+                                f"elastic flexure + learned effects: staircase of "
+                                f"{protocol.steps} levels, {settings.hold_s:g} s holds, "
+                                "reading at the end of each hold")

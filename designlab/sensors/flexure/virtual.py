@@ -378,25 +378,36 @@ def _hysteresis(model, protocol: FlexureWrenchTest, settings: FlexureModelSettin
         return None
     from designlab.fem.viscoelastic import History, solve_history
 
+    def twist_of(name, t, load):
+        say(f"viscoelastic history {name}")
+        return solve_history(model, History(t, {name: load}),
+                             solver=settings.solver).twist("tip_master")
+
+    return staircase_hysteresis(protocol, settings, K_design, twist_of,
+                                f"Prony materials: staircase of {protocol.steps} levels, "
+                                f"{settings.hold_s:g} s holds, reading at the end of each hold")
+
+
+def staircase_hysteresis(protocol: FlexureWrenchTest, settings, K_design, twist_of, note: str
+                         ) -> dict:
+    """Eq. (1) per wrench axis on the estimated wrench ``X K_design^T`` over a 0 -> max -> 0
+    :func:`staircase` of that axis alone (N*mm, N), read at the end of each hold.
+    ``twist_of(name, t, load)`` gives the tip twists (n_t, 6) under ``load`` (n_t,) along the
+    wrench axis ``name`` at the times ``t`` (s)."""
     t, a, step, seq = staircase(protocol, settings)
     if protocol.steps < 2:
         return {"overall": None, "by_location": {w: None for w in WRENCH},
                 "note": "needs steps >= 2 for a loop"}
     amp = np.array([protocol.max_moment_Nmm] * 3 + [protocol.max_force_N] * 3)
     ends = np.array([np.nonzero(step == k)[0][-1] for k in range(len(seq))])
-    by = {}
-    loops = {}
+    by, loops = {}, {}
     for i, name in enumerate(WRENCH):
-        say(f"viscoelastic history {name}")
-        res = solve_history(model, History(t, {name: amp[i] * a}), solver=settings.solver)
-        X = res.twist("tip_master")                       # (n_t, 6)
-        reading = (X @ K_design.T)[ends, i]
+        reading = (twist_of(name, t, amp[i] * a) @ K_design.T)[ends, i]
         lu, su, ld, sd = loop_from_steps(amp[i] * seq, reading)
         by[name] = float(hysteresis_percent(lu, su, ld, sd))
         loops[name] = {"applied": (amp[i] * seq).tolist(), "estimated": reading.tolist()}
     return {"overall": float(np.mean(list(by.values()))), "by_location": by, "loops": loops,
-            "note": f"Prony materials: staircase of {protocol.steps} levels, {settings.hold_s:g} s "
-                    "holds, reading at the end of each hold"}
+            "note": note}
 
 
 # ------------------------------------------------------------------------------------ plots
