@@ -254,6 +254,17 @@ def check_type(name: str, value: Any, default: Any) -> None:
         raise ParameterError(name, _short(value), want)
 
 
+def whole_numbers(obj: Any, names: Iterable[str]) -> None:
+    """Counts of a (frozen) parameter dataclass given as whole floats (4.0 from TOML, JSON or a
+    sweep's grid) become ints; 4.5 or a bool is a ParameterError naming the field."""
+    for name in names:
+        v = getattr(obj, name)
+        if isinstance(v, float) and v.is_integer():
+            object.__setattr__(obj, name, int(v))
+        elif not isinstance(v, int) or isinstance(v, bool):
+            raise ParameterError(name, v, "an integer")
+
+
 def validate(obj: Any) -> None:
     """Check every field of a parameter dataclass: its type (as its default's) and its
     declared range."""

@@ -34,7 +34,8 @@ from designlab.errors import ParameterError
 from designlab.geometry.body import Body, FacetSelector
 from designlab.geometry.printability import MM_WALL_FACTOR
 from designlab.geometry.solids import annular_sector, polygon_face, single_solid
-from designlab.params import above, at_least, at_most, field_range, rng, validate, within
+from designlab.params import (above, at_least, at_most, field_range, rng, validate,
+                              whole_numbers, within)
 
 #: nozzle diameter (mm): the narrowest printable meander line and gap
 NOZZLE = 0.4
@@ -103,12 +104,7 @@ class ArchStrap:
         0.4, 5, unit="mm", doc="nail plate thickness"))
 
     def __post_init__(self):
-        for name in ("legs", "slot_count"):  # counts: accept 4.0 from TOML/JSON, not 4.5
-            v = getattr(self, name)
-            if isinstance(v, float) and v.is_integer():
-                object.__setattr__(self, name, int(v))
-            elif not isinstance(v, int) or isinstance(v, bool):
-                raise ParameterError(name, v, "an integer")
+        whole_numbers(self, ("legs", "slot_count"))
         validate(self)
         self._check()
 
@@ -172,7 +168,7 @@ class ArchStrap:
         melted into its top face: half the pad length at the pad's width and full height
         (trace_cover to the top face), converted to squares at the trace thickness (our
         estimate of the spreading path)."""
-        R, w, t = self.radius, self.trace_width, self.trace_thickness
+        R, w = self.radius, self.trace_width
         ang = self.gauge_angles()
         legs = float(sum((ang["b"] - ang["a"]) * (R + y) for y in self.leg_offsets)) / w
         turns = (self.legs - 1) * (2 * CORNER_SQUARES + self.trace_gap / w)

@@ -83,7 +83,7 @@ from designlab.sensors.sensor import Sensor, linear_sensor_model
 from designlab.errors import ParameterError
 from designlab.fem.settings import FEMSettings
 from designlab.fem.transducers import StrainGauge
-from designlab.params import rng, validate
+from designlab.params import rng, validate, whole_numbers
 
 CHANNELS = ("Ch1", "Ch2")          #: Ch1 = left gauge (x < 0), Ch2 = right gauge (x > 0)
 GAUGE_REGIONS = ("trace_left", "trace_right")
@@ -148,12 +148,7 @@ class StrapModelSettings(FEMSettings):
                                 doc="readout bandwidth (seed 000: 10 Hz low-pass)"))
 
     def __post_init__(self):
-        for name in ("slot", "adc_bits", "pulp_layers"):
-            v = getattr(self, name)
-            if isinstance(v, float) and v.is_integer():
-                object.__setattr__(self, name, int(v))
-            elif not isinstance(v, int) or isinstance(v, bool):
-                raise ParameterError(name, v, "an integer")
+        whole_numbers(self, ("slot", "adc_bits", "pulp_layers"))
         validate(self)
         if self.slot and self.wrap_length:
             raise ParameterError("wrap_length", self.wrap_length,
