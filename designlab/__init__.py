@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-__version__ = "0.1.0"
+from designlab.version import __version__
 
 __all__ = ["__version__", "Fingertip", "Strap", "Flexure", "PARTS", "SENSORS", "Prediction",
            "predict", "write_prediction", "get_material", "MATERIALS"]

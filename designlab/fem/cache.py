@@ -41,7 +41,7 @@ STATS = {"computed": 0, "written": 0, "file_reads": 0, "memory_hits": 0}
 def fem_key(kind: str, **parts: Any) -> str:
     """SHA-256 (hex) of ``kind`` and the keyword values as canonical JSON (sorted keys; numpy
     arrays and non-finite floats via :func:`designlab.atomic.jsonable`)."""
-    from designlab import __version__
+    from designlab.version import __version__
 
     blob = json.dumps(jsonable({"kind": kind, "format": FORMAT, "designlab": __version__,
                                 **parts}), sort_keys=True, separators=(",", ":"))

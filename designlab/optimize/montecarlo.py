@@ -25,7 +25,7 @@ from designlab.sensors.uncertainty import (UncertaintySpec, _fem_stage, build_va
 
 
 def _run_key(spec: UncertaintySpec, params, settings, protocol) -> str:
-    from designlab import __version__
+    from designlab.version import __version__
     from designlab.atomic import jsonable
 
     blob = json.dumps(jsonable({"spec": spec.to_json(), "params": params,

@@ -29,7 +29,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from designlab import __version__
+from designlab.version import __version__
 from designlab.atomic import atomic_write_bytes, atomic_write_json, jsonable as _jsonable
 from designlab.atomic import sweep_temps
 

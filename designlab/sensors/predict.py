@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
-from designlab import __version__
+from designlab.version import __version__
 from designlab.errors import ParameterError
 from designlab.sensors.protocols import load_protocol
 from designlab.sensors.registry import get_sensor

@@ -20,7 +20,7 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
-from designlab import __version__
+from designlab.version import __version__
 from designlab.sensors.labels import field_rows, fmt_value, metric_name_unit
 
 #: file kinds linked from a report, with what they are
