@@ -125,3 +125,143 @@ def test_other_arguments_than_the_straight_mesh_are_an_error(cylinder):
     tet4 = TetMesh(straight.points, straight.cells[:, :4], straight.region)
     with pytest.raises(MeshingError, match="TET10"):
         brep.curve_tet10(tet4, [shape], ["b"], EDGE)
+
+
+# ------------------------------------------------------------------ by projection (mesh.curve)
+
+def _cylinder_tube(radius=R):
+    """The cylinder's round face as a :class:`~designlab.mesh.curve.Tube` (axis z)."""
+    from designlab.mesh.curve import Tube
+
+    def centre(u):
+        u = np.asarray(u, float)
+        return np.column_stack([0 * u, 0 * u, u])
+
+    def d_centre(u):
+        u = np.asarray(u, float)
+        return np.column_stack([0 * u, 0 * u, 1 + 0 * u])
+
+    def dd_centre(u):
+        return np.zeros((len(np.asarray(u)), 3))
+
+    return Tube(centre, d_centre, dd_centre, radius, -H / 2, H / 2, seeds=64)
+
+
+@pytest.fixture(scope="module")
+def projected(cylinder):
+    from designlab.mesh.curve import curve_boundary
+
+    shape, straight, _ = cylinder
+    planes = brep.planar_faces(shape)
+    points, info = curve_boundary(straight, _cylinder_tube(), planes)
+    return planes, points, info
+
+
+def test_planar_faces_of_the_cylinder_are_its_caps(projected):
+    planes, _, _ = projected
+    assert len(planes) == 2
+    for o, n in planes:
+        assert abs(abs(n[2]) - 1) < 1e-12 and abs(abs(o[2]) - H / 2) < 1e-12
+
+
+def test_projected_mid_nodes_on_the_cylinder_caps_and_rims(cylinder, projected):
+    """Round-face mid-nodes on the radius within 1e-6 mm; cap mid-nodes stay on their plane
+    (off the rim: unchanged); rim mid-nodes on both the circle and the cap's plane; the interior,
+    the corners and the cells unchanged; gmsh's second-order nodes (curve_tet10) are the same
+    points here (parametric and nearest-point midpoints coincide on a cylinder)."""
+    _, straight, curved = cylinder
+    _, points, info = projected
+    pairs, mids, n = _surface_edges(straight)
+    lateral = np.unique(mids[np.abs(n[:, 2]) < 0.5])
+    assert len(lateral) > 100
+    assert np.abs(np.hypot(*points[lateral, :2].T) - R).max() < 1e-6
+    cap = np.unique(mids[np.abs(n[:, 2]) > 0.999])
+    assert np.abs(np.abs(points[cap, 2]) - H / 2).max() < 1e-12          # on the plane
+    rim = np.abs(np.hypot(*points[cap, :2].T) - R) < 1e-6
+    assert rim.sum() > 10 and (~rim).sum() > 10
+    assert np.array_equal(points[cap[~rim]], straight.points[cap[~rim]])
+    assert np.abs(np.hypot(*straight.points[cap[rim], :2].T) - R).min() > 1e-3  # the chord's
+    assert info["rim_mid_nodes"] == rim.sum() and info["rim_not_converged"] == 0
+    assert info["surface_mid_nodes"] == len(np.setdiff1d(lateral, cap))
+    interior = np.setdiff1d(np.unique(straight.cells[:, 4:]), np.unique(mids))
+    corners = np.unique(straight.cells[:, :4])
+    assert np.array_equal(points[interior], straight.points[interior])
+    assert np.array_equal(points[corners], straight.points[corners])
+    assert np.abs(points - curved.points).max() < 1e-9
+
+
+def test_projected_cylinder_valid_closer_volume_and_deterministic(cylinder, projected):
+    from designlab.fem import elements
+    from designlab.fem.elements import tet_element
+    from designlab.mesh.curve import curve_boundary
+
+    shape, straight, _ = cylinder
+    planes, points, _ = projected
+    xi = np.vstack([elements.TET10_NODES_XI, tet_element(10).quadrature.points])
+    assert elements.tet10_jacobians(points, straight.cells, xi).min() > 0
+    v = elements.tet10_volume(points, straight.cells)
+    assert abs(v / (np.pi * R ** 2 * H) - 1) < 1e-3
+    again, _ = curve_boundary(straight, _cylinder_tube(), planes)
+    assert np.array_equal(again, points)
+
+
+def test_projector_not_the_mesh_surface_is_an_error(cylinder):
+    from designlab.mesh.curve import curve_boundary
+
+    shape, straight, _ = cylinder
+    with pytest.raises(MeshingError, match="off the surface"):
+        curve_boundary(straight, _cylinder_tube(1.1 * R), brep.planar_faces(shape))
+    tet4 = TetMesh(straight.points, straight.cells[:, :4], straight.region)
+    with pytest.raises(MeshingError, match="TET10"):
+        curve_boundary(tet4, _cylinder_tube(), brep.planar_faces(shape))
+
+
+def test_bent_tube_projection_newton_on_a_curved_centreline():
+    """Three quarters of a torus (a tube along a circular arc, cut by two planes): every
+    mid-node of the round face at the minor radius from the centre circle within 1e-6 mm
+    (nearest point by Newton from a KD-tree seed), the rims' also on their end plane, the end
+    faces' others unchanged; the volume within 0.1 % of 3/4 2 pi^2 R r^2 (straight: -1 % or
+    worse); gmsh's second-order nodes (curve_tet10) are the same points (4e-15 mm apart when
+    written)."""
+    from build123d import Axis, Circle, Plane, Pos, revolve
+
+    from designlab.fem import elements
+    from designlab.mesh.curve import Tube, curve_boundary
+
+    Rm, rm, h = 4.0, 1.2, 0.7
+    shape = revolve(Plane.XZ * Pos(Rm, 0) * Circle(rm), Axis.Z, 270)
+    straight = _straight(shape, h)
+
+    def centre(u):
+        u = np.asarray(u, float)
+        return np.column_stack([Rm * np.cos(u), Rm * np.sin(u), 0 * u])
+
+    def d_centre(u):
+        u = np.asarray(u, float)
+        return np.column_stack([-Rm * np.sin(u), Rm * np.cos(u), 0 * u])
+
+    def dd_centre(u):
+        u = np.asarray(u, float)
+        return np.column_stack([-Rm * np.cos(u), -Rm * np.sin(u), 0 * u])
+
+    tube = Tube(centre, d_centre, dd_centre, rm, 0.0, 1.5 * np.pi, seeds=300)
+    planes = brep.planar_faces(shape)
+    assert len(planes) == 2
+    points, info = curve_boundary(straight, tube, planes)
+    _, mids, n = _surface_edges(straight)
+    on_plane = [np.abs((straight.points[mids] - o) @ nrm).max(axis=1) < 1e-9 for o, nrm in planes]
+    m = np.unique(mids[~(on_plane[0] | on_plane[1])])           # round-face triangles' mid-nodes
+    rho = np.hypot(np.hypot(*points[m, :2].T) - Rm, points[m, 2])
+    assert np.abs(rho - rm).max() < 1e-6
+    for (o, nrm), sel in zip(planes, on_plane):
+        cap = np.unique(mids[sel])
+        assert np.abs((points[cap] - o) @ nrm).max() < 1e-9
+        rim = np.isin(cap, m)
+        assert rim.sum() > 5 and (~rim).sum() > 0
+        assert np.array_equal(points[cap[~rim]], straight.points[cap[~rim]])
+    assert info["rim_mid_nodes"] > 10 and info["rim_not_converged"] == 0
+    exact = 0.75 * 2 * np.pi ** 2 * Rm * rm ** 2
+    assert elements.tet10_volume(straight.points, straight.cells) / exact - 1 < -0.01
+    assert abs(elements.tet10_volume(points, straight.cells) / exact - 1) < 1e-3
+    gm = brep.curve_tet10(straight, [shape], ["b"], h)
+    assert np.linalg.norm(points - gm.points, axis=1).max() < 1e-9

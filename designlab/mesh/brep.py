@@ -12,7 +12,9 @@ and 3-D Delaunay algorithms, no configuration files read. Linear tetrahedra come
 caller makes TET10 with straight mid-edge nodes. Opt-in curved TET10 (:func:`curve_tet10`):
 the same gmsh mesh made again, raised to order 2 by gmsh (``setOrder(2)``, new nodes on the
 B-rep, ``Mesh.SecondOrderLinear`` 0), and its mid-edge nodes copied onto the straight mesh's by
-corner pair; nothing else changes (node and cell numbering, facet sets).
+corner pair; nothing else changes (node and cell numbering, facet sets). The same without a second
+gmsh run, by projecting the boundary mid-nodes onto a known surface: :mod:`designlab.mesh.curve`
+(with the B-rep's planes from :func:`planar_faces`).
 
 Named faces: a part can name B-rep faces of its bodies (``{set name: [(body index, face), ...]}``,
 the faces as build123d/OCP shapes). Each becomes a physical surface group; after ``fragment``
@@ -136,6 +138,20 @@ def curve_tet10(mesh, shapes: Sequence, names: Sequence[str], edge_length: float
     points[m_mid] = pts[g_mid[first[pos]]]
     return TetMesh(points, mesh.cells, mesh.region, dict(mesh.region_names),
                    dict(mesh.materials), dict(mesh.facet_sets), dict(mesh.point_sets))
+
+
+def planar_faces(shape) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``[(point (3,), unit normal (3,)), ...]`` mm of the planar faces of a build123d/OCP
+    shape, in the order of its faces (the planes a mesh of it can be curved against:
+    :func:`designlab.mesh.curve.curve_boundary`)."""
+    from build123d import GeomType, Plane
+
+    out = []
+    for face in shape.faces():
+        if face.geom_type == GeomType.PLANE:
+            pl = Plane(face)
+            out.append((np.array(tuple(pl.origin), float), np.array(tuple(pl.z_dir), float)))
+    return out
 
 
 def _face_points(tags: Sequence[int], node_tags: np.ndarray, points: np.ndarray
