@@ -243,6 +243,13 @@ def main(argv=None) -> None:
             print(f"    {e['key']}: {_params(e['parameters'])}; CV {100 * cv['relative']:+.1f} % "
                   f"({cv['fit']}), validation {e['error_before']:.4g} -> {e['error_after']:.4g}")
         print(f"    stopped: {x['stopped']}")
+        for k, rd in enumerate(x["rounds"], 1):
+            alone = [c["relative"] for c in rd["candidates"].values()
+                     if c.get("fit") == "alone" and c.get("relative") is not None]
+            if alone and rd["accepted"]:
+                print(f"    round {k}: {len(alone)} per-input candidates fitted with the base's "
+                      f"input gains refitted: CV median {100 * np.median(alone):+.1f} %, best "
+                      f"{100 * max(alone):+.1f} % (accepted {rd['accepted']})")
     for o, v in r["offsets"].items():
         z = r["implied_zero_coupling_mm"].get(o)
         print(f"pose_reference on {o}: e = {v['offset']:+.3f} mm along {v['axis']} (partner "
