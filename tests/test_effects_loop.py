@@ -141,8 +141,9 @@ EFFECTS = ["relaxation", "piezo_relaxation", "drift", "thermal", "hysteresis", "
 
 
 #: checked by their own tests: gain_offset needs a loaded (not fitted) base; run_offset is no
-#: candidate (per-run intercepts are in every fit with several runs, the model ends with them)
-OWN_TEST = ["gain_offset", "run_offset"]
+#: candidate (per-run intercepts are in every fit with several runs, the model ends with them);
+#: pose_reference needs pose outputs and a loaded base (tests/test_effect_pose_reference.py)
+OWN_TEST = ["gain_offset", "run_offset", "pose_reference"]
 #: planted-effect cases in the default run: at least one per mechanism family (viscoelastic:
 #: relaxation; rate-independent hysteresis: hysteresis; static shape: nonlinearity; time:
 #: drift; load location: moment_arm (friction_arm: the seed 001 staircase); runs: run_offset);
@@ -184,7 +185,8 @@ def test_candidate_order_and_reasons():
         "cross_axis[displacement_y]", "cross_gain[displacement_y]", "gain_offset", "drift",
         "lag"]
     assert list(skipped) == ["friction_arm[displacement]", "friction_arm[displacement_y]",
-                             "piezo_relaxation", "thermal", "moment_arm", "run_offset"]
+                             "pose_reference", "piezo_relaxation", "thermal", "moment_arm",
+                             "run_offset"]
 
 
 def test_unknown_effect_in_a_model_is_one_line():
