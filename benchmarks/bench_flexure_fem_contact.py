@@ -4,7 +4,8 @@
     .venv/bin/python benchmarks/bench_flexure_fem_contact.py [--stations 18,36,72,144]
                                                              [--spacings 0.5,0.25,0.1]
                                                              [--edges 1.015] [--gaps as_built]
-                                                             [--curved]
+                                                             [--curved | --straight]
+                                                             [--curve-by projection]
 
 One process, sequential: per tet edge length (mm; the default is the wire radius, as
 ``designlab flexure --fem``) the Visiflex catalogue helix is meshed once (gmsh, TET10) and
@@ -27,9 +28,21 @@ spring-centre diagonals over the three finest edges of FILE when their ratios ar
 ``f3 + (f3 - f2) / (ratio^p - 1)`` for a monotone sequence (``f1, f2, f3`` coarse to fine),
 "not monotone" otherwise.
 
-``--curved``: TET10 with the wire surface's mid-edge nodes on the B-rep (``helix_mesh(...,
-curved=True)``, the same corners and cells); the JSON lines carry ``curved`` and the
-extrapolation groups the runs by it (docs/flexure.md, "Solid FEM: contact discretisation").
+``--curved`` (the default since 2026-11-26, ``helix_fem.CURVED_DEFAULT``) / ``--straight``: TET10
+with the wire surface's mid-edge nodes on the wire's surface, or on the chords (``helix_mesh(...,
+curved=...)``, the same corners and cells); ``--curve-by projection`` (default: onto the swept
+circle) or ``gmsh`` (gmsh's second-order nodes on the B-rep, a second gmsh run); the JSON lines
+carry ``curved`` and ``curve_by`` and the extrapolation groups the runs by them (docs/flexure.md,
+"Solid FEM: contact discretisation").
+
+    .venv/bin/python benchmarks/bench_flexure_fem_contact.py --curving default,0.5
+
+compares the curvings per edge (no contact FEM): the mesh straight, curved by projection (twice:
+bit-identical?) and curved by gmsh; per mesh the ``helix_mesh`` wall and CPU s, wire volume
+error, smallest Jacobian ratio, cells straightened, the no-contact 6x6 diagonal at the spring
+centre (``stiffness_6x6`` on that mesh, as ``fem_stiffness``) and, for the projection, the
+distance of its mid-nodes from gmsh's (max / median over the nodes both move; nodes only one
+moves: those of cells the other straightened).
 """
 
 from __future__ import annotations
@@ -42,8 +55,9 @@ import numpy as np
 
 from designlab.sensors.flexure import report as fr
 from designlab.sensors.flexure.beam_chain import ChainSettings
-from designlab.sensors.flexure.helix_fem import (contact_candidates, fem_contact_stiffness,
-                                                 flexure_from_spring, helix_mesh)
+from designlab.sensors.flexure.helix_fem import (CURVED_DEFAULT, contact_candidates,
+                                                 fem_contact_stiffness, flexure_from_spring,
+                                                 helix_mesh)
 from designlab.sensors.flexure.spring import VISIFLEX_CATALOG
 
 
@@ -58,8 +72,13 @@ def main(argv=None) -> None:
                     help="tet edge lengths, mm, comma separated; 'default': the mesh of "
                          "designlab flexure --fem (sized by the wire's curvature)")
     ap.add_argument("--gaps", default="as_built", choices=("as_built", "meshed"))
-    ap.add_argument("--curved", action="store_true",
-                    help="curved TET10: mid-edge nodes of the wire surface on the B-rep")
+    ap.add_argument("--curved", dest="curved", action="store_true", default=CURVED_DEFAULT,
+                    help="curved TET10: mid-edge nodes of the wire surface on it (default "
+                         f"{'curved' if CURVED_DEFAULT else 'straight'})")
+    ap.add_argument("--straight", dest="curved", action="store_false",
+                    help="straight-sided TET10: mid-edge nodes on the chords")
+    ap.add_argument("--curve-by", default="projection", choices=("projection", "gmsh"),
+                    help="curved: projection onto the swept circle, or gmsh's second-order nodes")
     ap.add_argument("--json-out", default=None, help="append one JSON line per run to this file")
     ap.add_argument("--richardson", default=None,
                     help="extrapolate the runs of this JSON-lines file (no FEM run)")
@@ -67,7 +86,14 @@ def main(argv=None) -> None:
                     help="edge lengths, mm, comma separated: mesh the helix (TET4) with the "
                          "mesher's own fallbacks, as before helix_mesh, and print what each "
                          "try made (no FEM run)")
+    ap.add_argument("--curving", default=None,
+                    help="edges ('default' or mm), comma separated: compare straight, projection "
+                         "and gmsh curving (no contact FEM)")
     a = ap.parse_args(argv)
+    if a.curving:
+        curving_table([None if e.strip() == "default" else float(e)
+                       for e in a.curving.split(",")])
+        return
     if a.richardson:
         richardson_table(a.richardson)
         return
@@ -85,10 +111,11 @@ def main(argv=None) -> None:
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for h in edges:
         w0, c0 = time.perf_counter(), time.process_time()
-        mesh, minfo = helix_mesh(flex, h, order=2, curved=a.curved)
+        mesh, minfo = helix_mesh(flex, h, order=2, curved=a.curved, curve_by=a.curve_by)
         mesh_s = (time.perf_counter() - w0, time.process_time() - c0)
         print(f"<!-- mesh edge {h} mm: {mesh.n_points} nodes, {mesh.n_cells} cells, median "
-              f"corner edge {minfo['median_edge_mm']:.3f} mm, curved {a.curved}, volume "
+              f"corner edge {minfo['median_edge_mm']:.3f} mm, curved {a.curved} "
+              f"({minfo['curve_by']}), volume "
               f"{100 * minfo['volume_error']:+.2f} % (corners {100 * minfo['volume_error_corners']:+.2f} %), "
               f"min Jacobian / corner {minfo.get('min_jacobian_ratio', float('nan')):.3f} "
               f"({minfo['straightened_cells']} cells straightened), "
@@ -120,7 +147,8 @@ def main(argv=None) -> None:
             wl = i["working_load"]
             if a.json_out:
                 row = {"edge_mm": h, "median_edge_mm": minfo["median_edge_mm"],
-                       "curved": a.curved, "volume_error": minfo["volume_error"],
+                       "curved": a.curved, "curve_by": minfo["curve_by"],
+                       "volume_error": minfo["volume_error"],
                        "volume_error_corners": minfo["volume_error_corners"],
                        "min_jacobian_ratio": minfo.get("min_jacobian_ratio"),
                        "straightened_cells": minfo["straightened_cells"], "sized_by": minfo["sized_by"],
@@ -147,6 +175,54 @@ def main(argv=None) -> None:
                   f"{g1['diagonal_mean_abs_error_pct']:.1f} % | {c0s} | {c1s} | "
                   f"{d[0]:.0f} / {d[1]:.0f} / {d[3]:.2f} / {d[4]:.2f} / {d[5]:.2f} | "
                   f"{wall:.1f} | {cpu:.1f} |", flush=True)
+
+
+def curving_table(edges) -> None:
+    """Straight, projection-curved and gmsh-curved TET10 of the catalogue helix per edge (the
+    module docstring's ``--curving``)."""
+    from designlab.sensors.flexure.helix_fem import spring_material, stiffness_6x6
+
+    flex = flexure_from_spring(VISIFLEX_CATALOG)
+    L = float(flex.length)
+    mat = {"spring": spring_material(VISIFLEX_CATALOG)}
+    print("| edge | TET10 | mesh wall / CPU s | wire volume | min Jacobian ratio | straightened "
+          "| no contact k_wx / k_wy / k_wz, N*mm/rad | k_vx / k_vy / k_vz, N/mm | vs gmsh curved "
+          "(largest) | mid-nodes vs gmsh: max / median mm (moved by one only) |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for h in edges:
+        meshes = {}
+        for name, kw in (("straight", {"curved": False}), ("projection", {"curved": True}),
+                         ("projection again", {"curved": True}),
+                         ("gmsh", {"curved": True, "curve_by": "gmsh"})):
+            w0, c0 = time.perf_counter(), time.process_time()
+            mesh, info = helix_mesh(flex, h, order=2, **kw)
+            meshes[name] = (mesh, info, time.perf_counter() - w0, time.process_time() - c0)
+        same = np.array_equal(meshes["projection"][0].points,
+                              meshes["projection again"][0].points)
+        print(f"<!-- edge {h}: projection twice bit-identical: {same} -->", flush=True)
+        del meshes["projection again"]
+        diag = {}
+        for name, (mesh, info, wall, cpu) in meshes.items():
+            fem = stiffness_6x6(mesh, "flexure_base", "flexure_tip", master=(0.0, 0.0, L),
+                                centre=(0.0, 0.0, L / 2), materials=mat, solver="direct")
+            diag[name] = np.diag(fem.K_centre)
+        s = meshes["straight"][0].points
+        for name, (mesh, info, wall, cpu) in meshes.items():
+            d = diag[name]
+            rel = np.abs(d / diag["gmsh"] - 1).max()
+            dist = "-"
+            if name == "projection":
+                g = meshes["gmsh"][0].points
+                mp = np.linalg.norm(mesh.points - s, axis=1) > 1e-9
+                mg = np.linalg.norm(g - s, axis=1) > 1e-9
+                e = np.linalg.norm(mesh.points[mp & mg] - g[mp & mg], axis=1)
+                dist = (f"{e.max():.2g} / {np.median(e):.2g} ({np.count_nonzero(mp & ~mg)} "
+                        f"projection, {np.count_nonzero(mg & ~mp)} gmsh)")
+            print(f"| {h if h is not None else 'default'} {name} | {mesh.n_points} nodes | "
+                  f"{wall:.1f} / {cpu:.1f} | {100 * info['volume_error']:+.3f} % | "
+                  f"{info['min_jacobian_ratio']:.3f} | {info['straightened_cells']} | "
+                  f"{d[0]:.2f} / {d[1]:.2f} / {d[2]:.2f} | {d[3]:.4f} / {d[4]:.4f} / {d[5]:.4f} | "
+                  f"{100 * rel:.4f} % | {dist} |", flush=True)
 
 
 def mesh_survey(edges) -> None:
@@ -185,10 +261,12 @@ def richardson_table(path: str) -> None:
     groups: dict = {}
     for r in rows:
         if r["edge_mm"] is not None:
-            groups.setdefault((bool(r.get("curved", False)), r["contacts"], r["n"]),
-                              {})[r["edge_mm"]] = r
-    for (curved, kind, n), by_edge in groups.items():
-        kind = f"{'curved' if curved else 'straight'} TET10, {kind}"
+            curved = bool(r.get("curved", False))
+            # runs before 2026-11-26 curved by gmsh only
+            by = r.get("curve_by", "gmsh" if curved else None)
+            groups.setdefault((curved, by, r["contacts"], r["n"]), {})[r["edge_mm"]] = r
+    for (curved, by, kind, n), by_edge in groups.items():
+        kind = f"{'curved (' + by + ')' if curved else 'straight'} TET10, {kind}"
         edges = sorted(by_edge, reverse=True)[-3:]
         if len(edges) < 3:
             print(f"{kind} {n}: {len(edges)} edge(s), need 3")
