@@ -247,8 +247,9 @@ def main(argv=None) -> None:
             alone = [c["relative"] for c in rd["candidates"].values()
                      if c.get("fit") == "alone" and c.get("relative") is not None]
             if alone and rd["accepted"]:
-                print(f"    round {k}: {len(alone)} per-input candidates fitted with the base's "
-                      f"input gains refitted: CV median {100 * np.median(alone):+.1f} %, best "
+                print(f"    round {k}: {len(alone)} per-input candidates (an intercept beside "
+                      f"each, the loaded base's gains kept): CV median "
+                      f"{100 * np.median(alone):+.1f} %, best "
                       f"{100 * max(alone):+.1f} % (accepted {rd['accepted']})")
     for o, v in r["offsets"].items():
         z = r["implied_zero_coupling_mm"].get(o)

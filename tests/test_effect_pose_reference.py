@@ -77,8 +77,9 @@ def test_a_planted_offset_is_found_first_with_its_size(e):
         p = first["parameters"]
         assert (p["axis"], p["partner"]) == ("z", partner)
         assert p["offset"] == pytest.approx(e, rel=0.01)
-        # other candidates also passed in that round (their refit of the base's input gains
-        # absorbs the offset): pose_reference is taken first, as the model's own error
+        # other candidates also pass in that round (input_gains, and the per-input effects
+        # with a linear term, take part of the offset): pose_reference is taken first, as the
+        # model's own error
         assert rep["rounds"][0]["candidates"]["pose_reference"]["accepted_rule"]
         assert rep["error_after"] < 0.1 * rep["error_before"]
         assert rep["error_after"] < 2e-3                       # the 1 um noise, and no more

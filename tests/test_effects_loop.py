@@ -142,8 +142,9 @@ EFFECTS = ["relaxation", "piezo_relaxation", "drift", "thermal", "hysteresis", "
 
 #: checked by their own tests: gain_offset needs a loaded (not fitted) base; run_offset is no
 #: candidate (per-run intercepts are in every fit with several runs, the model ends with them);
-#: pose_reference needs pose outputs and a loaded base (tests/test_effect_pose_reference.py)
-OWN_TEST = ["gain_offset", "run_offset", "pose_reference"]
+#: pose_reference needs pose outputs and a loaded base (tests/test_effect_pose_reference.py);
+#: input_gains a loaded base (tests/test_effect_input_gains.py)
+OWN_TEST = ["gain_offset", "run_offset", "pose_reference", "input_gains"]
 #: planted-effect cases in the default run: at least one per mechanism family (viscoelastic:
 #: relaxation; rate-independent hysteresis: hysteresis; static shape: nonlinearity; time:
 #: drift; load location: moment_arm (friction_arm: the seed 001 staircase); runs: run_offset);
@@ -171,7 +172,7 @@ def test_candidate_order_and_reasons():
         *[f"{e}[displacement]" for e in per], "friction_arm[displacement]",
         *[f"{e}[displacement_y]" for e in per], "cross_axis[displacement_y]",
         "cross_gain[displacement_y]", "friction_arm[displacement_y]", "gain_offset",
-        "piezo_relaxation", "drift", "thermal[temperature]", "moment_arm[location]", "lag"]
+        "input_gains", "piezo_relaxation", "drift", "thermal[temperature]", "moment_arm[location]", "lag"]
     assert skipped["run_offset"].startswith("per-run offsets are part of every fit")
     assert skipped["relaxation[displacement]"] == "electrical output: see piezo_relaxation"
     assert skipped["*[force]"] == "input is constant in the training data"
@@ -182,8 +183,8 @@ def test_candidate_order_and_reasons():
            "mpl_cells", "parallel_path"]
     assert [c.key for c in cands] == [
         *[f"{e}[displacement]" for e in per], *[f"{e}[displacement_y]" for e in per],
-        "cross_axis[displacement_y]", "cross_gain[displacement_y]", "gain_offset", "drift",
-        "lag"]
+        "cross_axis[displacement_y]", "cross_gain[displacement_y]", "gain_offset",
+        "input_gains", "drift", "lag"]
     assert list(skipped) == ["friction_arm[displacement]", "friction_arm[displacement_y]",
                              "pose_reference", "piezo_relaxation", "thermal", "moment_arm",
                              "run_offset"]
@@ -246,7 +247,7 @@ def test_a_new_effect_is_one_class(square_effect):
                     "pi_hysteresis[displacement]", "mullins[displacement]",
                     "nonlinearity[displacement]", "mpl_cells[displacement]",
                     "parallel_path[displacement]", "square[displacement]", "gain_offset",
-                    "drift", "lag"]
+                    "input_gains", "drift", "lag"]
     sq = cands[8]
     x = train.inputs["displacement"]
     ctx = fx.Context(train, "force", 0.2 + 0.3 * x, ("displacement",), train.outputs["force"])

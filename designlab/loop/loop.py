@@ -481,6 +481,11 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
     y0_val = yhat_v.copy()
     start_tr = model.predict(train, o, y, upto=0)
     cands, skipped = fx.library(train, o, base_inputs)
+    # the base's input gains are refitted beside each effect only when the base was fitted on
+    # this data (its least-squares gains took up part of what the effect explains); a loaded
+    # model keeps its gains (their error is gain_offset's, one relative number): refitting
+    # them would credit any effect with a new affine map of the inputs
+    nuisance = base_inputs if fitted_base else ()
     if fitted_base:
         for c in [c for c in cands if type(c).first]:
             skipped[c.key] = "the base is fitted on this data (least-squares offset and gains)"
@@ -496,11 +501,16 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
     while len(accepted) < max_effects and cands:
         tail = model.effects[o][tail_start:]
         frozen = model.predict(train, o, y, upto=tail_start) if tail else yhat
-        ctx = fx.Context(train, o, frozen, base_inputs, y, cache_tr, per_run=per_run,
+        ctx = fx.Context(train, o, frozen, nuisance, y, cache_tr, per_run=per_run,
                          tare=tare)
         refit = fitted_base or bool(tail) or per_run
         try:
             base_k = baselines(ctx, y, blocks, tail) if refit else None
+            # every candidate but a `first` one is fitted with an intercept (and a fitted
+            # base's input gains) beside it: on a loaded base its baseline needs that refit
+            # too, or it is credited with the base's own zero error (which the `first`
+            # effects, gain_offset, measure against the base as loaded)
+            base_affine = base_k if refit else baselines(ctx, y, blocks, [])
         except FIT_ERRORS as exc:
             rounds.append({"candidates": {}, "best": None, "accepted": None,
                            "failed": f"the current model cannot be refitted "
@@ -510,7 +520,8 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
         for i, c in enumerate(cands):
             if progress:
                 progress(o, i, len(cands), f"round {len(rounds) + 1}: {c.key}")
-            cv = cross_validate(c, ctx, y, blocks, tail, base_k)
+            cv = cross_validate(c, ctx, y, blocks, tail,
+                                base_k if type(c).first else base_affine)
             cv["accepted_rule"] = acceptable(cv, n_se, min_relative)
             cv["fit"] = ("jointly with " + ", ".join(f.effect.key for f in tail)
                          if joint(c) and tail else "alone" if joint(c)
@@ -541,7 +552,7 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
                     group = _retune(group, ctx, y - frozen, rows)
                     new_effects = model.effects[o][:tail_start] + group
                 else:
-                    c0 = fx.Context(train, o, yhat, base_inputs, y, cache_tr, per_run=per_run,
+                    c0 = fx.Context(train, o, yhat, nuisance, y, cache_tr, per_run=per_run,
                                     tare=tare)
                     new_effects = model.effects[o] + [fx.fit(chosen, c0, y - yhat, rows)]
                 trial = SensorModel(model.base, {**model.effects, o: new_effects})
@@ -562,7 +573,7 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
         e_b, e_a = rmse(yv, yhat_v), rmse(yv, yhat_v + c_v)
         f = new_effects[-1] if not joint(chosen) else next(
             g for g in new_effects[tail_start:] if g.effect.key == chosen.key)
-        ctx_f = fx.Context(train, o, yhat, base_inputs, y, cache_tr, per_run=per_run,
+        ctx_f = fx.Context(train, o, yhat, nuisance, y, cache_tr, per_run=per_run,
                            tare=tare)
         reg, reg_name = fx.regressor(f, ctx_f)
         stages.append({"key": chosen.key, "residual": r_before, "contribution": c_tr,
@@ -589,7 +600,7 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
         yhat_v = yhat_all[vmask]
         cands = [c for c in cands if c.key != chosen.key]
     if per_run:
-        tare, tare_cv = _choose_tare(model, train, o, y, base_inputs, blocks, cache_tr,
+        tare, tare_cv = _choose_tare(model, train, o, y, nuisance, blocks, cache_tr,
                                      tail_start)
         if not tare:
             model.effects[o] = model.effects[o][:n_loaded] + [
@@ -601,7 +612,7 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
     tare_rep = None
     if per_run and not (model.effects[o] and model.effects[o][-1].runs):
         # the runs' own zeros: one offset per training run, a new run tared on its start
-        c0 = fx.Context(train, o, yhat, base_inputs, y, cache_tr)
+        c0 = fx.Context(train, o, yhat, nuisance, y, cache_tr)
         f = fx.fit(fx.EFFECTS["run_offset"](), c0, y - yhat, np.ones(len(train), bool),
                    [{"runs": fx.run_paths(train), "tare_s": fx.TARE_S if tare else 0.0}])
         model.effects[o].append(f)
@@ -611,7 +622,7 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
         tare_rep = {"effect": "run_offset", "parameters": fx.describe(f)}
     if per_run:
         b0 = SensorModel(model.base, {o: []})
-        c0 = fx.Context(train, o, b0.predict(train, o), base_inputs, y, {})
+        c0 = fx.Context(train, o, b0.predict(train, o), nuisance, y, {})
         f0 = fx.fit(fx.EFFECTS["run_offset"](), c0, y - c0.yhat, np.ones(len(train), bool),
                     [{"runs": fx.run_paths(train), "tare_s": fx.TARE_S if tare else 0.0}])
         b0.effects[o] = [f0]

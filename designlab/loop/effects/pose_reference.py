@@ -53,8 +53,9 @@ class PoseReference(Effect):
     refit of the base's input gains beside it: the partner rotation is itself close to a linear
     map of the wrench, so with that refit ``e`` is not identifiable); the zero and gain of a
     loaded base are :class:`GainOffset`'s. Like it, this is an error of a model not fitted on
-    the data, which any effect refitting the base's input gains would absorb, so it is offered
-    only on a loaded base and taken before other passing candidates (``first``; before
+    the data, which :class:`InputGains` (every input gain refitted) or any effect with a linear
+    term in one input would absorb, so it is offered only on a loaded base and taken before
+    other passing candidates (``first``; before
     ``gain_offset``: in a pose-driven test the force that drives a translation correlates with
     the partner rotation, so a gain fitted first takes part of the offset: on seed 002's K_c
     in examples/flexure_kc_loop.py, e = -6.58 mm fitted first, -2.95 mm after the gain,
