@@ -122,13 +122,16 @@ def test_not_applicable_without_the_partner_rotation_or_on_a_fitted_base():
         "the base is fitted on this data")
 
 
-def test_loop_to_predict_adds_e_times_the_partner_rotation():
+@pytest.mark.parametrize("angle_unit", ["rad", "deg"])
+def test_loop_to_predict_adds_e_times_the_partner_rotation(angle_unit):
     """``corrected_poses`` (loop -> predict of the flexure) gives the pose reported about the
-    fitted point: v_x + e w_y, v_y - e w_x, with the model's rotations in rad."""
+    fitted point: v_x + e w_y, v_y - e w_x, with the model's rotations in rad, whichever unit
+    the model learned its rotations in (a card reading deg)."""
     from designlab.loop.effects.base import Fitted
     from designlab.sensors.flexure.loop import corrected_poses
 
     model = base_model(C0)
+    model.units.update({o: angle_unit for o in TWIST[:3]})
     e = -6.5
     eff = PoseReference()
     model.effects = {"v_x": [Fitted(eff, {"axis": "z", "partner": "w_y", "sign": 1.0},

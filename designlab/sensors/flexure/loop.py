@@ -66,8 +66,11 @@ def corrected_poses(learned, C: np.ndarray, t: np.ndarray, W: np.ndarray,
     from designlab.measured.dataset import from_arrays
 
     X = W @ C.T
+    # the outputs in the units the model learned them in (an effect reading a pose output,
+    # pose_reference, sees what it saw in the loop: deg when the card read deg)
     data = from_arrays(t, {w: W[:, i] for i, w in enumerate(WRENCH)},
-                       {o: X[:, i] for i, o in enumerate(TWIST)}, segment=segment,
+                       {o: X[:, i] * _unit_factor(learned.units.get(o, ""), OUTPUT_UNITS[o])
+                        for i, o in enumerate(TWIST)}, segment=segment,
                        units={**INPUT_UNITS, **{o: learned.units.get(o) or OUTPUT_UNITS[o]
                                                 for o in TWIST}})
     out = X.copy()
