@@ -214,10 +214,11 @@ def test_flexure_with_friction_in_the_chain(tmp_path, capsys):
 
 
 def test_flexure_curved_only_with_the_solid_fem(capsys):
-    """``--curved`` (curved TET10 of the solid FEM) without ``--fem``: one line naming it,
+    """``--curved`` / ``--straight`` (the solid FEM's TET10) without ``--fem``: one line naming it,
     exit 2 (the curved mesh itself: tests/test_mesh_curved.py, tests/test_flexure_fem.py)."""
-    rc, _, se = _run(["flexure", "--curved"], capsys)
-    assert rc == 2 and "--curved" in se and "--fem" in se and len(se.strip().splitlines()) == 1
+    for flag in ("--curved", "--straight"):
+        rc, _, se = _run(["flexure", flag], capsys)
+        assert rc == 2 and flag in se and "--fem" in se and len(se.strip().splitlines()) == 1
 
 
 def test_sweep_identity_covers_the_config_and_the_uncertainty_table():
