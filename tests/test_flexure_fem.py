@@ -97,7 +97,8 @@ def test_flexure_geometry_from_spring():
 def test_small_pitch_helix_axial_stiffness_matches_closed_form():
     """Meshed helix (5 plain coils, pitch angle 0.08 rad, spring index 5) vs the zero-pitch
     closed form: axial stiffness within 10 % (the flat end footprints clamped on the discs
-    shorten the free wire by ~0.35 turn, so the FEM is ~7 % stiffer); takes minutes (fTetWild)."""
+    shorten the free wire by ~0.35 turn, so the curved FEM is ~8 % stiffer; docs/flexure.md,
+    benchmarks/bench_flexure_small_pitch.py); ~30 s."""
     from designlab.sensors.flexure.helix_fem import fem_stiffness
     from designlab.sensors.flexure.spring import HelicalSpring, stiffness_zero_pitch
 
