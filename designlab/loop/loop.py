@@ -586,7 +586,9 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
                          "train_error_before": rmse(y, yhat),
                          "train_error_after": rmse(y, yhat_new)},
             **({"refitted_with_it": refitted} if joint(chosen) and refitted else {}),
-            "error_before": e_b, "error_after": e_a})
+            "error_before": e_b, "error_after": e_a,
+            # selection sees the training data only: whether the validation data agree
+            "validation_improved": bool(e_a < e_b)})
         model.effects[o] = new_effects
         if joint(chosen) and fx.group_member(chosen):
             for g in accepted:   # the refitted effects' parameters as they are now
@@ -650,7 +652,11 @@ def _loop_output(model: SensorModel, o: str, data: Dataset, train: Dataset, val:
         stop = "every applicable effect of the library is in the model"
     else:
         stop = f"max_effects = {max_effects} reached"
-    verdict = (f"{len(accepted)} effect(s) accepted; " + stop + "; the remaining residual is "
+    unconfirmed = [a["key"] for a in accepted if not a["validation_improved"]]
+    verdict = (f"{len(accepted)} effect(s) accepted; " + stop
+               + (f"; not confirmed by the validation data (its error rose with them): "
+                  f"{', '.join(unconfirmed)}" if unconfirmed else "")
+               + "; the remaining residual is "
                f"{100 * unexplained:.1f} % of the validation variance and correlates most with "
                + (f"{corrs[0]['variable']} (r = {corrs[0]['correlation']:+.2f})" if corrs
                   else "nothing"))
