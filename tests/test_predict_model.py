@@ -218,3 +218,14 @@ def test_flexure_offset_and_gain_go_loop_to_predict(tmp_path):
              - before["wrench_error"]["stats"]["f_x"]["mean"])
     assert shift < 0 and abs(shift) > 0.01
     assert after["uncorrected"]["condition_number"] == before["condition_number"]
+
+
+def test_the_committed_fingertip_example_log_is_todays(tmp_path):
+    """docs/loop.md runs the loop on examples/data/fingertip_staircase.csv: it must be the log
+    today's FEM gains give (a model change that moves them needs `python
+    examples/loop_synthetic.py`)."""
+    _examples().write_fingertip(tmp_path)
+    committed = Path(__file__).resolve().parents[1] / "examples" / "data"
+    for name in ("fingertip_staircase.csv", "fingertip_card.toml"):
+        assert (tmp_path / name).read_bytes() == (committed / name).read_bytes(), \
+            f"examples/data/{name} is stale: run python examples/loop_synthetic.py"
