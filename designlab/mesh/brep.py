@@ -100,7 +100,7 @@ def curve_tet10(mesh, shapes: Sequence, names: Sequence[str], edge_length: float
     ``Mesh.HighOrderOptimize`` (0 none, the default; 2 elastic + optimisation), which may also
     move interior mid-nodes. A corner or an edge of ``mesh`` not in gmsh's mesh (other
     arguments than the straight mesh's) -> :class:`MeshingError`."""
-    from designlab.mesh.tetmesh import TET10_EDGES, TetMesh
+    from designlab.mesh.tetmesh import TET10_EDGES, TetMesh, edge_keys
 
     if mesh.order != 2:
         raise MeshingError("curve_tet10 needs a TET10 mesh (TetMesh.quadratic())")
@@ -124,10 +124,9 @@ def curve_tet10(mesh, shapes: Sequence, names: Sequence[str], edge_length: float
                            f"{len(ours)} corners not found, {len(corner)} gmsh corners): pass "
                            "the arguments that made it")
     n = mesh.n_points
-    g_pairs = to_mesh[cells[:, TET10_EDGES]].reshape(-1, 2)
-    g_key = np.sort(g_pairs, axis=1) @ np.array([n, 1], np.int64)
+    g_key = edge_keys(to_mesh[cells[:, TET10_EDGES]], n)
     g_mid = cells[:, 4:].reshape(-1)
-    m_key = np.sort(mesh.cells[:, TET10_EDGES].reshape(-1, 2), axis=1) @ np.array([n, 1], np.int64)
+    m_key = edge_keys(mesh.cells[:, TET10_EDGES], n)
     m_mid = mesh.cells[:, 4:].reshape(-1)
     uk, first = np.unique(g_key, return_index=True)
     pos = np.searchsorted(uk, m_key)

@@ -31,7 +31,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from designlab.errors import MeshingError
-from designlab.mesh.tetmesh import TET10_EDGES, TetMesh
+from designlab.mesh.tetmesh import TET10_EDGES, TetMesh, edge_keys
 
 Curve = Callable[[np.ndarray], np.ndarray]
 
@@ -96,11 +96,8 @@ def boundary_edges(mesh: TetMesh) -> dict:
         raise MeshingError("curving needs a TET10 mesh (TetMesh.quadratic())")
     n = np.int64(mesh.n_points)
     tri = mesh.boundary_facets()
-    sides = np.sort(tri[:, TRI6_EDGES].reshape(-1, 2), axis=1).astype(np.int64)
-    keys, edge_of = np.unique(sides[:, 0] * n + sides[:, 1], return_inverse=True)
-    cell_keys = np.sort(mesh.cells[:, TET10_EDGES].reshape(-1, 2), axis=1).astype(np.int64)
-    cell_keys = cell_keys[:, 0] * n + cell_keys[:, 1]
-    uk, first = np.unique(cell_keys, return_index=True)
+    keys, edge_of = np.unique(edge_keys(tri[:, TRI6_EDGES], n), return_inverse=True)
+    uk, first = np.unique(edge_keys(mesh.cells[:, TET10_EDGES], n), return_index=True)
     pos = np.searchsorted(uk, keys)
     mid = mesh.cells[:, 4:].reshape(-1)[first[pos]]
     return {"triangles": tri, "pairs": np.column_stack([keys // n, keys % n]), "mid": mid,
@@ -215,7 +212,8 @@ def curve_boundary(mesh: TetMesh, surface, planes: Sequence[tuple] = (),
     moved &= ~far
     out[mid[moved]] = target[moved]
     info = {"surface_mid_nodes": int((moved & free).sum()),
-            "rim_mid_nodes": int((moved & rim).sum()), "plane_mid_nodes": int((~(curved_sides > 0)).sum()), "kept_far": int(far.sum()),
+            "rim_mid_nodes": int((moved & rim).sum()),
+            "plane_mid_nodes": int((~(curved_sides > 0)).sum()), "kept_far": int(far.sum()),
             "rim_not_converged": not_converged,
             "largest_move_mm": float(step[moved].max()) if moved.any() else 0.0,
             "corner_distance_mm": corner_dist}

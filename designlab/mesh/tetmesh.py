@@ -19,6 +19,13 @@ TET10_EDGES = np.array([[0, 1], [1, 2], [2, 0], [0, 3], [1, 3], [2, 3]])
 TRI6_EDGES = np.array([[0, 1], [1, 2], [2, 0]])
 
 
+def edge_keys(pairs: np.ndarray, n_points: int) -> np.ndarray:
+    """One int64 key per edge given by its two corner nodes (..., 2), the same whichever way
+    round: ``min * n_points + max`` (to match mid-nodes by corner pair)."""
+    e = np.sort(np.asarray(pairs, np.int64).reshape(-1, 2), axis=1)
+    return e[:, 0] * np.int64(n_points) + e[:, 1]
+
+
 @dataclass(frozen=True, eq=False)
 class TetMesh:
     """A tagged tetrahedral mesh.

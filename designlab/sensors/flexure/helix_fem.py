@@ -399,12 +399,9 @@ def _wire_coordinates(mesh: TetMesh, flexure, samples_per_turn: int = 720):
     node (the part's centreline in the mesh frame: base seat at z = 0)."""
     from scipy.spatial import cKDTree
 
-    R = flexure.mean_diameter / 2
-    lo, _ = flexure._cut_planes()
     N = flexure.total_coils
     u = np.linspace(0.0, N, int(N * samples_per_turn) + 1)
-    c = np.column_stack([R * np.cos(2 * np.pi * u), R * np.sin(2 * np.pi * u),
-                         flexure.centerline_z(u) - lo])
+    c = wire_surface(flexure).centre(u)
     _, k = cKDTree(c).query(mesh.points)
     return u[k], mesh.points - c[k]
 
@@ -537,7 +534,7 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     mesh_info = None
     if mesh is None:
         mesh, mesh_info = helix_mesh(flexure, edge_length, order=order, quality=quality,
-                                     curved=curved and order == 2)
+                                     curved=curved)
     timings["mesh"] = time.perf_counter() - t0
     step("contact lines and assembly", *_at("assemble"))
     t1 = time.perf_counter()
