@@ -134,14 +134,13 @@ def design_base(path: Path, pose_at: str = "centre") -> dict:
 
 
 def rocking(K_si: np.ndarray) -> dict:
-    """Rocking stiffness k_wx, k_wy (N m/rad) of an SI stiffness at its own zero-coupling
-    point (height in mm above its frame's origin): where a pose point cannot reach."""
-    from designlab.frames import transform, transform_stiffness
-    from designlab.sensors.flexure.report import zero_coupling_point
+    """Zero-coupling point (mm above the frame's origin) and the rocking stiffness k_wx, k_wy
+    (N m/rad) at the elastic centre (``report.rocking_at_elastic_centre``: ``1 / C[i, i]``, the
+    same about every point): what no pose point can reach."""
+    from designlab.sensors.flexure.report import rocking_at_elastic_centre, zero_coupling_point
 
-    z = zero_coupling_point(K_si)
-    K = transform_stiffness(K_si, transform(translation=(0.0, 0.0, -z)))
-    return {"zero_coupling_mm": 1e3 * z, "k_wx": float(K[0, 0]), "k_wy": float(K[1, 1])}
+    k_wx, k_wy = rocking_at_elastic_centre(K_si)
+    return {"zero_coupling_mm": 1e3 * zero_coupling_point(K_si), "k_wx": k_wx, "k_wy": k_wy}
 
 
 def population_offsets(C: np.ndarray, K: np.ndarray) -> dict:
@@ -277,9 +276,9 @@ def main(argv=None) -> None:
     f = b["fit_camera_offset"]
     print(f"fit_camera_offset (same model, 8 K_c entries): {1e3 * f['offset_m']:.2f} mm")
     print(f"rocking (rotations are the same about every point: no pose point changes w_x, w_y): "
-          f"measured K_c at its zero-coupling point k_wx {m['k_wx']:.3f}, k_wy {m['k_wy']:.3f} "
-          f"N m/rad; the model at its own ({d['zero_coupling_mm']:+.2f} mm from the spring "
-          f"centre) {d['k_wx']:.3f}, {d['k_wy']:.3f}")
+          f"at the elastic centre, measured K_c k_wx {m['k_wx']:.3f}, k_wy {m['k_wy']:.3f} "
+          f"N m/rad; the model {d['k_wx']:.3f}, {d['k_wy']:.3f} (its zero-coupling point "
+          f"{d['zero_coupling_mm']:+.2f} mm from the spring centre)")
 
 
 def _params(p: dict) -> str:
