@@ -1,7 +1,8 @@
 """Seed 001 hanging-weight test with contact mechanics at the ball, end to end on the Table II
 design (``CantileverFingertip.tested()``): mesh, condense once, run the full protocol, print the
 numbers beside the paper's, the effect of the bolt preload, the friction coefficients at which
-G1 falls from h1 to h9 (20 and 40 N preload), the moment sensitivity beside a hand estimate, the
+G1 falls from h1 to h9 (20 and 40 N preload; with and without Mindlin's partial slip), the
+partial slip's element count and the readout seed, the moment sensitivity beside a hand estimate, the
 sensor's sideways compliance, and a fine-step check.
 
     .venv/bin/python examples/fingertip_contact.py [--json out.json]
@@ -93,7 +94,8 @@ def main(argv=None) -> int:
     print(f"\npreload: bolt {pre['bolt_tension_N']:.1f} N -> sensors "
           f"{np.round(pre['sensor_preload_N'], 2).tolist()} N; tangential after tightening "
           f"{np.round(np.linalg.norm(pre['tangential_force_after_tightening_N'], axis=1), 2).tolist()} N")
-    print(f"friction coefficient {s.friction_coefficient} (chromium on steel, Wypych 2018)")
+    print(f"friction coefficient {s.friction_coefficient} (chromium on steel, Wypych 2018); "
+          f"Mindlin partial slip, {s.microslip_elements} Iwan elements per contact")
 
     H = rep["hysteresis_definitions"]
     print("\nhysteresis by location, % (eq. 1; mean over 6 rotations)")
@@ -137,11 +139,14 @@ def main(argv=None) -> int:
     print("\nfriction coefficient scan: G1 / G2 lowest robust % (readout noise included | "
           "noise free), G1 h1 and h9 noise free, G1 falls h1 -> h9 (noise free) with h1 >= 2 h9")
     mus = (0.0, 0.002, 0.003, 0.005, 0.01, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.5, 1.0)
-    for P, scan in ((s.bolt_preload_N, mus), (40.0, (0.05, 0.07, 0.1, 0.15, 0.2, 0.25))):
-        print(f"  bolt preload {P:g} N")
+    for P, n_el, scan in ((s.bolt_preload_N, s.microslip_elements, mus),
+                          (40.0, s.microslip_elements, (0.05, 0.07, 0.1, 0.15, 0.2, 0.25)),
+                          (s.bolt_preload_N, 0, mus)):
+        print(f"  bolt preload {P:g} N, microslip_elements {n_el}")
         for mu in scan:
             rm, _ = quiet(run_contact_test, part, protocol,
-                          dataclasses.replace(s, friction_coefficient=mu, bolt_preload_N=P), cf)
+                          dataclasses.replace(s, friction_coefficient=mu, bolt_preload_N=P,
+                                              microslip_elements=n_el), cf)
             g1, g2 = lowest(rm)
             n1, n2 = lowest(rm, "robust_eq1_span10_noise_free")
             hn = rm["hysteresis_definitions"]["robust_eq1_span10_noise_free"]["by_location"]
@@ -150,6 +155,31 @@ def main(argv=None) -> int:
             trend = bool(np.all(np.diff(v) < 0) and v[0] >= 2 * v[-1] and v[0] > 1e-6)
             print(f"  mu {mu:5.3f}: {g1:7.3f} / {g2:7.3f} | {n1:8.4f} / {n2:8.4f}   h1 {v[0]:7.3f}"
                   f"  h9 {v[-1]:7.4f}  trend {'yes' if trend else 'no'}")
+
+    print("\npartial slip (Mindlin; microslip_elements, 0 = the whole contact sticks until it "
+          "slides): G1 h1..h9 noise free %; lowest G1 / G2 robust with readout | noise free; "
+          "G1 falls h1 -> h9 with readout (h1 >= 2 h9)")
+    for n_el in (0, 1, 12, 24, 96):
+        rm, _ = quiet(run_contact_test, part, protocol,
+                      dataclasses.replace(s, microslip_elements=n_el), cf)
+        hn = rm["hysteresis_definitions"]["robust_eq1_span10_noise_free"]["by_location"]
+        hr = rm["hysteresis_definitions"]["robust_eq1_span10"]["by_location"]
+        v = np.array([hn[f"h{i}"] for i in range(1, 10)])
+        vr = np.array([hr[f"h{i}"] for i in range(1, 10)])
+        g1, g2 = lowest(rm)
+        n1, n2 = lowest(rm, "robust_eq1_span10_noise_free")
+        trend = bool(np.all(np.diff(vr) < 0) and vr[0] >= 2 * vr[-1])
+        print(f"  {n_el:3d}: " + " ".join(f"{x:.3g}" for x in v)
+              + f" | {g1:.3f} / {g2:.3f} | {n1:.4f} / {n2:.4f} | trend {'yes' if trend else 'no'}")
+    print("  readout seeds (24 elements): G1 h1..h9 with readout %, lowest G1 / G2, trend")
+    for seed in range(5):
+        rm, _ = quiet(run_contact_test, part, protocol, dataclasses.replace(s, seed=seed), cf)
+        hr = rm["hysteresis_definitions"]["robust_eq1_span10"]["by_location"]
+        vr = np.array([hr[f"h{i}"] for i in range(1, 10)])
+        g1, g2 = lowest(rm)
+        trend = bool(np.all(np.diff(vr) < 0) and vr[0] >= 2 * vr[-1])
+        print(f"  seed {seed}: " + " ".join(f"{x:.3g}" for x in vr)
+              + f" | {g1:.3f} / {g2:.3f} | trend {'yes' if trend else 'no'}")
 
     print_moment_sensitivity(part, cf, s)
 

@@ -161,8 +161,10 @@ def test_zero_friction_zero_hysteresis_and_linear_readings(hertz):
 
 
 def test_friction_gives_hysteresis_that_falls_with_height():
+    """Gross slip on the lumped stand-in (the elastic-perfectly-plastic law: the partial slip's
+    trend is checked on the meshed Table II design)."""
     cf = lumped_condensed(PART)
-    rep = run_contact_test(PART, SHORT, _noise_free(), cf)
+    rep = run_contact_test(PART, SHORT, _noise_free(microslip_elements=0), cf)
     h = rep["hysteresis_definitions"]["robust_eq1_span10_noise_free"]["by_location"]
     assert h["h1"] > h["h5"] > h["h9"] >= 0 and h["h1"] > 1e-3
     # same input -> same output (the noise is seeded)
@@ -242,6 +244,14 @@ def test_meshed_table_ii_protocol_and_fine_step_check(meshed):
         rep = run_contact_test(PART, HangingWeightTest(), ContactSettings(), meshed)
     assert set(rep["hysteresis_percent"]["by_location"]) == {
         *(f"h{i}" for i in range(1, 10)), *(f"r{i}" for i in range(1, 6))}
+    # issue 12's G1 trend from friction alone: falls from h1 to h9, h1 >= 2 x h9; the partial
+    # slip of the Hertz circles keeps percent-level hysteresis where the whole contacts stick
+    # (h7..h9), the elastic-perfectly-plastic law leaves 0.01 % there
+    v = [rep["hysteresis_percent"]["by_location_noise_free"][f"h{i}"] for i in range(1, 10)]
+    assert all(a > b for a, b in zip(v, v[1:])) and v[0] >= 2 * v[-1] and v[-1] > 0.5, v
+    epp = run_contact_test(PART, HangingWeightTest(g1_locations=("h9",), g2_locations=()),
+                           ContactSettings(microslip_elements=0), meshed)
+    assert epp["hysteresis_percent"]["by_location_noise_free"]["h9"] < 0.1
     one = HangingWeightTest(g1_locations=("h1",), g2_locations=(), rotations=1)
     ref = run_contact_test(PART, one, _noise_free(increments_per_step=100), meshed)
     got = run_contact_test(PART, one, _noise_free(), meshed)
@@ -362,7 +372,9 @@ def test_sweep_goal_lowest_g1_friction_hysteresis_at_the_lowest_h():
             rep = run_contact_test(d, proto, ContactSettings(), cf)
         g1.append(rep["hysteresis_percent"]["by_group_noise_free"]["G1"])
     assert int(np.argmin(g1)) == 0, g1
-    assert g1[2] > 10 * g1[0], g1            # the tall design's arms reach the slip threshold
+    # the tall design's arms make the contacts slide; the low ones' hysteresis is the partial
+    # slip of the Hertz circles (~1.8 %; 0.009 % with the elastic-perfectly-plastic law)
+    assert g1[2] > 4 * g1[0] and g1[0] > 0.5, g1
 
 
 @pytest.mark.slow

@@ -27,10 +27,11 @@ def _path(C, L, rng, batch=5, npt=14):
     return f_pre[None, None] + loads[None, :, None] * W[:, None], f_pre
 
 
-@pytest.mark.parametrize("kt_series", [None, 400.0])
-def test_fast_problem_is_bit_identical_to_the_generic_solve(kt_series):
+@pytest.mark.parametrize("kt_series,microslip", [(None, 0), (None, 24), (400.0, 24)])
+def test_fast_problem_is_bit_identical_to_the_generic_solve(kt_series, microslip):
     C, L, rng = _problem_data()
-    settings = dataclasses.replace(ContactSettings(), sensor_lateral_stiffness=kt_series or 0.0)
+    settings = dataclasses.replace(ContactSettings(), sensor_lateral_stiffness=kt_series or 0.0,
+                                   microslip_elements=microslip)
     laws = contact_laws(CantileverFingertip(h=3.0, r=6.0), settings, 500.0)
     ref = ContactProblem(C, L, laws)
     fast = _FastProblem(C, L, laws)
@@ -43,6 +44,9 @@ def test_fast_problem_is_bit_identical_to_the_generic_solve(kt_series):
     for x, y in ((a.p, b.p), (a.g, b.g), (a.state.T, b.state.T), (a.state.gt, b.state.gt),
                  (a.state.N, b.state.N)):
         assert np.array_equal(x, y)
+    assert (a.state.Te is None) == (microslip == 0)
+    if microslip:
+        assert np.array_equal(a.state.Te, b.state.Te)
     assert a.iterations == b.iterations and a.lift_off == b.lift_off
     # the path exercises what the streamlined code resolves: slip and open contacts
     N = a.p[..., 0]

@@ -12,7 +12,12 @@ structure:
   Hertz compliance in series with an optional linear spring (a force sensor), unilateral (open
   when the approach would be negative), tangential Mindlin stiffness with Coulomb slip
   (``|T| <= mu N``), integrated incrementally with a return map (the elastic-perfectly-plastic
-  friction model: path dependent, so cyclic loads give hysteresis loops).
+  friction model: path dependent, so cyclic loads give hysteresis loops). With ``microslip`` > 0
+  the tangential law is Mindlin's partial slip instead (Cattaneo 1938, Mindlin 1949; Johnson
+  Sec. 7.2-7.3): an annulus slips before the whole contact slides, the force-displacement curve
+  ``T = mu N (1 - (1 - d/d_s)^(3/2))``, ``d_s = 3 mu N / (2 k_t)``, and Masing unloading (Mindlin
+  and Deresiewicz 1953), discretised as a parallel Iwan model (1966) of ``microslip`` Jenkins
+  elements: a loop at any amplitude, its energy Johnson's eq. 7.53.
 * :class:`ContactProblem` - ``m`` contacts on a linear structure of flexibility ``C`` (n x n) at
   its master dofs: ``q = C (f + sum_k L_k^T p_k)``; ``L_k`` (3 x n) maps the master dofs to the
   relative displacement of body A with respect to body B at contact ``k`` in its local frame
@@ -108,16 +113,22 @@ class ContactLaw:
     None = rigid) and a linear spring in series (``k_series`` N/mm, None = rigid; at least one
     of the two). Tangential: ``k_t(N)`` = Mindlin's stiffness of ``hertz`` in series with
     ``kt_series`` (N/mm, None = rigid); with no Hertz contact, ``kt_series`` alone. Coulomb
-    friction coefficient ``mu``."""
+    friction coefficient ``mu``. ``microslip``: 0 = the contact sticks whole until it slides
+    (elastic-perfectly-plastic); n > 0 = Mindlin's partial slip as n Iwan elements
+    (:func:`iwan_elements`; n = 1 is the elastic-perfectly-plastic law again)."""
 
     mu: float
     hertz: HertzContact | None = None
     k_series: float | None = None
     kt_series: float | None = None
+    microslip: int = 0
 
     def __post_init__(self):
         if not (0.0 <= self.mu <= MU_MAX):
             raise ParameterError("friction_coefficient", self.mu, f"0 <= value <= {MU_MAX:g}")
+        if not (isinstance(self.microslip, (int, np.integer)) and 0 <= self.microslip <= 1000):
+            raise ParameterError("microslip_elements", self.microslip,
+                                 "a whole number 0 <= n <= 1000 (0: no partial slip)")
         if self.hertz is None and self.k_series is None:
             raise ParameterError("contact law", None, "a Hertz contact, a series spring or both")
         if self.hertz is None and self.mu > 0 and self.kt_series is None:
@@ -181,15 +192,55 @@ class ContactLaw:
         return k, dkm * (ks / (km + ks)) ** 2
 
 
+def iwan_elements(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Mindlin's partial slip as ``n`` parallel Jenkins elements (Iwan 1966): (w, c), element
+    e's stiffness ``w_e k_t`` and slip force ``c_e mu N`` (sum w = sum c = 1). Under a growing
+    tangential displacement d, Cattaneo-Mindlin's stiffness falls as ``k_t sqrt(1 - d/d_s)``
+    (d_s = 3 mu N / (2 k_t): the contact slides); element e, of equal stiffness 1/n, slips at
+    ``x_e d_s`` where that remaining stiffness passes the middle of its share:
+    ``x_e = 1 - (1 - (e - 1/2)/n)^2``; its slip force ``w_e k_t x_e d_s``, scaled so the whole
+    contact slides at exactly mu N. n = 1 gives the elastic-perfectly-plastic law."""
+    n = int(n)
+    if n < 1:
+        raise ParameterError("microslip_elements", n, ">= 1")
+    w = np.full(n, 1.0 / n)
+    x = 1.0 - (1.0 - (np.arange(1, n + 1) - 0.5) / n) ** 2
+    c = w * x
+    return w, c / c.sum()
+
+
+def mindlin_tangential_force(d, mu_N: float, k_t: float):
+    """Cattaneo-Mindlin's monotonic tangential force at displacement ``d`` (mm) under a
+    constant normal force: ``T = mu N (1 - (1 - d/d_s)^(3/2))`` for d < d_s = 3 mu N / (2 k_t),
+    mu N beyond (Johnson eq. 7.39 inverted), N."""
+    d_s = 1.5 * mu_N / k_t
+    u = np.clip(np.asarray(d, float) / d_s, 0.0, 1.0)
+    return mu_N * (1.0 - (1.0 - u) ** 1.5)
+
+
+def mindlin_loop_energy(T_amp: float, mu_N: float, k_t: float) -> float:
+    """Energy dissipated per full cycle +-T_amp of Mindlin and Deresiewicz's loop at a constant
+    normal force (Johnson eq. 7.53 with d_s = 3 mu N / (2 k_t)):
+    ``4.8 mu N d_s [1 - (1-q)^(5/3) - (5q/6)(1 + (1-q)^(2/3))]``, q = T_amp / (mu N), N mm."""
+    q = T_amp / mu_N
+    if not 0.0 <= q <= 1.0:
+        raise ParameterError("T_amp", T_amp, f"0 <= value <= mu N = {mu_N:g}")
+    d_s = 1.5 * mu_N / k_t
+    return 4.8 * mu_N * d_s * (1.0 - (1.0 - q) ** (5.0 / 3.0)
+                               - (5.0 * q / 6.0) * (1.0 + (1.0 - q) ** (2.0 / 3.0)))
+
+
 @dataclass
 class ContactState:
     """History variables of ``(batch, m)`` contacts: tangential force ``T`` (.., 2) and the
-    tangential relative displacement ``gt`` (.., 2) at the last converged increment; ``N``."""
+    tangential relative displacement ``gt`` (.., 2) at the last converged increment; ``N``;
+    with partial slip, the Iwan elements' forces ``Te`` (.., n, 2) (None: all unloaded)."""
 
     T: np.ndarray
     gt: np.ndarray
     N: np.ndarray
     g: np.ndarray            # (.., 3) relative displacement (normal, t1, t2), mm
+    Te: np.ndarray | None = None
 
     @classmethod
     def zero(cls, batch: int, m: int) -> "ContactState":
@@ -198,11 +249,12 @@ class ContactState:
                    np.zeros((batch, m, 3)))
 
     def copy(self) -> "ContactState":
-        return ContactState(self.T.copy(), self.gt.copy(), self.N.copy(), self.g.copy())
+        return ContactState(self.T.copy(), self.gt.copy(), self.N.copy(), self.g.copy(),
+                            None if self.Te is None else self.Te.copy())
 
     def take(self, idx) -> "ContactState":
         return ContactState(self.T[idx].copy(), self.gt[idx].copy(), self.N[idx].copy(),
-                            self.g[idx].copy())
+                            self.g[idx].copy(), None if self.Te is None else self.Te[idx].copy())
 
 
 class _LawArrays:
@@ -219,6 +271,11 @@ class _LawArrays:
             3.0 * lw.hertz.R_star / (4.0 * lw.hertz.E_star)) ** (1.0 / 3.0) for lw in laws])
         self.kts = np.array([np.inf if lw.kt_series is None else lw.kt_series for lw in laws])
         self.hertz = self.c > 0
+        n = {lw.microslip for lw in laws}
+        if len(n) > 1:
+            raise ModelError(f"contact laws with different microslip element counts {sorted(n)}")
+        self.n_el = n.pop() if n else 0
+        self.w_el, self.c_el = iwan_elements(self.n_el) if self.n_el else (None, None)
 
     def normal(self, delta: np.ndarray, N_guess: np.ndarray | None = None):
         """(N, dN/d delta) for approaches (B, m): delta = N/k + c N^(2/3), Newton on
@@ -281,6 +338,12 @@ def contact_forces(laws, g: np.ndarray, state: ContactState, gap0: np.ndarray | 
         return p, D
     kt, dkt = la.kt(N)
     dg = g[..., 1:] - state.gt
+    if la.n_el:
+        T, Dtt, DtN, _ = _partial_slip(la, N, dN, kt, dkt, dg, state)
+        p[..., 1:] = T
+        D[..., 1:, 1:] = Dtt
+        D[..., 1:, 0] = DtN
+        return p, D
     Ttr = state.T - kt[..., None] * dg
     nT = np.linalg.norm(Ttr, axis=-1)
     lim = la.mu * N
@@ -300,10 +363,66 @@ def contact_forces(laws, g: np.ndarray, state: ContactState, gap0: np.ndarray | 
     return p, D
 
 
-def commit(laws: list[ContactLaw], g: np.ndarray, p: np.ndarray) -> ContactState:
+def _partial_slip(la: _LawArrays, N, dN, kt, dkt, dg, state: ContactState):
+    """Tangential force, its tangent (d/dg_t, d/dg_n) and the elements' forces of the Iwan
+    model of :func:`iwan_elements` (B, m contacts, n elements): element e's trial
+    ``Te - w_e k_t(N) dg``, returned to its circle ``c_e mu N`` when outside (the Coulomb
+    return map of :func:`contact_forces` per element); an open contact carries nothing.
+    Written component by component (the tangent plane is 2-D): the same sums as the
+    projector form ``sum_e -w_e k_t r_e (I - s_e th_e th_e^T)``, without (.., n, 2, 2) arrays."""
+    w, c = la.w_el, la.c_el                                   # (n,)
+    Te_old = state.Te if state.Te is not None else np.zeros(N.shape + (la.n_el, 2))
+    kte = kt[..., None] * w                                   # (B, m, n)
+    dgx, dgy = dg[..., 0, None], dg[..., 1, None]
+    tx = Te_old[..., 0] - kte * dgx
+    ty = Te_old[..., 1] - kte * dgy
+    nT = np.sqrt(tx * tx + ty * ty)
+    lim = (la.mu[:, None] * N[..., None]) * c                 # (B, m, n)
+    closed = N > 0
+    cl = closed[..., None]
+    slip = (nT > lim) & cl
+    pos = nT > 0
+    inv = np.divide(1.0, nT, out=np.zeros_like(nT), where=pos)
+    thx, thy = tx * inv, ty * inv
+    r = np.where(slip, lim * inv, 1.0)
+    Te = np.stack([np.where(cl, r * tx, 0.0), np.where(cl, r * ty, 0.0)], axis=-1)
+    kr = kte * r
+    ks = np.where(slip, kr, 0.0)
+    sum_kr = kr.sum(-1)
+    Dxx = -sum_kr + (ks * thx * thx).sum(-1)
+    Dxy = (ks * thx * thy).sum(-1)
+    Dyy = -sum_kr + (ks * thy * thy).sum(-1)
+    Dtt = np.stack([np.stack([Dxx, Dxy], -1), np.stack([Dxy, Dyy], -1)], -2)
+    # d/dg_n through N(g_n) (dN/dg_n = -dN): the trial moves by (dk_t w_e dN) dg, each slipping
+    # element's circle by mu c_e (-dN) along th_e
+    b = (dkt * dN)[..., None] * w * r                         # (B, m, n)
+    bs = np.where(slip, b, 0.0)
+    proj = thx * dgx + thy * dgy
+    sc = np.where(slip, (la.mu[:, None] * c) * -dN[..., None], 0.0)
+    DtN = np.stack([b.sum(-1) * dg[..., 0] - (bs * proj * thx).sum(-1) + (sc * thx).sum(-1),
+                    b.sum(-1) * dg[..., 1] - (bs * proj * thy).sum(-1) + (sc * thy).sum(-1)],
+                   -1)
+    T = Te.sum(axis=-2)
+    return (T, np.where(closed[..., None, None], Dtt, 0.0),
+            np.where(closed[..., None], DtN, 0.0), Te)
+
+
+def commit(laws: list[ContactLaw], g: np.ndarray, p: np.ndarray,
+           Te: np.ndarray | None = None) -> ContactState:
     """State after a converged increment: an open contact forgets its tangential history (its
-    reference moves with it, so it re-closes stuck)."""
-    return ContactState(p[:, :, 1:].copy(), g[:, :, 1:].copy(), p[:, :, 0].copy(), g.copy())
+    reference moves with it, so it re-closes stuck). ``Te``: the Iwan elements' forces."""
+    return ContactState(p[:, :, 1:].copy(), g[:, :, 1:].copy(), p[:, :, 0].copy(), g.copy(),
+                        None if Te is None else Te.copy())
+
+
+def element_forces(la: _LawArrays, g: np.ndarray, state: ContactState,
+                   gap0: np.ndarray | None = None) -> np.ndarray:
+    """The Iwan elements' forces (B, m, n, 2) at relative displacements ``g`` from ``state``
+    (the same return map as :func:`contact_forces`), for the committed state."""
+    delta = (0.0 if gap0 is None else np.asarray(gap0, float)) - g[..., 0]
+    N, dN = la.normal(delta, state.N)
+    kt, dkt = la.kt(N)
+    return _partial_slip(la, N, dN, kt, dkt, g[..., 1:] - state.gt, state)[3]
 
 
 @dataclass
@@ -416,6 +535,11 @@ class ContactProblem:
         Bn, npt, n = f_points.shape
         f_prev = np.zeros((Bn, n)) if f_start is None else np.asarray(f_start, float)
         st = state.copy()
+        if self._la.n_el and st.Te is None:
+            if np.any(st.T != 0):
+                raise ModelError("a partial-slip contact problem started from a state with "
+                                 "tangential forces but no Iwan element forces")
+            st.Te = np.zeros(st.T.shape[:-1] + (self._la.n_el, 2))
         g = st.g.copy()
         P = np.zeros((Bn, npt, self.m, 3))
         Gs = np.zeros_like(P)
@@ -428,7 +552,8 @@ class ContactProblem:
                 closed_before = st.N > 0
                 g, p, it = self.solve_increment(g0, st, g)
                 iters += it
-                st = commit(self.laws, g, p)
+                Te = (element_forces(self._la, g, st, self.gap0) if self._la.n_el else None)
+                st = commit(self.laws, g, p, Te)
                 opened = closed_before & ~(st.N > 0)
                 for b, k in zip(*np.nonzero(opened)):
                     lift.append((int(b), j, int(k)))

@@ -52,7 +52,8 @@ from designlab.calibration.calibration_matrix import (condition_number, cross_ta
                                                       fit_calibration_matrix, geometric_matrix)
 from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
 from designlab.errors import ParameterError
-from designlab.fem.contact import ContactLaw, ContactProblem, ContactState, HertzContact
+from designlab.fem.contact import (ContactLaw, ContactProblem, ContactState, HertzContact,
+                                   _partial_slip)
 # the settings and their sourced defaults live with the fingertip's model settings (which derive
 # from ContactSettings, so that ``--setting friction_coefficient=...`` reaches this model)
 from designlab.sensors.fingertip import (  # noqa: F401  (re-exported)
@@ -243,7 +244,8 @@ def contact_laws(part, settings: ContactSettings, k_sensor: float) -> list[Conta
                       BUTTON_E_MPA, BUTTON_NU)
     kt = settings.sensor_lateral_stiffness or None
     return [ContactLaw(settings.friction_coefficient, hz if settings.hertz else None, k_sensor,
-                       kt if (settings.hertz or kt) else 1e9 * k_sensor) for _ in range(3)]
+                       kt if (settings.hertz or kt) else 1e9 * k_sensor,
+                       microslip=settings.microslip_elements) for _ in range(3)]
 
 
 def _problem(part, cf: CondensedFingertip, settings: ContactSettings) -> ContactProblem:
@@ -254,7 +256,8 @@ class _FastProblem(ContactProblem):
     """:class:`~designlab.fem.contact.ContactProblem` with the same numbers (the same
     floating-point operations on the same values, in the same order: bit-identical results) and
     less Python and numpy overhead per Newton iteration, for the fingertip's laws (every contact
-    Hertz in series with the sensor's spring, Mindlin with no tangential series spring, friction):
+    Hertz in series with the sensor's spring, Mindlin with no tangential series spring, friction;
+    with partial slip, the tangential law is contact's own ``_partial_slip``):
     the law arrays' branches that are constant for such laws are resolved once (the Newton
     iteration is the parent's). Other laws take the parent's path."""
 
@@ -308,6 +311,12 @@ class _FastProblem(ContactProblem):
         kt = la.A * np.cbrt(Nk)
         dkt = np.where(Nk > 0, kt / (3.0 * Nk), 0.0)
         dg = g[..., 1:] - state.gt
+        if la.n_el:                                  # Mindlin's partial slip: the same function
+            T, Dtt, DtN, _ = _partial_slip(la, N, dN, kt, dkt, dg, state)
+            p[..., 1:] = T
+            D[..., 1:, 1:] = Dtt
+            D[..., 1:, 0] = DtN
+            return p, D
         Ttr = state.T - kt[..., None] * dg
         nT = np.sqrt(np.add.reduce(Ttr * Ttr, axis=-1))       # np.linalg.norm's operations
         lim = la.mu * N
