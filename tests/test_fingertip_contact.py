@@ -407,3 +407,24 @@ def test_meshed_moment_sensitivity_agrees_with_the_hand_estimate(meshed):
     assert 0.2 < theta * ms["bolt_rotational_stiffness_at_ball_centre_N_mm_per_rad"] / (
         gc["load_N"] * gc["arm_mm"]) <= 1.0
     assert gc["stuck"]["ball_rotation_rad"] < theta
+
+
+def test_readout_draws_first_is_the_reading_and_spread_is_reported():
+    """The hysteresis with readout over noise draws: draw 0 is the reported reading (no zero
+    drift), the others continue each run's seeded generator; same input, same spread."""
+    cf = lumped_condensed(PART)
+    one = run_contact_test(PART, SHORT, ContactSettings(readout_draws=1), cf)
+    for n, v in one["hysteresis_readout_draws"]["by_location"].items():
+        assert v["mean"] == pytest.approx(one["hysteresis_percent"]["by_location"][n], rel=1e-12)
+        assert v["sd"] == 0.0
+    a = run_contact_test(PART, SHORT, ContactSettings(readout_draws=40), cf)
+    b = run_contact_test(PART, SHORT, ContactSettings(readout_draws=40), cf)
+    da = a["hysteresis_readout_draws"]
+    assert da == b["hysteresis_readout_draws"] and da["draws"] == 40
+    assert all(v["sd"] > 0 for v in da["by_location"].values())
+    lo = da["G1_lowest"]
+    assert lo["min"] <= lo["mean"] <= lo["max"] and lo["standard_error"] == pytest.approx(
+        lo["sd"] / np.sqrt(40))
+    assert 0.0 <= da["G1_monotonic_share"] <= 1.0
+    with pytest.raises(ParameterError, match="readout_draws"):
+        ContactSettings(readout_draws=0)

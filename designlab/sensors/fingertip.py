@@ -126,6 +126,9 @@ class ContactSettings:
     daq_range_V: float = field(default=DAQ_RANGE_V, metadata=rng(0, None, lo_open=True,
                                                                 unit="V"))
     seed: int = field(default=0, metadata=rng(0, 2 ** 32 - 1))
+    readout_draws: int = field(default=200, metadata=rng(
+        1, 10000, doc="readout noise draws over which the hysteresis with readout is also "
+        "reported as mean and spread (each run's seeded generator continued)"))
 
     def __post_init__(self):
         validate(self)
