@@ -2,8 +2,8 @@
 design (``CantileverFingertip.tested()``): mesh, condense once, run the full protocol, print the
 numbers beside the paper's, the effect of the bolt preload, the friction coefficients at which
 G1 falls from h1 to h9 (20 and 40 N preload; with and without Mindlin's partial slip), the
-partial slip's element count and the readout seed, the moment sensitivity beside a hand estimate, the
-sensor's sideways compliance, and a fine-step check.
+partial slip's element count and the readout seed, the moment sensitivity beside a hand
+estimate, the sensor's sideways compliance, and a fine-step check.
 
     .venv/bin/python examples/fingertip_contact.py [--json out.json]
 """
@@ -113,6 +113,16 @@ def main(argv=None) -> int:
         g1, g2 = lowest(rep, key)
         print(f"lowest mean G1 ({lab:>15})   {g1:8.3f} %  {PAPER['lowest_mean_G1_pct']:6.2f} %")
         print(f"lowest mean G2 ({lab:>15})   {g2:8.3f} %  {PAPER['lowest_mean_G2_pct']:6.2f} %")
+    dr = rep["hysteresis_readout_draws"]
+    prof = dr["G1_mean_profile"]
+    print(f"readout over {dr['draws']} noise draws (robust): G1 h1..h9 mean "
+          + " ".join(f"{x:.3g}" for x in prof["mean"])
+          + f" (falls: {prof['monotonic']}, smallest step "
+          f"{prof['smallest_fall_over_its_standard_error']:.1f} standard errors; single draws "
+          f"that fall: {100 * dr['G1_monotonic_share']:.0f} %); "
+          f"lowest G1 {dr['G1_lowest']['mean']:.3f} +- {dr['G1_lowest']['sd']:.3f} (sd; standard "
+          f"error {dr['G1_lowest']['standard_error']:.3f}), lowest G2 "
+          f"{dr['G2_lowest']['mean']:.2f} +- {dr['G2_lowest']['sd']:.2f} %")
     for lab in ("robust", "robust_noise_free"):
         r = pc[lab]
         print(f"G1 falls monotonically h1->h9 ({lab}): {r['G1_monotonic_decrease_h1_to_h9']} "

@@ -16,7 +16,7 @@ def _drive(law, gt_path, N=N0):
     la = _LawArrays([law])
     st = ContactState.zero(1, 1)
     if la.n_el:
-        st.Te = np.zeros((1, 1, la.n_el, 2))
+        st.Te = np.zeros((1, 1, 2, la.n_el))
     out = []
     for x in gt_path:
         g = np.array([[[-N / K_N, x, 0.0]]])
@@ -86,7 +86,7 @@ def test_tangent_matches_finite_differences():
     law = ContactLaw(0.25, hz, 500.0, microslip=16)
     la = _LawArrays([law])
     st = ContactState.zero(1, 1)
-    st.Te = np.zeros((1, 1, 16, 2))
+    st.Te = np.zeros((1, 1, 2, 16))
     g1 = np.array([[[-0.012, 0.0004, -0.0002]]])
     p, _ = contact_forces(la, g1, st)
     st = commit([law], g1, p, element_forces(la, g1, st))

@@ -234,7 +234,7 @@ def mindlin_loop_energy(T_amp: float, mu_N: float, k_t: float) -> float:
 class ContactState:
     """History variables of ``(batch, m)`` contacts: tangential force ``T`` (.., 2) and the
     tangential relative displacement ``gt`` (.., 2) at the last converged increment; ``N``;
-    with partial slip, the Iwan elements' forces ``Te`` (.., n, 2) (None: all unloaded)."""
+    with partial slip, the Iwan elements' forces ``Te`` (.., 2, n) (None: all unloaded)."""
 
     T: np.ndarray
     gt: np.ndarray
@@ -364,47 +364,49 @@ def contact_forces(laws, g: np.ndarray, state: ContactState, gap0: np.ndarray | 
 
 
 def _partial_slip(la: _LawArrays, N, dN, kt, dkt, dg, state: ContactState):
-    """Tangential force, its tangent (d/dg_t, d/dg_n) and the elements' forces of the Iwan
-    model of :func:`iwan_elements` (B, m contacts, n elements): element e's trial
-    ``Te - w_e k_t(N) dg``, returned to its circle ``c_e mu N`` when outside (the Coulomb
+    """Tangential force, its tangent (d/dg_t, d/dg_n) and the elements' forces (B, m, 2, n) of
+    the Iwan model of :func:`iwan_elements` (B, m contacts, n elements): element e's trial
+    ``t_e = Te - w_e k_t(N) dg``, returned to its circle ``c_e mu N`` when outside (the Coulomb
     return map of :func:`contact_forces` per element); an open contact carries nothing.
-    Written component by component (the tangent plane is 2-D): the same sums as the
-    projector form ``sum_e -w_e k_t r_e (I - s_e th_e th_e^T)``, without (.., n, 2, 2) arrays."""
+    Written component by component (the tangent plane is 2-D): the projector form
+    ``sum_e -w_e k_t r_e (I - s_e th_e th_e^T)``, with ``r_e th_e th_e^T = lim_e t_e t_e^T /
+    |t_e|^3`` for a slipping element, without (.., n, 2, 2) arrays."""
     w, c = la.w_el, la.c_el                                   # (n,)
-    Te_old = state.Te if state.Te is not None else np.zeros(N.shape + (la.n_el, 2))
+    Te_old = state.Te if state.Te is not None else np.zeros(N.shape + (2, la.n_el))
     kte = kt[..., None] * w                                   # (B, m, n)
     dgx, dgy = dg[..., 0, None], dg[..., 1, None]
-    tx = Te_old[..., 0] - kte * dgx
-    ty = Te_old[..., 1] - kte * dgy
+    tx = Te_old[..., 0, :] - kte * dgx
+    ty = Te_old[..., 1, :] - kte * dgy
     nT = np.sqrt(tx * tx + ty * ty)
     lim = (la.mu[:, None] * N[..., None]) * c                 # (B, m, n)
-    closed = N > 0
-    cl = closed[..., None]
-    slip = (nT > lim) & cl
-    pos = nT > 0
-    inv = np.divide(1.0, nT, out=np.zeros_like(nT), where=pos)
-    thx, thy = tx * inv, ty * inv
-    r = np.where(slip, lim * inv, 1.0)
-    Te = np.stack([np.where(cl, r * tx, 0.0), np.where(cl, r * ty, 0.0)], axis=-1)
-    kr = kte * r
-    ks = np.where(slip, kr, 0.0)
-    sum_kr = kr.sum(-1)
-    Dxx = -sum_kr + (ks * thx * thx).sum(-1)
-    Dxy = (ks * thx * thy).sum(-1)
-    Dyy = -sum_kr + (ks * thy * thy).sum(-1)
-    Dtt = np.stack([np.stack([Dxx, Dxy], -1), np.stack([Dxy, Dyy], -1)], -2)
-    # d/dg_n through N(g_n) (dN/dg_n = -dN): the trial moves by (dk_t w_e dN) dg, each slipping
-    # element's circle by mu c_e (-dN) along th_e
-    b = (dkt * dN)[..., None] * w * r                         # (B, m, n)
-    bs = np.where(slip, b, 0.0)
-    proj = thx * dgx + thy * dgy
-    sc = np.where(slip, (la.mu[:, None] * c) * -dN[..., None], 0.0)
-    DtN = np.stack([b.sum(-1) * dg[..., 0] - (bs * proj * thx).sum(-1) + (sc * thx).sum(-1),
-                    b.sum(-1) * dg[..., 1] - (bs * proj * thy).sum(-1) + (sc * thy).sum(-1)],
-                   -1)
-    T = Te.sum(axis=-2)
-    return (T, np.where(closed[..., None, None], Dtt, 0.0),
-            np.where(closed[..., None], DtN, 0.0), Te)
+    cl = (N > 0)[..., None]
+    slip = (nT > lim) & cl                                    # then nT > lim >= 0
+    inv = 1.0 / np.where(slip, nT, 1.0)
+    r = np.where(slip, lim * inv, cl.astype(float))           # 0 on an open contact
+    rx, ry = r * tx, r * ty
+    Te = np.stack([rx, ry], axis=-2)
+    q = np.where(slip, lim * inv * inv * inv, 0.0)            # lim / |t|^3 where slipping
+    qk = q * kte
+    kr = (kte * r).sum(-1)
+    Dtt = np.empty(N.shape + (2, 2))
+    qx = qk * tx
+    Dtt[..., 0, 0] = (qx * tx).sum(-1) - kr
+    Dtt[..., 0, 1] = Dtt[..., 1, 0] = (qx * ty).sum(-1)
+    Dtt[..., 1, 1] = (qk * ty * ty).sum(-1) - kr
+    # d/dg_n through N(g_n) (dN/dg_n = -dN): every trial moves by (dk_t w_e dN) dg, then the
+    # return (r_e, minus the th_e component when slipping); each slipping element's circle grows
+    # by mu c_e (-dN) along th_e
+    a = dkt * dN
+    qw = q * w
+    proj = tx * dgx + ty * dgy
+    wr = (w * r).sum(-1)
+    sc = np.where(slip, c * inv, 0.0)
+    mu_dN = la.mu * dN
+    DtN = np.empty(N.shape + (2,))
+    DtN[..., 0] = a * (wr * dg[..., 0] - (qw * tx * proj).sum(-1)) - mu_dN * (sc * tx).sum(-1)
+    DtN[..., 1] = a * (wr * dg[..., 1] - (qw * ty * proj).sum(-1)) - mu_dN * (sc * ty).sum(-1)
+    T = np.stack([rx.sum(-1), ry.sum(-1)], axis=-1)
+    return T, Dtt, DtN, Te
 
 
 def commit(laws: list[ContactLaw], g: np.ndarray, p: np.ndarray,
@@ -417,7 +419,7 @@ def commit(laws: list[ContactLaw], g: np.ndarray, p: np.ndarray,
 
 def element_forces(la: _LawArrays, g: np.ndarray, state: ContactState,
                    gap0: np.ndarray | None = None) -> np.ndarray:
-    """The Iwan elements' forces (B, m, n, 2) at relative displacements ``g`` from ``state``
+    """The Iwan elements' forces (B, m, 2, n) at relative displacements ``g`` from ``state``
     (the same return map as :func:`contact_forces`), for the committed state."""
     delta = (0.0 if gap0 is None else np.asarray(gap0, float)) - g[..., 0]
     N, dN = la.normal(delta, state.N)
@@ -539,7 +541,7 @@ class ContactProblem:
             if np.any(st.T != 0):
                 raise ModelError("a partial-slip contact problem started from a state with "
                                  "tangential forces but no Iwan element forces")
-            st.Te = np.zeros(st.T.shape[:-1] + (self._la.n_el, 2))
+            st.Te = np.zeros(st.T.shape + (self._la.n_el,))
         g = st.g.copy()
         P = np.zeros((Bn, npt, self.m, 3))
         Gs = np.zeros_like(P)

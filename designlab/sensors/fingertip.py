@@ -147,8 +147,9 @@ class FingertipModelSettings(ContactSettings, FEMSettings):
     springs, ABS relaxation; its hysteresis is the relaxation alone)."""
 
     contact: bool = field(default=True, metadata=rng(
-        doc="contact model at the ball (Hertz + Mindlin + Coulomb, bolt preload, FSS015 "
-            "readout: designlab.sensors.fingertip_contact); false: bilateral linear springs"))
+        doc="contact model at the ball (Hertz + Mindlin partial slip + Coulomb, bolt preload, "
+            "FSS015 readout: designlab.sensors.fingertip_contact); false: bilateral linear "
+            "springs"))
 
     edge_length: float = field(default=2.5, metadata=rng(0.2, 10, unit="mm"))
     cap_support: str = field(default="rim", metadata=rng(
@@ -617,8 +618,9 @@ def finish(report: dict[str, Any], prediction: FingertipPrediction, part,
             f"Of an axial force P_z {100 * share['z']:.1f} % reaches the sensors (radial "
             f"{100 * share['x']:.0f} % / {100 * share['y']:.0f} %, linear load paths at the "
             "structure's moduli); the rest goes through the M2.5 bolt and the printed cap in "
-            "parallel. The contact model adds Hertz compliance, friction (stick/slip) at the "
-            "three contacts, the bolt preload and the FSS015/DAQ readout errors; cond(A) here "
+            "parallel. The contact model adds Hertz compliance, friction (Mindlin's partial "
+            "slip and Coulomb sliding) at the three contacts, the bolt preload and the "
+            "FSS015/DAQ readout errors; cond(A) here "
             f"is {cond:.1f} for this design and protocol (the paper's 34.92 is the Table III "
             "design's: see contact.table_III_design).")
         t0 = time.perf_counter()

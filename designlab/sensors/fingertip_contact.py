@@ -14,9 +14,10 @@ compressed FSS sensor ... to increase"). This module adds that physics:
   stiffness, so the same FEM serves the linear and the contact model.
 * **Contacts** (:mod:`designlab.fem.contact`): at each ball/sensor-button contact, a unilateral
   normal law (Hertz sphere-on-sphere, ball 9.4 mm on the FSS015 button, in series with the
-  sensor's 500 N/mm), Mindlin's tangential stiffness and Coulomb slip (stick/slip state carried
-  through the whole history). The sensor reads the normal force (its axis passes through both
-  sphere centres). The sensor body is taken as rigid laterally (it sits in its well; the
+  sensor's 500 N/mm), Mindlin's tangential law with partial slip (the Hertz circle's rim slips
+  before the contact slides: Cattaneo-Mindlin, Masing unloading, as 24 Iwan elements) and
+  Coulomb sliding at mu N, the state carried through the whole history. The sensor reads the
+  normal force (its axis passes through both sphere centres). The sensor body is taken as rigid laterally (it sits in its well; the
   tangential force goes to the well floor through it).
 * **Bolt preload** as an assembly step: the bolt is tightened (an initial shortening, i.e. an
   equal and opposite force pair on the ball and under the bolt head) until the bolt tension
@@ -703,7 +704,8 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
             response[name] = (S_true[b, kmax] - S_true[b, 0]).tolist()
 
     report: dict[str, Any] = {
-        "model": "contact (Hertz + Mindlin + Coulomb at the ball, bolt preload, condensed FEM)",
+        "model": "contact (Hertz + Mindlin partial slip + Coulomb at the ball, bolt preload, "
+                 "condensed FEM)",
         "hysteresis_percent": {
             "definition": "robust_eq1_span10 with the FSS015/DAQ readout errors (mean over "
                           "the sensors whose span is >= 10 % of the largest, then rotations)",
