@@ -339,7 +339,7 @@ def contact_forces(laws, g: np.ndarray, state: ContactState, gap0: np.ndarray | 
     kt, dkt = la.kt(N)
     dg = g[..., 1:] - state.gt
     if la.n_el:
-        T, Dtt, DtN, _ = _partial_slip(la, N, dN, kt, dkt, dg, state)
+        T, Dtt, DtN, _ = partial_slip(la, N, dN, kt, dkt, dg, state)
         p[..., 1:] = T
         D[..., 1:, 1:] = Dtt
         D[..., 1:, 0] = DtN
@@ -363,7 +363,7 @@ def contact_forces(laws, g: np.ndarray, state: ContactState, gap0: np.ndarray | 
     return p, D
 
 
-def _partial_slip(la: _LawArrays, N, dN, kt, dkt, dg, state: ContactState):
+def partial_slip(la: _LawArrays, N, dN, kt, dkt, dg, state: ContactState):
     """Tangential force, its tangent (d/dg_t, d/dg_n) and the elements' forces (B, m, 2, n) of
     the Iwan model of :func:`iwan_elements` (B, m contacts, n elements): element e's trial
     ``t_e = Te - w_e k_t(N) dg``, returned to its circle ``c_e mu N`` when outside (the Coulomb
@@ -424,7 +424,7 @@ def element_forces(la: _LawArrays, g: np.ndarray, state: ContactState,
     delta = (0.0 if gap0 is None else np.asarray(gap0, float)) - g[..., 0]
     N, dN = la.normal(delta, state.N)
     kt, dkt = la.kt(N)
-    return _partial_slip(la, N, dN, kt, dkt, g[..., 1:] - state.gt, state)[3]
+    return partial_slip(la, N, dN, kt, dkt, g[..., 1:] - state.gt, state)[3]
 
 
 @dataclass

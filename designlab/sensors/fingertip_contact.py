@@ -54,7 +54,7 @@ from designlab.calibration.calibration_matrix import (condition_number, cross_ta
 from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
 from designlab.errors import ParameterError
 from designlab.fem.contact import (ContactLaw, ContactProblem, ContactState, HertzContact,
-                                   _partial_slip)
+                                   partial_slip)
 # the settings and their sourced defaults live with the fingertip's model settings (which derive
 # from ContactSettings, so that ``--setting friction_coefficient=...`` reaches this model)
 from designlab.sensors.fingertip import (  # noqa: F401  (re-exported)
@@ -258,7 +258,7 @@ class _FastProblem(ContactProblem):
     floating-point operations on the same values, in the same order: bit-identical results) and
     less Python and numpy overhead per Newton iteration, for the fingertip's laws (every contact
     Hertz in series with the sensor's spring, Mindlin with no tangential series spring, friction;
-    with partial slip, the tangential law is contact's own ``_partial_slip``):
+    with partial slip, the tangential law is contact's own ``partial_slip``):
     the law arrays' branches that are constant for such laws are resolved once (the Newton
     iteration is the parent's). Other laws take the parent's path."""
 
@@ -313,7 +313,7 @@ class _FastProblem(ContactProblem):
         dkt = np.where(Nk > 0, kt / (3.0 * Nk), 0.0)
         dg = g[..., 1:] - state.gt
         if la.n_el:                                  # Mindlin's partial slip: the same function
-            T, Dtt, DtN, _ = _partial_slip(la, N, dN, kt, dkt, dg, state)
+            T, Dtt, DtN, _ = partial_slip(la, N, dN, kt, dkt, dg, state)
             p[..., 1:] = T
             D[..., 1:, 1:] = Dtt
             D[..., 1:, 0] = DtN
