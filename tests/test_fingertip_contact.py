@@ -314,7 +314,18 @@ def test_paper_designs_share_this_designs_fem_and_report_the_goals():
     ch = g["compressed_change_h9_to_h1"]
     assert ch["met"] == (abs(ch["value_pct"] - 33.9) <= 15)
     lo = g["lowest_mean_G1"]
-    assert lo["met"] == (0.49 <= lo["value_with_readout_pct"] <= 1.96)
+    # decided on the mean over the readout draws (the expected measurement), one draw beside it
+    assert lo["decided_by"] == "mean_of_draws" and lo["draws"] == 200
+    assert lo["met"] == (0.49 <= lo["value_with_readout_mean_of_draws_pct"] <= 1.96)
+    assert lo["at_the_edge"] == (min(abs(lo["value_with_readout_mean_of_draws_pct"] - b)
+                                     for b in (0.49, 1.96)) < 2 * lo["standard_error_pct"])
+    tr = g["G1_falls_monotonically_h1_to_h9"]
+    dr = pc["table_II_design"]["readout_draws"]
+    m = [v["mean"] for v in dr["G1_by_location"].values()]
+    assert list(dr["G1_by_location"]) == [f"h{i}" for i in range(1, 10)]
+    assert tr["met"] == tr["value_with_readout_mean_of_draws"] == (
+        all(a > b for a, b in zip(m, m[1:])) and m[0] >= 2 * m[-1])
+    assert 0 <= tr["share_of_draws_monotonic"] <= 1
     t2 = pc["table_II_design"]["hysteresis_percent"]["robust_eq1_span10_noise_free"]
     assert list(t2["G1_by_location"]) == [f"h{i}" for i in range(1, 10)]
     assert pc["table_III_design"]["condition_number"] > 1.4

@@ -823,6 +823,15 @@ def paper_comparison_figure(contact: dict[str, Any], plt):
                 continue
             vals = np.array(list(hp[key][f"{grp}_by_location"].values()), float)
             ax.semilogy(xs, np.maximum(vals, 1e-6), ls="-", ms=5, label=lab, **series_style(i))
+        dr = (t2.get("readout_draws") or {}).get(f"{grp}_by_location")
+        if dr and xs is not None and len(dr) == len(xs):
+            m = np.array([v["mean"] for v in dr.values()])
+            sd = np.array([v["sd"] for v in dr.values()])
+            st = series_style(len(labels))
+            ax.errorbar(xs, m, yerr=[np.minimum(sd, 0.9 * m), sd], ls=":", capsize=3,
+                        color=st["color"], marker=st.get("marker", "o"), ms=4,
+                        label=f"model, robust, readout\nmean +- sd, "
+                              f"{t2['readout_draws']['draws']} draws")
         ax.axhline(lo, color="k", ls="--", lw=1, label=f"paper: lowest mean\n{grp} {lo} %")
         ax.set_xlabel(xlabel)
         ax.set_ylabel(f"{grp} hysteresis, % of span (eq. 1)")

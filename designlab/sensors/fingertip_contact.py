@@ -1363,6 +1363,11 @@ def paper_comparison(part, protocol: HangingWeightTest, settings: ContactSetting
             "heights_mm": list(CantileverFingertip.tested().load_table_values()[0]),
             "radii_mm": list(CantileverFingertip.tested().load_table_values()[1]),
             "hysteresis_percent": defs,
+            "readout_draws": {k: v for k, v in dr.items() if k != "by_location"} | {
+                "G1_by_location": {n: dr["by_location"][n] for n in g1 if n in dr.get(
+                    "by_location", {})},
+                "G2_by_location": {n: dr["by_location"][n] for n in g2 if n in dr.get(
+                    "by_location", {})}} if dr else None,
             "preload": r["preload"], "lift_off_warnings": len(r["lift_off_warnings"])}
         (matches if goals["G1_falls_monotonically_h1_to_h9"]["value_noise_free"]
          else mismatches).append(
