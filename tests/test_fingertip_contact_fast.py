@@ -47,6 +47,8 @@ def test_fast_problem_is_bit_identical_to_the_generic_solve(kt_series, microslip
     assert (a.state.Te is None) == (microslip == 0)
     if microslip:
         assert np.array_equal(a.state.Te, b.state.Te)
+        # the committed elements add up to the committed tangential force, bit for bit
+        assert np.array_equal(b.state.T, b.state.Te.sum(axis=-1))
     assert a.iterations == b.iterations and a.lift_off == b.lift_off
     # the path exercises what the streamlined code resolves: slip and open contacts
     N = a.p[..., 0]
