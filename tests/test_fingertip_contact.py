@@ -439,3 +439,78 @@ def test_readout_draws_first_is_the_reading_and_spread_is_reported():
     assert 0.0 <= da["G1_monotonic_share"] <= 1.0
     with pytest.raises(ParameterError, match="readout_draws"):
         ContactSettings(readout_draws=0)
+
+
+# ------------------------------------------------------------------------------ relaxation
+
+def test_relaxing_structure_without_relaxation_is_the_quasi_static_protocol():
+    """structure_moduli="relaxing" with no relaxation (instantaneous = long-time) reads what
+    the quasi-static solve reads (holds change nothing; the window mean of equal samples); a
+    stiffer instantaneous structure changes the loops; the arrays survive the FEM cache."""
+    import dataclasses
+
+    from designlab.sensors.fingertip_contact import CondensedFingertip
+
+    cf = lumped_condensed(PART)
+    s = _noise_free()
+    a = run_contact_test(PART, SHORT, s, cf)
+    same = dataclasses.replace(cf, C_instant=cf.C.copy(), relaxation_tau_s=2.0,
+                               structure_moduli="relaxing")
+    b = run_contact_test(PART, SHORT, s, same)
+    for name, loop in a["loops"].items():
+        np.testing.assert_allclose(b["loops"][name]["sensor_force_N"], loop["sensor_force_N"],
+                                   rtol=0, atol=1e-9 * np.abs(loop["sensor_force_N"]).max())
+    stiff = dataclasses.replace(same, C_instant=0.9 * cf.C)
+    c = run_contact_test(PART, SHORT, s, stiff)
+    assert c["loops"]["h1"]["sensor_force_N"] != a["loops"]["h1"]["sensor_force_N"]
+    back = CondensedFingertip.from_arrays(stiff.to_arrays())
+    assert np.array_equal(back.C_instant, stiff.C_instant) and back.relaxation_tau_s == 2.0
+    # the relaxing structure takes one relaxation time: a two-term elastomer is refused
+    from types import SimpleNamespace
+
+    from designlab.sensors.fingertip_contact import relaxation_time
+    assert relaxation_time(SimpleNamespace(materials={"base": "ABS", "cap": "ABS"})) == 2.0
+    with pytest.raises(ParameterError, match="structure_moduli") as e:
+        relaxation_time(SimpleNamespace(materials={"base": "ABS", "strap": "NinjaFlex"}))
+    assert "\n" not in str(e.value)
+
+
+@pytest.mark.slow
+def test_relaxing_condensed_structure_follows_the_viscoelastic_fem():
+    """The relaxing structure at the masters (one Prony term between the long-time and the
+    instantaneous condensations) against the full viscoelastic FEM march of the linear test:
+    the sensor forces after a step of each unit wrench, linear contacts kept closed by a
+    preload, agree at t = 0 to round-off and through the relaxation within 2 % of its size
+    (the condensation of a relaxing body is exact at its ends, close between)."""
+    from designlab.fem.contact import RelaxingContactProblem
+    from designlab.sensors.fingertip import (FingertipModelSettings, build_model,
+                                             mesh_fingertip, step_responses)
+    from designlab.sensors.fingertip_contact import condense_fingertip
+
+    fs = FingertipModelSettings(edge_length=5.0)
+    mesh = mesh_fingertip(PART, fs)
+    model, names = build_model(PART, mesh, fs)
+    H, _ = step_responses(model, names["sensors"], 2.0, 0.5, 20.0)       # (nt, 6, 3)
+    cf = condense_fingertip(PART, mesh, fs, "relaxing")
+    assert cf.relaxation_tau_s == 2.0 and cf.structure_moduli == "relaxing"
+    K_inf, K_0 = np.linalg.inv(cf.C), np.linalg.inv(cf.C_instant)
+    laws = [ContactLaw(0.0, None, k_series=cf.k_sensor, kt_series=1e9) for _ in range(3)]
+    rp = RelaxingContactProblem(K_inf, K_0 - K_inf, 2.0, cf.L, laws)
+    n, B, nt = 24, 6, H.shape[0]
+    f_pre = np.zeros((B, 1, n))
+    f_pre[..., 2] = -30.0                       # the ball pressed onto the sensors
+    z = np.zeros((B, n))
+    r0, q, h = rp.solve_history(f_pre, np.array([0.0]), ContactState.zero(B, 3), z, z, 4)
+    r1, q, h = rp.solve_history(f_pre, np.array([1e4]), r0.state, q, h, f_start=f_pre[:, 0])
+    f = f_pre + 0.5 * np.repeat(cf.f_wrench[:, None, :], nt, axis=1)
+    r, _, _ = rp.solve_history(f, np.r_[0.0, np.full(nt - 1, 0.5)], r1.state, q, h,
+                               f_start=f_pre[:, 0])
+    assert (r.p[..., 0] > 0).all()
+    S = (r.p[..., 0] - r1.state.N[:, None]) / 0.5                       # (6, nt, 3)
+    Hm = np.moveaxis(H, 1, 0)
+    for c in range(6):
+        scale = np.abs(Hm[c]).max()
+        relax = np.abs(Hm[c, -1] - Hm[c, 0]).max()
+        assert np.abs(S[c, 0] - Hm[c, 0]).max() < 1e-9 * scale
+        assert relax > 1e-3 * scale                      # there is a relaxation to follow
+        assert np.abs(S[c] - Hm[c]).max() < 0.03 * relax, c

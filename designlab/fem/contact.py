@@ -31,6 +31,7 @@ structure:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -563,6 +564,98 @@ class ContactProblem:
             P[:, j] = np.concatenate([st.N[..., None], st.T], -1)
             Gs[:, j] = g
         return PathResult(P, Gs, st, iters, lift)
+
+
+@dataclass
+class RelaxingContactProblem:
+    """``m`` contacts on a linear structure whose stiffness at its master dofs relaxes by one
+    Prony term: ``K(t) = K_inf + dK exp(-t / tau)`` (a standard linear solid at the masters:
+    ``K_inf`` long-time, ``K_inf + dK`` instantaneous). With ``h`` the relaxing branch's master
+    forces, ``K_inf q + h = f + L^T p`` and ``dh/dt = -h / tau + dK dq/dt``; over a step of
+    length dt with q linear in time the exponential rule gives ``h' = e h + gamma dK (q' - q)``,
+    ``e = exp(-dt/tau)``, ``gamma = tau/dt (1 - e)`` (1 at dt = 0: the instantaneous stiffness).
+    Each step is then one increment of a :class:`ContactProblem` of flexibility
+    ``(K_inf + gamma dK)^-1`` under the load ``f - e h + gamma dK q``. Exact for a structure
+    whose stiffness is ``K_inf + dK exp(-t/tau)`` at its masters; a static condensation of a
+    body with one Prony term is that at t = 0 and t = inf and close between (the check against
+    the full viscoelastic FEM is the caller's). ``problem_cls`` builds the per-step problems
+    (a subclass with faster laws gives the same numbers)."""
+
+    K_inf: np.ndarray
+    dK: np.ndarray
+    tau: float
+    L: np.ndarray
+    laws: list[ContactLaw]
+    gap0: np.ndarray | None = None
+    problem_cls: type = ContactProblem
+
+    def __post_init__(self):
+        self.K_inf = np.asarray(self.K_inf, float)
+        self.dK = np.asarray(self.dK, float)
+        if not self.tau > 0:
+            raise ParameterError("tau", self.tau, "> 0 s")
+        self._steps: dict[float, tuple] = {}
+        self.Lf = np.asarray(self.L, float).reshape(-1, self.K_inf.shape[0])
+
+    def step(self, dt: float):
+        """(problem, gamma, e) of a step of length ``dt`` s (cached per dt)."""
+        key = float(dt)
+        if key not in self._steps:
+            e = math.exp(-key / self.tau)
+            gamma = 1.0 if key == 0 else self.tau / key * (1.0 - e)
+            C = np.linalg.inv(self.K_inf + gamma * self.dK)
+            C = 0.5 * (C + C.T)
+            self._steps[key] = (self.problem_cls(C, self.L, self.laws, self.gap0), gamma, e)
+        return self._steps[key]
+
+    def master_motion(self, f: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """Long-time master motions ``K_inf^-1 (f + L^T p)`` of loads f (B, n) and contact forces
+        p (B, m, 3): the relaxed state (h = 0) an assembly step leaves."""
+        return np.linalg.solve(self.K_inf, (f + p.reshape(len(f), -1) @ self.Lf).T).T
+
+    def solve_history(self, f_points: np.ndarray, dt: np.ndarray, state: ContactState,
+                      q: np.ndarray, h: np.ndarray, n_sub: int = 1,
+                      f_start: np.ndarray | None = None):
+        """Follow master loads ``f_points`` (B, npt, n) reached after ``dt`` (npt,) s each: a
+        point with dt = 0 is a load change, ramped in ``n_sub`` instantaneous increments; a point
+        with dt > 0 is one step of that length with the load applied over it (a hold when the
+        load does not change). Starts from ``state`` and the master motions ``q``, relaxing
+        forces ``h`` (B, n). Returns (PathResult, q, h)."""
+        f_points = np.asarray(f_points, float)
+        Bn, npt, n = f_points.shape
+        f_prev = np.zeros((Bn, n)) if f_start is None else np.asarray(f_start, float)
+        st = state.copy()
+        q, h = np.array(q, float), np.array(h, float)
+        g = st.g.copy()
+        m = self.L.shape[0]
+        P = np.zeros((Bn, npt, m, 3))
+        Gs = np.zeros_like(P)
+        iters, lift = 0, []
+        for j in range(npt):
+            subs = [(s / n_sub, 0.0) for s in range(1, n_sub + 1)] if dt[j] == 0 else \
+                [(1.0, float(dt[j]))]
+            for frac, d in subs:
+                f = f_prev + (f_points[:, j] - f_prev) * frac
+                prob, gamma, e = self.step(d)
+                la = prob._la
+                if la.n_el and st.Te is None:
+                    st.Te = np.zeros(st.T.shape + (la.n_el,))
+                f_eff = f - e * h + gamma * (q @ self.dK.T)
+                g0 = prob.free_motion(f_eff)
+                closed_before = st.N > 0
+                g, p, it = prob.solve_increment(g0, st, g)
+                iters += it
+                Te = element_forces(la, g, st, prob.gap0) if la.n_el else None
+                st = commit(self.laws, g, p, Te)
+                q_new = (f_eff + p.reshape(Bn, -1) @ self.Lf) @ prob.C.T
+                h = e * h + gamma * ((q_new - q) @ self.dK.T)
+                q = q_new
+                for b, k in zip(*np.nonzero(closed_before & ~(st.N > 0))):
+                    lift.append((int(b), j, int(k)))
+            f_prev = f_points[:, j]
+            P[:, j] = np.concatenate([st.N[..., None], st.T], -1)
+            Gs[:, j] = g
+        return PathResult(P, Gs, st, iters, lift), q, h
 
 
 # ---------------------------------------------------------------------- static condensation

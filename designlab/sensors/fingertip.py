@@ -108,7 +108,9 @@ class ContactSettings:
         "(designlab.fem.contact.iwan_elements); 0: the contact sticks whole until it slides "
         "(elastic-perfectly-plastic, the model before 2026-11-26)"))
     structure_moduli: str = field(default="long_time", metadata=rng(
-        choices=("long_time", "instantaneous"), doc="ABS moduli of the condensed structure"))
+        choices=("long_time", "instantaneous", "relaxing"), doc="ABS moduli of the condensed "
+        "structure: relaxed, instantaneous, or relaxing between the two through the protocol's "
+        "holds (the contact solve follows the time history; ~6x the time)"))
     increments_per_step: int = field(default=4, metadata=rng(1, 10000))
     preconditioning_cycles: int = field(default=1, metadata=rng(
         0, 100, doc="loops run at each location before the measured one: the first loop after "
