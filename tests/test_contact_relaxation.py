@@ -79,3 +79,15 @@ def test_bad_relaxation_time():
     with pytest.raises(Exception, match="tau"):
         _one_dof().__class__(np.eye(1), np.eye(1), 0.0, np.zeros((1, 3, 1)),
                              [ContactLaw(0.0, None, k_series=1.0)])
+
+
+def test_a_problem_loaded_by_its_interference_alone_converges():
+    """Zero loads, an initial interference: the contact closes on the structure (the
+    tolerance scales with the interference, not only with the free motion)."""
+    C = np.diag([1 / 200.0, 1 / 100.0, 1 / 100.0])
+    prob = ContactProblem(C, np.eye(3)[None], [ContactLaw(0.3, None, k_series=K_S,
+                                                          kt_series=300.0)],
+                          gap0=np.array([0.05]))
+    res = prob.solve_path(np.zeros((1, 1, 3)), ContactState.zero(1, 1))
+    # springs in series: N = 0.05 / (1/k_s + 1/200)
+    assert res.p[0, 0, 0, 0] == pytest.approx(0.05 / (1 / K_S + 1 / 200.0), rel=1e-9)

@@ -463,6 +463,7 @@ class ContactProblem:
                              f"{len(self.laws)} laws do not match")
         self.Lf = self.L.reshape(3 * m, n)
         self.F = self.Lf @ self.C @ self.Lf.T          # contact flexibility (3m x 3m)
+        self._gap_scale = 0.0 if self.gap0 is None else float(np.abs(self.gap0).max())
         self._la = _LawArrays(self.laws)
         m = self.m
         self._eye = np.eye(3 * m)
@@ -491,7 +492,10 @@ class ContactProblem:
         rows, cols = self._bd
         forces = self._forces
         g = g_start.copy()
-        scale = max(float(np.abs(g0).max()), float(np.abs(g_start).max()), 1e-9)
+        # the motions' scale: the free motion, the start, and an initial interference (a problem
+        # loaded by its interference alone has zero free motion)
+        scale = max(float(np.abs(g0).max()), float(np.abs(g_start).max()),
+                    self._gap_scale, 1e-9)
         tol, floor = self.tol * scale, 1e-15 * scale
 
         def residual(g):
