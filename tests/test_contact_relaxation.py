@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 
+from designlab.errors import ParameterError
 from designlab.fem.contact import ContactLaw, ContactProblem, ContactState, RelaxingContactProblem
 
 K_INF, DK, TAU, K_S = 300.0, 60.0, 2.0, 500.0
@@ -76,9 +77,9 @@ def test_no_relaxation_is_the_quasi_static_path():
 
 
 def test_bad_relaxation_time():
-    with pytest.raises(Exception, match="tau"):
-        _one_dof().__class__(np.eye(1), np.eye(1), 0.0, np.zeros((1, 3, 1)),
-                             [ContactLaw(0.0, None, k_series=1.0)])
+    with pytest.raises(ParameterError, match="tau"):
+        RelaxingContactProblem(np.eye(1), np.eye(1), 0.0, np.zeros((1, 3, 1)),
+                               [ContactLaw(0.0, None, k_series=1.0)])
 
 
 def test_a_problem_loaded_by_its_interference_alone_converges():

@@ -321,13 +321,15 @@ class _LawArrays:
         return k, dk
 
 
-def contact_forces(laws, g: np.ndarray, state: ContactState, gap0: np.ndarray | None = None):
+def contact_forces(laws, g: np.ndarray, state: ContactState, gap0: np.ndarray | None = None,
+                   elements: bool = False):
     """Forces ``p`` (B, m, 3) = (N, T1, T2) that B exerts on A for relative displacements
     ``g`` (B, m, 3), starting the increment from ``state``, and their tangent dp/dg
-    (B, m, 3, 3). ``laws``: the contact laws (list, or their :class:`_LawArrays`). Approach
-    ``delta = gap0 - g_n`` (``gap0``: initial interference, mm). Tangential: trial
-    T = T_old - k_t(N) (g_t - g_t,old); slip when |T| > mu N (return to the cone). Open contacts
-    (N = 0) carry nothing."""
+    (B, m, 3, 3); ``elements``: also the Iwan elements' forces (B, m, 2, n) of a partial-slip
+    law (None for the others), which the committed state keeps. ``laws``: the contact laws
+    (list, or their :class:`_LawArrays`). Approach ``delta = gap0 - g_n`` (``gap0``: initial
+    interference, mm). Tangential: trial T = T_old - k_t(N) (g_t - g_t,old); slip when
+    |T| > mu N (return to the cone). Open contacts (N = 0) carry nothing."""
     la = laws if isinstance(laws, _LawArrays) else _LawArrays(laws)
     p = np.zeros_like(g)
     D = np.zeros(g.shape + (3,))
@@ -336,15 +338,15 @@ def contact_forces(laws, g: np.ndarray, state: ContactState, gap0: np.ndarray | 
     p[..., 0] = N
     D[..., 0, 0] = -dN
     if not (la.mu > 0).any():
-        return p, D
+        return (p, D, None) if elements else (p, D)
     kt, dkt = la.kt(N)
     dg = g[..., 1:] - state.gt
     if la.n_el:
-        T, Dtt, DtN, _ = partial_slip(la, N, dN, kt, dkt, dg, state)
+        T, Dtt, DtN, Te = partial_slip(la, N, dN, kt, dkt, dg, state)
         p[..., 1:] = T
         D[..., 1:, 1:] = Dtt
         D[..., 1:, 0] = DtN
-        return p, D
+        return (p, D, Te) if elements else (p, D)
     Ttr = state.T - kt[..., None] * dg
     nT = np.linalg.norm(Ttr, axis=-1)
     lim = la.mu * N
@@ -361,7 +363,7 @@ def contact_forces(laws, g: np.ndarray, state: ContactState, gap0: np.ndarray | 
     p[..., 1:] = T
     D[..., 1:, 1:] = np.where(closed[..., None, None], Dtt, 0.0)
     D[..., 1:, 0] = np.where(closed[..., None], DtN, 0.0)
-    return p, D
+    return (p, D, None) if elements else (p, D)
 
 
 def partial_slip(la: _LawArrays, N, dN, kt, dkt, dg, state: ContactState):
@@ -418,16 +420,6 @@ def commit(laws: list[ContactLaw], g: np.ndarray, p: np.ndarray,
                         None if Te is None else Te.copy())
 
 
-def element_forces(la: _LawArrays, g: np.ndarray, state: ContactState,
-                   gap0: np.ndarray | None = None) -> np.ndarray:
-    """The Iwan elements' forces (B, m, 2, n) at relative displacements ``g`` from ``state``
-    (the same return map as :func:`contact_forces`), for the committed state."""
-    delta = (0.0 if gap0 is None else np.asarray(gap0, float)) - g[..., 0]
-    N, dN = la.normal(delta, state.N)
-    kt, dkt = la.kt(N)
-    return partial_slip(la, N, dN, kt, dkt, g[..., 1:] - state.gt, state)[3]
-
-
 @dataclass
 class PathResult:
     """Forces (B, n_points, m, 3) and relative displacements at every load point of a path,
@@ -479,13 +471,15 @@ class ContactProblem:
         return (np.atleast_2d(f) @ self.C.T @ self.Lf.T).reshape(-1, self.m, 3)
 
     def _forces(self, g: np.ndarray, state: ContactState):
-        """Contact forces and their tangent at the relative displacements ``g`` (the laws'
-        :func:`contact_forces`; a subclass may evaluate its laws faster, with the same numbers)."""
-        return contact_forces(self._la, g, state, self.gap0)
+        """Contact forces, their tangent and the Iwan elements' forces (None without partial
+        slip) at the relative displacements ``g`` (the laws' :func:`contact_forces`; a subclass
+        may evaluate its laws faster, with the same numbers)."""
+        return contact_forces(self._la, g, state, self.gap0, elements=True)
 
     def solve_increment(self, g0: np.ndarray, state: ContactState, g_start: np.ndarray):
         """Equilibrium g = g0 + F p(g) for free motions ``g0`` (B, m, 3), from ``g_start``.
-        Returns (g, p, iterations)."""
+        Returns (g, p, iterations, the Iwan elements' forces or None), p and the elements at
+        the converged g from its last residual evaluation."""
         Bn, m = g0.shape[:2]
         F = self.F
         FT, Fb, eye = F.T, F[None], self._eye[None]
@@ -499,10 +493,10 @@ class ContactProblem:
         tol, floor = self.tol * scale, 1e-15 * scale
 
         def residual(g):
-            p, D = forces(g, state)
-            return (g - g0).reshape(Bn, -1) - p.reshape(Bn, -1) @ FT, D
+            p, D, Te = forces(g, state)
+            return (g - g0).reshape(Bn, -1) - p.reshape(Bn, -1) @ FT, D, p, Te
 
-        R, D = residual(g)
+        R, D, p, Te = residual(g)
         Dbd = np.zeros((Bn, 3 * m, 3 * m))         # block-diagonal tangent, blocks rewritten
         for it in range(1, self.max_iter + 1):
             Dbd[:, rows, cols] = D.reshape(Bn, -1)
@@ -515,7 +509,7 @@ class ContactProblem:
             lam = np.ones(Bn)
             for _ in range(8):
                 g_try = g + lam[:, None, None] * dx
-                R_try, D_try = residual(g_try)
+                R_try, D_try, p_try, Te_try = residual(g_try)
                 worse = np.linalg.norm(R_try, axis=1) > r0 * (1 - 1e-4 * lam) + floor
                 if not worse.any():
                     break
@@ -523,15 +517,31 @@ class ContactProblem:
             else:
                 lam = np.where(worse, 1.0, lam)
                 g_try = g + lam[:, None, None] * dx
-                R_try, D_try = residual(g_try)
-            g, R, D = g_try, R_try, D_try
+                R_try, D_try, p_try, Te_try = residual(g_try)
+            g, R, D, p, Te = g_try, R_try, D_try, p_try, Te_try
             if np.abs(R).max() <= tol:
                 break
         else:
             raise ModelError(f"contact increment did not converge in {self.max_iter} Newton "
                              f"iterations (residual {np.abs(R).max():.3g} mm)")
-        p, _ = forces(g, state)
-        return g, p, it
+        return g, p, it, Te
+
+    def initial_state(self, state: ContactState) -> ContactState:
+        """A copy of ``state`` to start a path from; a partial-slip problem refuses a state with
+        tangential forces but no element forces (their split is not known)."""
+        if self._la.n_el and state.Te is None and np.any(state.T != 0):
+            raise ModelError("a partial-slip contact problem started from a state with "
+                             "tangential forces but no Iwan element forces")
+        return state.copy()
+
+    def advance(self, g0: np.ndarray, state: ContactState, g_start: np.ndarray):
+        """One increment to the free motions ``g0`` from ``state``: (g, p, new state, Newton
+        iterations, the (batch, contact) pairs that opened)."""
+        closed_before = state.N > 0
+        g, p, it, Te = self.solve_increment(g0, state, g_start)
+        st = commit(self.laws, g, p, Te)
+        opened = [(int(b), int(k)) for b, k in zip(*np.nonzero(closed_before & ~(st.N > 0)))]
+        return g, p, st, it, opened
 
     def solve_path(self, f_points: np.ndarray, state: ContactState, n_sub: int = 1,
                    f_start: np.ndarray | None = None) -> PathResult:
@@ -541,12 +551,7 @@ class ContactProblem:
         f_points = np.asarray(f_points, float)
         Bn, npt, n = f_points.shape
         f_prev = np.zeros((Bn, n)) if f_start is None else np.asarray(f_start, float)
-        st = state.copy()
-        if self._la.n_el and st.Te is None:
-            if np.any(st.T != 0):
-                raise ModelError("a partial-slip contact problem started from a state with "
-                                 "tangential forces but no Iwan element forces")
-            st.Te = np.zeros(st.T.shape + (self._la.n_el,))
+        st = self.initial_state(state)
         g = st.g.copy()
         P = np.zeros((Bn, npt, self.m, 3))
         Gs = np.zeros_like(P)
@@ -555,15 +560,9 @@ class ContactProblem:
         for j in range(npt):
             for s in range(1, n_sub + 1):
                 f = f_prev + (f_points[:, j] - f_prev) * (s / n_sub)
-                g0 = self.free_motion(f)
-                closed_before = st.N > 0
-                g, p, it = self.solve_increment(g0, st, g)
+                g, _, st, it, opened = self.advance(self.free_motion(f), st, g)
                 iters += it
-                Te = (element_forces(self._la, g, st, self.gap0) if self._la.n_el else None)
-                st = commit(self.laws, g, p, Te)
-                opened = closed_before & ~(st.N > 0)
-                for b, k in zip(*np.nonzero(opened)):
-                    lift.append((int(b), j, int(k)))
+                lift += [(b, j, k) for b, k in opened]
             f_prev = f_points[:, j]
             P[:, j] = np.concatenate([st.N[..., None], st.T], -1)
             Gs[:, j] = g
@@ -628,7 +627,7 @@ class RelaxingContactProblem:
         f_points = np.asarray(f_points, float)
         Bn, npt, n = f_points.shape
         f_prev = np.zeros((Bn, n)) if f_start is None else np.asarray(f_start, float)
-        st = state.copy()
+        st = self.step(0.0)[0].initial_state(state)
         q, h = np.array(q, float), np.array(h, float)
         g = st.g.copy()
         m = self.L.shape[0]
@@ -641,21 +640,13 @@ class RelaxingContactProblem:
             for frac, d in subs:
                 f = f_prev + (f_points[:, j] - f_prev) * frac
                 prob, gamma, e = self.step(d)
-                la = prob._la
-                if la.n_el and st.Te is None:
-                    st.Te = np.zeros(st.T.shape + (la.n_el,))
                 f_eff = f - e * h + gamma * (q @ self.dK.T)
-                g0 = prob.free_motion(f_eff)
-                closed_before = st.N > 0
-                g, p, it = prob.solve_increment(g0, st, g)
+                g, p, st, it, opened = prob.advance(prob.free_motion(f_eff), st, g)
                 iters += it
-                Te = element_forces(la, g, st, prob.gap0) if la.n_el else None
-                st = commit(self.laws, g, p, Te)
+                lift += [(b, j, k) for b, k in opened]
                 q_new = (f_eff + p.reshape(Bn, -1) @ self.Lf) @ prob.C.T
                 h = e * h + gamma * ((q_new - q) @ self.dK.T)
                 q = q_new
-                for b, k in zip(*np.nonzero(closed_before & ~(st.N > 0))):
-                    lift.append((int(b), j, int(k)))
             f_prev = f_points[:, j]
             P[:, j] = np.concatenate([st.N[..., None], st.T], -1)
             Gs[:, j] = g

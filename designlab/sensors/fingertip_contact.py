@@ -25,7 +25,7 @@ compressed FSS sensor ... to increase"). This module adds that physics:
 * **Quasi-static, long-time stiffness** (default): the ABS Prony stand-in (4 %, tau 2 s) is
   relaxed to its long-time moduli (``structure_moduli="long_time"``); ``"relaxing"`` keeps the
   relaxation in the contact solve instead (:func:`relaxing_problem`: the protocol in time, hold
-  by hold, ~2.4x the time). The paper reads each weight from 7 to 10 s after it is hung, when
+  by hold, 3.6x the time). The paper reads each weight from 7 to 10 s after it is hung, when
   that term has decayed to e^-3.5 = 3 % of its 4 %; without friction (the linear test) its
   whole hysteresis is 0.002-0.004 %, but with friction the structure creeping under a held
   weight moves the contacts and adds partial slip (docs/fingertip_contact.md: +0.3 points at
@@ -368,11 +368,11 @@ class _FastProblem(ContactProblem):
         dkt = np.where(Nk > 0, kt / (3.0 * Nk), 0.0)
         dg = g[..., 1:] - state.gt
         if la.n_el:                                  # Mindlin's partial slip: the same function
-            T, Dtt, DtN, _ = partial_slip(la, N, dN, kt, dkt, dg, state)
+            T, Dtt, DtN, Te = partial_slip(la, N, dN, kt, dkt, dg, state)
             p[..., 1:] = T
             D[..., 1:, 1:] = Dtt
             D[..., 1:, 0] = DtN
-            return p, D
+            return p, D, Te
         Ttr = state.T - kt[..., None] * dg
         nT = np.sqrt(np.add.reduce(Ttr * Ttr, axis=-1))       # np.linalg.norm's operations
         lim = la.mu * N
@@ -392,7 +392,7 @@ class _FastProblem(ContactProblem):
             + np.where(slip1, self._mu_col * th * mdN1, 0.0)
         D[..., 1:, 1:] = np.where(closed1[..., None], Dtt, 0.0)
         D[..., 1:, 0] = np.where(closed1, DtN, 0.0)
-        return p, D
+        return p, D, None
 
     def solve_increment(self, g0, state, g_start):
         if not self._fast:
@@ -511,8 +511,8 @@ def hold_times(protocol: HangingWeightTest) -> np.ndarray:
 def _relaxing_protocol(part, cf, settings, protocol: HangingWeightTest, st, f_points, f_pre,
                        cycles):
     """The protocol in time on the relaxing structure, from the tightened, relaxed assembly:
-    each weight change in ``increments_per_step`` instantaneous increments, then its hold in
-    steps of ``protocol.dt_s``; the reading of a weight is the mean over the hold's samples in
+    each weight change in ``increments_per_step`` instantaneous increments, then its hold at
+    :func:`hold_times`; the reading of a weight is the mean over the hold's samples in
     the read window (the linear test's ``read_masks``: t >= hold - read window, before the next
     change). Returns a PathResult with one point per weight (forces averaged over the window)."""
     from designlab.fem.contact import PathResult
@@ -566,11 +566,11 @@ def run_rng(seed: int, location: str, rotation_deg: float) -> np.random.Generato
 def readout_draws(S_true, runs, seq, settings: ContactSettings, protocol) -> dict[str, Any]:
     """The robust eq. 1 with readout over ``settings.readout_draws`` noise draws (each run's
     generator :func:`run_rng` continued; without zero drift draw 0 is the reported reading):
-    by location the mean and standard deviation
-    over draws, by group the lowest location's value per draw (mean, sd, min, max), and the
-    share of draws in which G1 falls monotonically from its first to its last location with
-    first >= 2 x last. The readout is random, so a single draw's order of close locations is
-    not a prediction; this is its spread. Noise only: no contact solve is repeated."""
+    by location the mean and standard deviation over draws, by group the lowest location's
+    value per draw (mean, sd, min, max), and the share of draws in which G1 falls monotonically
+    from its first to its last location with first >= 2 x last. The readout is random, so a
+    single draw's order of close locations is not a prediction; this is its spread. Noise only:
+    no contact solve is repeated."""
     n = settings.readout_draws
     names = [r[1] for r in runs]
     order = list(dict.fromkeys(names))
