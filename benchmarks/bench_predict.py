@@ -157,7 +157,10 @@ def calculix_peer() -> None:
 def contact_protocol(repeats: int = 3) -> None:
     """Issue 12 goal: the full Table II protocol of the contact model (14 locations x 6
     rotations x preconditioning + measured loop) in < 2 s once the FEM is condensed. Wall and
-    process time of the best of ``repeats`` runs on the default mesh."""
+    process time of the best of ``repeats`` runs on the default mesh; beside it, alternating,
+    the same protocol with the ABS relaxation kept (``structure_moduli="relaxing"``: the same
+    long-time structure plus its instantaneous condensation)."""
+    import dataclasses
     import warnings
 
     from designlab.geometry.fingertip import CantileverFingertip
@@ -167,17 +170,23 @@ def contact_protocol(repeats: int = 3) -> None:
     from designlab.sensors.protocols import HangingWeightTest
 
     part, fs = CantileverFingertip.tested(), FingertipModelSettings()
-    cf = condense_fingertip(part, mesh_fingertip(part, fs), fs)
-    best = (float("inf"), float("inf"))
+    relaxing = condense_fingertip(part, mesh_fingertip(part, fs), fs, "relaxing")
+    cases = {"default (long-time moduli)": (dataclasses.replace(
+                 relaxing, C_instant=None, structure_moduli="long_time"), ContactSettings()),
+             "relaxing": (relaxing, ContactSettings(structure_moduli="relaxing"))}
+    best = {k: (float("inf"), float("inf")) for k in cases}
     for _ in range(repeats):
-        w0, c0 = time.perf_counter(), time.process_time()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            run_contact_test(part, HangingWeightTest(), ContactSettings(), cf)
-        best = min(best, (time.perf_counter() - w0, time.process_time() - c0))
-    print(f"contact model, full Table II protocol after condensation: wall {best[0]:.2f} s, "
-          f"cpu {best[1]:.2f} s (goal < 2 s): {'met' if best[0] < 2.0 else 'not met'}",
-          flush=True)
+        for name, (cf, settings) in cases.items():
+            w0, c0 = time.perf_counter(), time.process_time()
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                run_contact_test(part, HangingWeightTest(), settings, cf)
+            best[name] = min(best[name], (time.perf_counter() - w0, time.process_time() - c0))
+    d, r = best["default (long-time moduli)"], best["relaxing"]
+    print(f"contact model, full Table II protocol after condensation: wall {d[0]:.2f} s, "
+          f"cpu {d[1]:.2f} s (goal < 2 s): {'met' if d[0] < 2.0 else 'not met'}; with the ABS "
+          f"relaxation kept (structure_moduli=relaxing): wall {r[0]:.2f} s, cpu {r[1]:.2f} s, "
+          f"{r[0] / d[0]:.1f}x", flush=True)
 
 
 if __name__ == "__main__":

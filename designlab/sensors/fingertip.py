@@ -110,7 +110,7 @@ class ContactSettings:
     structure_moduli: str = field(default="long_time", metadata=rng(
         choices=("long_time", "instantaneous", "relaxing"), doc="ABS moduli of the condensed "
         "structure: relaxed, instantaneous, or relaxing between the two through the protocol's "
-        "holds (the contact solve follows the time history; 3.6x the time)"))
+        "holds (the contact solve follows the time history; ~3.7x the time)"))
     increments_per_step: int = field(default=4, metadata=rng(1, 10000))
     preconditioning_cycles: int = field(default=1, metadata=rng(
         0, 100, doc="loops run at each location before the measured one: the first loop after "

@@ -25,7 +25,7 @@ compressed FSS sensor ... to increase"). This module adds that physics:
 * **Quasi-static, long-time stiffness** (default): the ABS Prony stand-in (4 %, tau 2 s) is
   relaxed to its long-time moduli (``structure_moduli="long_time"``); ``"relaxing"`` keeps the
   relaxation in the contact solve instead (:func:`relaxing_problem`: the protocol in time, hold
-  by hold, 3.6x the time). The paper reads each weight from 7 to 10 s after it is hung, when
+  by hold, ~3.7x the time). The paper reads each weight from 7 to 10 s after it is hung, when
   that term has decayed to e^-3.5 = 3 % of its 4 %; without friction (the linear test) its
   whole hysteresis is 0.002-0.004 %, but with friction the structure creeping under a held
   weight moves the contacts and adds partial slip (docs/fingertip_contact.md: +0.3 points at
