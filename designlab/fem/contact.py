@@ -235,13 +235,16 @@ def mindlin_loop_energy(T_amp: float, mu_N: float, k_t: float) -> float:
 class ContactState:
     """History variables of ``(batch, m)`` contacts: tangential force ``T`` (.., 2) and the
     tangential relative displacement ``gt`` (.., 2) at the last converged increment; ``N``;
-    with partial slip, the Iwan elements' forces ``Te`` (.., 2, n) (None: all unloaded)."""
+    with partial slip, the Iwan elements' forces ``Te`` (.., 2, n) (None: all unloaded); ``D``
+    (.., 3, 3) the contact tangent at that increment's solution (None: not known), the first
+    Newton step's tangent of the next increment."""
 
     T: np.ndarray
     gt: np.ndarray
     N: np.ndarray
     g: np.ndarray            # (.., 3) relative displacement (normal, t1, t2), mm
     Te: np.ndarray | None = None
+    D: np.ndarray | None = None
 
     @classmethod
     def zero(cls, batch: int, m: int) -> "ContactState":
@@ -251,11 +254,13 @@ class ContactState:
 
     def copy(self) -> "ContactState":
         return ContactState(self.T.copy(), self.gt.copy(), self.N.copy(), self.g.copy(),
-                            None if self.Te is None else self.Te.copy())
+                            None if self.Te is None else self.Te.copy(),
+                            None if self.D is None else self.D.copy())
 
     def take(self, idx) -> "ContactState":
         return ContactState(self.T[idx].copy(), self.gt[idx].copy(), self.N[idx].copy(),
-                            self.g[idx].copy(), None if self.Te is None else self.Te[idx].copy())
+                            self.g[idx].copy(), None if self.Te is None else self.Te[idx].copy(),
+                            None if self.D is None else self.D[idx].copy())
 
 
 class _LawArrays:
@@ -413,11 +418,12 @@ def partial_slip(la: _LawArrays, N, dN, kt, dkt, dg, state: ContactState):
 
 
 def commit(laws: list[ContactLaw], g: np.ndarray, p: np.ndarray,
-           Te: np.ndarray | None = None) -> ContactState:
+           Te: np.ndarray | None = None, D: np.ndarray | None = None) -> ContactState:
     """State after a converged increment: an open contact forgets its tangential history (its
-    reference moves with it, so it re-closes stuck). ``Te``: the Iwan elements' forces."""
+    reference moves with it, so it re-closes stuck). ``Te``: the Iwan elements' forces; ``D``:
+    the contact tangent at the solution."""
     return ContactState(p[:, :, 1:].copy(), g[:, :, 1:].copy(), p[:, :, 0].copy(), g.copy(),
-                        None if Te is None else Te.copy())
+                        None if Te is None else Te.copy(), None if D is None else D.copy())
 
 
 @dataclass
@@ -478,38 +484,85 @@ class ContactProblem:
 
     def solve_increment(self, g0: np.ndarray, state: ContactState, g_start: np.ndarray):
         """Equilibrium g = g0 + F p(g) for free motions ``g0`` (B, m, 3), from ``g_start``.
-        Returns (g, p, iterations, the Iwan elements' forces or None), p and the elements at
-        the converged g from its last residual evaluation."""
+        Returns (g, p, iterations, the Iwan elements' forces or None, the tangent (B, m, 3,
+        3)), all from the last residual evaluation at the converged g.
+
+        Newton with backtracking, each load history (batch row) on its own: a row leaves once
+        its residual is within the tolerance after at least one step (a converged row is not
+        evaluated again while others converge); ``iterations`` is the most any row took. When
+        the state carries the previous increment's tangent, a first step is tried with it and
+        kept for the rows whose residual it reduces: as the motion goes on, elements slipping
+        at their limit keep slipping, which the tangent at the start cannot tell from sticking
+        (a hold on a creeping structure then takes 1-2 steps fewer); at a reversal it fails
+        and the row starts from the tangent at g_start as without it."""
         Bn, m = g0.shape[:2]
-        F = self.F
-        FT, Fb, eye = F.T, F[None], self._eye[None]
+        FT, Fb, eye = self.F.T, self.F[None], self._eye[None]
         rows, cols = self._bd
         forces = self._forces
-        g = g_start.copy()
         # the motions' scale: the free motion, the start, and an initial interference (a problem
         # loaded by its interference alone has zero free motion)
         scale = max(float(np.abs(g0).max()), float(np.abs(g_start).max()),
                     self._gap_scale, 1e-9)
         tol, floor = self.tol * scale, 1e-15 * scale
+        out = {"g": g_start.copy(), "p": np.empty_like(g_start),
+               "D": np.empty(g_start.shape + (3,)), "Te": None}
 
-        def residual(g):
-            p, D, Te = forces(g, state)
-            return (g - g0).reshape(Bn, -1) - p.reshape(Bn, -1) @ FT, D, p, Te
+        def residual(g, g0a, st):
+            p, D, Te = forces(g, st)
+            n = len(g)
+            return (g - g0a).reshape(n, -1) - p.reshape(n, -1) @ FT, D, p, Te
 
-        R, D, p, Te = residual(g)
-        Dbd = np.zeros((Bn, 3 * m, 3 * m))         # block-diagonal tangent, blocks rewritten
-        for it in range(1, self.max_iter + 1):
-            Dbd[:, rows, cols] = D.reshape(Bn, -1)
-            J = eye - Fb @ Dbd
-            dx = np.linalg.solve(J, -R[..., None])[..., 0].reshape(Bn, m, 3)
+        def newton_step(D, R):
+            n = len(R)
+            Dbd = np.zeros((n, 3 * m, 3 * m))             # block-diagonal tangent
+            Dbd[:, rows, cols] = D.reshape(n, -1)
+            return np.linalg.solve(eye - Fb @ Dbd, -R[..., None])[..., 0].reshape(n, m, 3)
+
+        act = np.arange(Bn)                                # rows still iterating
+        g, g0a, st = out["g"].copy(), g0, state
+        R, D, p, Te = residual(g, g0a, st)
+        it0, conv = 0, np.zeros(Bn, bool)
+        if state.D is not None and state.D.shape == D.shape:
+            it0 = 1
+            dx = newton_step(state.D, R)
+            R1, D1, p1, Te1 = residual(g + dx, g0a, st)
+            ok = np.linalg.norm(R1, axis=1) <= np.linalg.norm(R, axis=1) * (1 - 1e-4) + floor
+            if ok.any():
+                g, R, D, p = (np.where(ok[(...,) + (None,) * (a.ndim - 1)], a1, a)
+                              for a, a1 in ((g, g + dx), (R, R1), (D, D1), (p, p1)))
+                if Te is not None:
+                    Te = np.where(ok[:, None, None, None], Te1, Te)
+                conv = ok & (np.abs(R).max(axis=1) <= tol)
+        it = it0
+        while True:
+            if conv.any():                                 # retire the converged rows
+                done = act[conv]
+                out["g"][done], out["p"][done], out["D"][done] = g[conv], p[conv], D[conv]
+                if Te is not None:
+                    if out["Te"] is None:
+                        out["Te"] = np.empty((Bn,) + Te.shape[1:])
+                    out["Te"][done] = Te[conv]
+                if conv.all():
+                    break
+                keep = ~conv
+                act = act[keep]
+                g, R, D, p = g[keep], R[keep], D[keep], p[keep]
+                Te = None if Te is None else Te[keep]
+                g0a, st = g0[act], state.take(act)
+            if it >= self.max_iter + it0:
+                raise ModelError(f"contact increment did not converge in {self.max_iter} Newton "
+                                 f"iterations (residual {np.abs(R).max():.3g} mm)")
+            it += 1
+            na = len(act)
+            dx = newton_step(D, R)
             # backtracking on the residual norm, per load history (stick/slip and open/closed
             # switches make the residual only piecewise smooth); when no step length reduces
             # it, the full step is taken (the next tangent is the one of the new stick/slip set)
             r0 = np.linalg.norm(R, axis=1)
-            lam = np.ones(Bn)
+            lam = np.ones(na)
             for _ in range(8):
                 g_try = g + lam[:, None, None] * dx
-                R_try, D_try, p_try, Te_try = residual(g_try)
+                R_try, D_try, p_try, Te_try = residual(g_try, g0a, st)
                 worse = np.linalg.norm(R_try, axis=1) > r0 * (1 - 1e-4 * lam) + floor
                 if not worse.any():
                     break
@@ -517,14 +570,10 @@ class ContactProblem:
             else:
                 lam = np.where(worse, 1.0, lam)
                 g_try = g + lam[:, None, None] * dx
-                R_try, D_try, p_try, Te_try = residual(g_try)
+                R_try, D_try, p_try, Te_try = residual(g_try, g0a, st)
             g, R, D, p, Te = g_try, R_try, D_try, p_try, Te_try
-            if np.abs(R).max() <= tol:
-                break
-        else:
-            raise ModelError(f"contact increment did not converge in {self.max_iter} Newton "
-                             f"iterations (residual {np.abs(R).max():.3g} mm)")
-        return g, p, it, Te
+            conv = np.abs(R).max(axis=1) <= tol
+        return out["g"], out["p"], it, out["Te"], out["D"]
 
     def initial_state(self, state: ContactState) -> ContactState:
         """A copy of ``state`` to start a path from; a partial-slip problem refuses a state with
@@ -538,8 +587,8 @@ class ContactProblem:
         """One increment to the free motions ``g0`` from ``state``: (g, p, new state, Newton
         iterations, the (batch, contact) pairs that opened)."""
         closed_before = state.N > 0
-        g, p, it, Te = self.solve_increment(g0, state, g_start)
-        st = commit(self.laws, g, p, Te)
+        g, p, it, Te, D = self.solve_increment(g0, state, g_start)
+        st = commit(self.laws, g, p, Te, D)
         opened = [(int(b), int(k)) for b, k in zip(*np.nonzero(closed_before & ~(st.N > 0)))]
         return g, p, st, it, opened
 
