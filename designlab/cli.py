@@ -1296,6 +1296,7 @@ def _exit_now(code) -> None:
         code = 1
     try:
         atexit._run_exitfuncs()     # what normal exit runs first (X server, pools, logging)
+        _stop_resource_tracker()
     finally:
         for stream in (sys.stdout, sys.stderr):
             try:
@@ -1303,6 +1304,18 @@ def _exit_now(code) -> None:
             except (OSError, ValueError):   # a closed pipe: nothing more to say
                 pass
         os._exit(code)
+
+
+def _stop_resource_tracker() -> None:
+    """Close multiprocessing's resource tracker and wait for it, when this process started one
+    (the process pools of a sweep): left alone it outlives the command by the moments it takes
+    to notice the closed pipe and clean up."""
+    rt = sys.modules.get("multiprocessing.resource_tracker")
+    tracker = getattr(rt, "_resource_tracker", None)
+    if tracker is not None and getattr(tracker, "_pid", None) is not None:
+        stop = getattr(tracker, "_stop", None)
+        if stop is not None:
+            stop()
 
 
 def _main(argv: Optional[List[str]]) -> None:
