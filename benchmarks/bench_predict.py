@@ -3,7 +3,7 @@ mesh, auto solver) side by side with the previous pipeline (``mesher=tetwild``,
 ``solver=direct``) in the same run.
 
     OMP_NUM_THREADS=1 python benchmarks/bench_predict.py [fingertip strap ...] [--no-peer]
-    OMP_NUM_THREADS=1 python benchmarks/bench_predict.py --contact   (issue 12: < 2 s)
+    OMP_NUM_THREADS=1 python benchmarks/bench_predict.py --contact   (issue 12: < 2 s, relaxation kept)
     OMP_NUM_THREADS=1 python benchmarks/bench_predict.py --calculix  (the CalculiX peer alone)
 
 CalculiX peer (with the fingertip, unless ``--no-peer``): the fingertip's own mesh (gmsh TET10 of
@@ -156,10 +156,11 @@ def calculix_peer() -> None:
 
 def contact_protocol(repeats: int = 3) -> None:
     """Issue 12 goal: the full Table II protocol of the contact model (14 locations x 6
-    rotations x preconditioning + measured loop) in < 2 s once the FEM is condensed. Wall and
-    process time of the best of ``repeats`` runs on the default mesh; beside it, alternating,
-    the same protocol with the ABS relaxation kept (``structure_moduli="relaxing"``: the same
-    long-time structure plus its instantaneous condensation)."""
+    rotations x preconditioning + measured loop, the ABS relaxation kept: the default
+    ``structure_moduli="relaxing"``) in < 2 s once the FEM is condensed. Wall and process time
+    of the best of ``repeats`` runs on the default mesh; beside it, alternating, the same
+    protocol on the relaxed structure (``structure_moduli="long_time"``, the default before
+    2026-11-26: the same long-time condensation without the instantaneous one)."""
     import dataclasses
     import warnings
 
@@ -171,9 +172,10 @@ def contact_protocol(repeats: int = 3) -> None:
 
     part, fs = CantileverFingertip.tested(), FingertipModelSettings()
     relaxing = condense_fingertip(part, mesh_fingertip(part, fs), fs, "relaxing")
-    cases = {"default (long-time moduli)": (dataclasses.replace(
-                 relaxing, C_instant=None, structure_moduli="long_time"), ContactSettings()),
-             "relaxing": (relaxing, ContactSettings(structure_moduli="relaxing"))}
+    cases = {"default (relaxing)": (relaxing, ContactSettings()),
+             "long_time": (dataclasses.replace(relaxing, C_instant=None,
+                                               structure_moduli="long_time"),
+                           ContactSettings(structure_moduli="long_time"))}
     best = {k: (float("inf"), float("inf")) for k in cases}
     for _ in range(repeats):
         for name, (cf, settings) in cases.items():
@@ -182,11 +184,12 @@ def contact_protocol(repeats: int = 3) -> None:
                 warnings.simplefilter("ignore")
                 run_contact_test(part, HangingWeightTest(), settings, cf)
             best[name] = min(best[name], (time.perf_counter() - w0, time.process_time() - c0))
-    d, r = best["default (long-time moduli)"], best["relaxing"]
-    print(f"contact model, full Table II protocol after condensation: wall {d[0]:.2f} s, "
-          f"cpu {d[1]:.2f} s (goal < 2 s): {'met' if d[0] < 2.0 else 'not met'}; with the ABS "
-          f"relaxation kept (structure_moduli=relaxing): wall {r[0]:.2f} s, cpu {r[1]:.2f} s, "
-          f"{r[0] / d[0]:.1f}x", flush=True)
+    d, r = best["default (relaxing)"], best["long_time"]
+    print(f"contact model, full Table II protocol after condensation, ABS relaxation kept "
+          f"(default): wall {d[0]:.2f} s, cpu {d[1]:.2f} s (goal < 2 s): "
+          f"{'met' if d[0] < 2.0 else 'not met'}; on the relaxed structure "
+          f"(structure_moduli=long_time): wall {r[0]:.2f} s, cpu {r[1]:.2f} s; ratio "
+          f"{d[0] / r[0]:.1f}x", flush=True)
 
 
 if __name__ == "__main__":

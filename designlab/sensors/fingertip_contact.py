@@ -22,15 +22,16 @@ compressed FSS sensor ... to increase"). This module adds that physics:
 * **Bolt preload** as an assembly step: the bolt is tightened (an initial shortening, i.e. an
   equal and opposite force pair on the ball and under the bolt head) until the bolt tension
   ``bolt_preload_N`` is reached, with friction active; then the tray and weights follow.
-* **Quasi-static, long-time stiffness** (default): the ABS Prony stand-in (4 %, tau 2 s) is
-  relaxed to its long-time moduli (``structure_moduli="long_time"``); ``"relaxing"`` keeps the
-  relaxation in the contact solve instead (:func:`relaxing_problem`: the protocol in time, hold
-  by hold, ~3.7x the time). The paper reads each weight from 7 to 10 s after it is hung, when
-  that term has decayed to e^-3.5 = 3 % of its 4 %; without friction (the linear test) its
-  whole hysteresis is 0.002-0.004 %, but with friction the structure creeping under a held
-  weight moves the contacts and adds partial slip (docs/fingertip_contact.md: +0.3 points at
-  h9). Friction is rate independent, so the path between weights is a straight load ramp in
-  ``increments_per_step`` increments.
+* **ABS relaxation kept** (default, ``structure_moduli="relaxing"``): the ABS Prony stand-in
+  (4 %, tau 2 s) relaxes in the contact solve (:func:`relaxing_problem`: the protocol in time,
+  hold by hold, ~2.6x the time of a quasi-static solve); ``"long_time"`` (the default before
+  2026-11-26) takes the relaxed moduli throughout. The paper reads each weight from 7 to 10 s
+  after it is hung, when that term has decayed to e^-3.5 = 3 % of its 4 %; without friction
+  (the linear test) its whole hysteresis is 0.002-0.004 %, but with friction the structure
+  creeping under a held weight moves the contacts and adds partial slip
+  (docs/fingertip_contact.md: +0.3 points at h9). Friction is rate independent, so the path
+  of a weight change is a straight load ramp in ``increments_per_step`` instantaneous
+  increments.
 * **Readout as the paper's**: axial force minus the tare after tightening, x 0.06 V/N (Table I),
   plus the FSS015 repeatability (+-0.2 % of 15 N), an optional zero drift and the DAQ
   quantisation (NI PCI-6229, 16 bit); eq. (1) per location in the paper's definition (all three
@@ -129,10 +130,11 @@ class CondensedFingertip:
                    n_dofs_fem=int(data[prefix + "n_dofs_fem"]), **kw)
 
 
-#: the condensed structure's moduli: relaxed (``long_time``, the default: the readings are
-#: taken 7-10 s after each weight, when the printed parts' 2 s term has decayed to 3 % of its
-#: 4 %), ``instantaneous``, or ``relaxing`` (both, with the relaxation between: the contact
-#: solve then follows the protocol's time history, hold by hold)
+#: the condensed structure's moduli: ``relaxing`` (the default: both ends, with the relaxation
+#: between; the contact solve follows the protocol's time history, hold by hold), relaxed
+#: (``long_time``: the readings are taken 7-10 s after each weight, when the printed parts' 2 s
+#: term has decayed to 3 % of its 4 %, but the contacts' slip under a held weight is lost) or
+#: ``instantaneous``
 STRUCTURE_MODULI = ("long_time", "instantaneous", "relaxing")
 
 
@@ -208,7 +210,7 @@ def contact_maps(part, ball_x, well_x) -> tuple[np.ndarray, np.ndarray, np.ndarr
 
 
 def condense_fingertip(part, mesh, fem_settings: FingertipModelSettings | None = None,
-                       structure_moduli: str = "long_time", materials=None,
+                       structure_moduli: str = "relaxing", materials=None,
                        with_fields: bool = False):
     """Build the linear test's FEM (:func:`designlab.sensors.fingertip.build_model`) on
     ``mesh``, condense it at the ball and the three wells, remove the sensor springs. The
