@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from designlab.errors import ParameterError
-from designlab.fem.contact import (ContactLaw, ContactProblem, ContactState, _LawArrays, commit,
+from designlab.fem.contact import (ContactLaw, ContactProblem, ContactState, LawArrays, commit,
                                    contact_forces, iwan_elements,
                                    mindlin_loop_energy, mindlin_tangential_force)
 
@@ -13,7 +13,7 @@ K_N, K_T, N0, MU = 1000.0, 400.0, 5.0, 0.3
 
 def _drive(law, gt_path, N=N0):
     """Tangential displacement path (along t1) at a constant normal force N: forces T1."""
-    la = _LawArrays([law])
+    la = LawArrays([law])
     st = ContactState.zero(1, 1)
     if la.n_el:
         st.Te = np.zeros((1, 1, 2, la.n_el))
@@ -83,7 +83,7 @@ def test_tangent_matches_finite_differences():
     from designlab.fem.contact import HertzContact
     hz = HertzContact(4.7, 0.8, 210e3, 0.3, 193e3, 0.3)
     law = ContactLaw(0.25, hz, 500.0, microslip=16)
-    la = _LawArrays([law])
+    la = LawArrays([law])
     st = ContactState.zero(1, 1)
     st.Te = np.zeros((1, 1, 2, 16))
     g1 = np.array([[[-0.012, 0.0004, -0.0002]]])

@@ -263,9 +263,10 @@ class ContactState:
                             None if self.D is None else self.D[idx].copy())
 
 
-class _LawArrays:
+class LawArrays:
     """The parameters of ``m`` contact laws as (m,) arrays, for evaluating all contacts of a
-    batch at once (inverse stiffnesses 0 = rigid)."""
+    batch at once (inverse stiffnesses 0 = rigid): what :func:`contact_forces` and
+    :func:`partial_slip` take, and a :class:`ContactProblem` builds from its laws."""
 
     def __init__(self, laws: list[ContactLaw]):
         self.mu = np.array([lw.mu for lw in laws])
@@ -332,10 +333,10 @@ def contact_forces(laws, g: np.ndarray, state: ContactState, gap0: np.ndarray | 
     ``g`` (B, m, 3), starting the increment from ``state``, and their tangent dp/dg
     (B, m, 3, 3); ``elements``: also the Iwan elements' forces (B, m, 2, n) of a partial-slip
     law (None for the others), which the committed state keeps. ``laws``: the contact laws
-    (list, or their :class:`_LawArrays`). Approach ``delta = gap0 - g_n`` (``gap0``: initial
+    (list, or their :class:`LawArrays`). Approach ``delta = gap0 - g_n`` (``gap0``: initial
     interference, mm). Tangential: trial T = T_old - k_t(N) (g_t - g_t,old); slip when
     |T| > mu N (return to the cone). Open contacts (N = 0) carry nothing."""
-    la = laws if isinstance(laws, _LawArrays) else _LawArrays(laws)
+    la = laws if isinstance(laws, LawArrays) else LawArrays(laws)
     p = np.zeros_like(g)
     D = np.zeros(g.shape + (3,))
     delta = (0.0 if gap0 is None else np.asarray(gap0, float)) - g[..., 0]
@@ -371,7 +372,7 @@ def contact_forces(laws, g: np.ndarray, state: ContactState, gap0: np.ndarray | 
     return (p, D, None) if elements else (p, D)
 
 
-def partial_slip(la: _LawArrays, N, dN, kt, dkt, dg, state: ContactState):
+def partial_slip(la: LawArrays, N, dN, kt, dkt, dg, state: ContactState):
     """Tangential force, its tangent (d/dg_t, d/dg_n) and the elements' forces (B, m, 2, n) of
     the Iwan model of :func:`iwan_elements` (B, m contacts, n elements): element e's trial
     ``t_e = Te - w_e k_t(N) dg``, returned to its circle ``c_e mu N`` when outside (the Coulomb
@@ -462,7 +463,7 @@ class ContactProblem:
         self.Lf = self.L.reshape(3 * m, n)
         self.F = self.Lf @ self.C @ self.Lf.T          # contact flexibility (3m x 3m)
         self._gap_scale = 0.0 if self.gap0 is None else float(np.abs(self.gap0).max())
-        self._la = _LawArrays(self.laws)
+        self._la = LawArrays(self.laws)
         m = self.m
         self._eye = np.eye(3 * m)
         k, i, j = np.meshgrid(np.arange(m), np.arange(3), np.arange(3), indexing="ij")

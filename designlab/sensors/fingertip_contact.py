@@ -331,7 +331,7 @@ class _FastProblem(ContactProblem):
         self._eye2 = np.eye(2)
 
     def _normal(self, delta, N_guess):
-        """contact._LawArrays.normal with every ``ks_inv > 0`` and ``c > 0``: the same
+        """contact.LawArrays.normal with every ``ks_inv > 0`` and ``c > 0``: the same
         operations (``divide(x, y, out=zeros, where=y > 0)`` written ``where(y > 0, x / y,
         0.0)``, one ``s ** 2`` per iteration instead of two equal ones); divisions by zero are
         silenced by the caller."""
@@ -364,7 +364,7 @@ class _FastProblem(ContactProblem):
         p[..., 0] = N
         mdN = -dN
         D[..., 0, 0] = mdN
-        # _LawArrays.kt: every contact Hertz, no tangential series spring
+        # LawArrays.kt: every contact Hertz, no tangential series spring
         Nk = np.maximum(N, 0.0)
         kt = la.A * np.cbrt(Nk)
         dkt = np.where(Nk > 0, kt / (3.0 * Nk), 0.0)
