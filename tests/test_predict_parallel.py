@@ -135,3 +135,62 @@ def test_a_stalled_child_is_killed_and_gives_none(monkeypatch):
     assert _once(lambda: time.sleep(120)) is None
     assert time.perf_counter() - t0 < 30
     assert not multiprocessing.active_children()
+
+
+def test_jobs_sent_to_a_stuck_child_do_not_block_the_caller(monkeypatch):
+    """A child that stops reading its jobs (here: stopped outright, as a child waiting on a lock
+    copied from the parent, which holds the interpreter lock, cannot read either) lets its job
+    pipe fill: submitting more than the pipe holds returns at once, and the results are None
+    once the child is found stalled (the caller recomputes in-process). Before, the send
+    itself blocked for ever (seen on `benchmarks/bench_predict.py fingertip`'s peer run)."""
+    import multiprocessing
+    import os
+    import signal
+    import threading
+    import time
+
+    import numpy as np
+
+    from designlab.sensors.predict import _Side
+
+    monkeypatch.setattr(_Side, "STALL_S", 2.0)
+    side = _Side(lambda: os.kill(os.getpid(), signal.SIGSTOP))
+    big = np.zeros(1_000_000)                    # 8 MB a job, far beyond a pipe's buffer
+    tickets: list = []
+    t0 = time.perf_counter()
+    # submitted from a thread, so that a send that blocks fails the test instead of hanging it
+    # (stop() below kills the child, which ends such a send)
+    sender = threading.Thread(target=lambda: tickets.extend(
+        side.submit(np.add, big, k) for k in range(3)), daemon=True)
+    sender.start()
+    sender.join(10)
+    blocked = sender.is_alive()
+    if blocked:
+        side.stop()
+    assert not blocked, "submit blocked on a child that does not read"
+    assert all(t.get() is None for t in tickets)
+    assert time.perf_counter() - t0 < 30
+    side.stop()
+    assert not multiprocessing.active_children()
+
+
+def test_forked_helpers_run_opencascade_serially():
+    """In a forked helper OpenCascade's thread pool is the parent's (its threads are not in the
+    child): ``_serial_occ`` makes the Booleans build123d asks to run in parallel run on the
+    calling thread, as it does for the tessellation (a fresh interpreter: it patches globally)."""
+    import subprocess
+    import sys
+
+    code = ("from designlab.sensors.predict import _serial_occ\n"
+            "from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse\n"
+            "from OCP.BOPAlgo import BOPAlgo_Builder\n"
+            "ops = [c() for c in (BRepAlgoAPI_Fuse, BRepAlgoAPI_Cut, BOPAlgo_Builder)]\n"
+            "for op in ops: op.SetRunParallel(True)\n"
+            "before = [op.RunParallel() for op in ops]\n"
+            "_serial_occ()\n"
+            "for op in ops: op.SetRunParallel(True)\n"
+            "print(before, [op.RunParallel() for op in ops])\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[True, True, True] [False, False, False]"

@@ -586,10 +586,14 @@ def _deformed_job(path: Path, mesh, u, kw: dict[str, Any]) -> str:
 
 def _serial_occ() -> None:
     """In a forked child: OpenCascade's thread pool is the parent's (its threads are not in the
-    child), so a parallel ``BRepMesh`` would wait for ever; tessellate on the calling thread
-    (the same triangles)."""
+    child), so a parallel ``BRepMesh`` or Boolean would wait for ever; tessellate and run the
+    Booleans on the calling thread (the same triangles and shapes). build123d asks every
+    Boolean to run in parallel (``SetRunParallel(True)``): the setter itself is made to ask for
+    the serial algorithm."""
     try:
         import OCP.BRepMesh as brepmesh
+        from OCP.BOPAlgo import BOPAlgo_Options
+        from OCP.BRepAlgoAPI import BRepAlgoAPI_Algo
     except ImportError:
         return
     cls = brepmesh.BRepMesh_IncrementalMesh
@@ -600,6 +604,9 @@ def _serial_occ() -> None:
         return cls(shape, *args)
 
     brepmesh.BRepMesh_IncrementalMesh = serial
+    for owner in (BRepAlgoAPI_Algo, BOPAlgo_Options):
+        setter = owner.SetRunParallel
+        owner.SetRunParallel = (lambda set_: lambda self, flag: set_(self, False))(setter)
 
 
 class _Side:
@@ -616,6 +623,8 @@ class _Side:
     def __init__(self, fn: Callable[[], Any] | None):
         import multiprocessing as mp
         import os
+        import queue
+        import threading
 
         ctx = mp.get_context("fork")
         self._recv, send = ctx.Pipe(duplex=False)
@@ -628,7 +637,21 @@ class _Side:
         self._sent = 0 if fn is None else 1      # results the child owes, in order
         self._got: list[Any] = []                # results received (index = ticket)
         self._dead = False
+        self._feed_failed = False
         self.first = _Ticket(self, 0) if fn is not None else None
+        # jobs go down the pipe from a thread: a child stuck without reading (a lock copied
+        # from the parent) fills the pipe, and a send from the caller would then block for ever
+        # where :meth:`_wait` would have found the child stalled
+        self._outbox: queue.Queue = queue.Queue()
+        threading.Thread(target=self._feed, daemon=True).start()
+
+    def _feed(self) -> None:
+        while (data := self._outbox.get()) is not None:
+            try:
+                self._jobs.send_bytes(data)
+            except (OSError, ValueError, EOFError):
+                self._feed_failed = True
+                return
 
     #: a child whose CPU time has not moved for this long (wall s) waits on something it will
     #: never get (a lock or a thread pool copied from the parent): it is killed and the work is
@@ -637,21 +660,25 @@ class _Side:
 
     def submit(self, job: Callable[..., Any], *args: Any) -> "_Ticket":
         """Run ``job(*args)`` in the child after what it was given before."""
+        from multiprocessing.reduction import ForkingPickler
+
         ticket = _Ticket(self, self._sent)
         self._sent += 1
         if not self._dead:
             try:
-                self._jobs.send((job, args))
-            except (OSError, ValueError, TypeError, AttributeError, EOFError,
-                    __import__("pickle").PicklingError):
+                data = bytes(ForkingPickler.dumps((job, args)))   # what Connection.send sends
+            except (TypeError, AttributeError, __import__("pickle").PicklingError):
                 self._give_up()
+            else:
+                self._outbox.put(data)
         return ticket
 
     def _wait(self, index: int) -> Any:
         while len(self._got) <= index and not self._dead:
             try:
                 while not self._recv.poll(1.0):
-                    if not self._proc.is_alive() or self._stalled():
+                    if (not self._proc.is_alive() or self._feed_failed
+                            or self._stalled()):
                         raise EOFError
                 ok, value = self._recv.recv()
                 self._got.append(value if ok else None)
@@ -681,6 +708,7 @@ class _Side:
         if self._proc.is_alive():
             self._proc.kill()
         self._proc.join()
+        self._outbox.put(None)          # the feeding thread ends (a send in progress fails)
         self._recv.close()
         self._jobs.close()
         self._dead = True
