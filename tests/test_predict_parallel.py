@@ -138,14 +138,13 @@ def test_a_stalled_child_is_killed_and_gives_none(monkeypatch):
 
 
 def test_jobs_sent_to_a_stuck_child_do_not_block_the_caller(monkeypatch):
-    """A child that stops reading its jobs (here: stopped outright, as a child waiting on a lock
-    copied from the parent, which holds the interpreter lock, cannot read either) lets its job
-    pipe fill: submitting more than the pipe holds returns at once, and the results are None
-    once the child is found stalled (the caller recomputes in-process). Before, the send
-    itself blocked for ever (seen on `benchmarks/bench_predict.py fingertip`'s peer run)."""
+    """A child that does not read its jobs (here: its first call never ends, and it reads jobs
+    only after it; a child waiting in C on a lock copied from the parent, holding the
+    interpreter lock, cannot read either) lets its job pipe fill: submitting more than the
+    pipe holds returns at once, and the results are None once the child is found stalled (the
+    caller recomputes in-process). Before, the send itself blocked for ever (seen on
+    `benchmarks/bench_predict.py fingertip`'s peer run)."""
     import multiprocessing
-    import os
-    import signal
     import threading
     import time
 
@@ -154,7 +153,7 @@ def test_jobs_sent_to_a_stuck_child_do_not_block_the_caller(monkeypatch):
     from designlab.sensors.predict import _Side
 
     monkeypatch.setattr(_Side, "STALL_S", 2.0)
-    side = _Side(lambda: os.kill(os.getpid(), signal.SIGSTOP))
+    side = _Side(lambda: time.sleep(120))
     big = np.zeros(1_000_000)                    # 8 MB a job, far beyond a pipe's buffer
     tickets: list = []
     t0 = time.perf_counter()

@@ -643,13 +643,18 @@ class _Side:
         # from the parent) fills the pipe, and a send from the caller would then block for ever
         # where :meth:`_wait` would have found the child stalled
         self._outbox: queue.Queue = queue.Queue()
-        threading.Thread(target=self._feed, daemon=True).start()
+        self._feeder = threading.Thread(target=self._feed, daemon=True)
+        self._feeder.start()
 
     def _feed(self) -> None:
+        """The feeding thread: sends the jobs in order; a failed send (the child gone) ends it.
+        Only this thread writes to the job pipe, and :meth:`stop` closes it after this thread
+        has ended (closed under a write in progress, its descriptor could be reused by another
+        file and the rest of the job written there)."""
         while (data := self._outbox.get()) is not None:
             try:
                 self._jobs.send_bytes(data)
-            except (OSError, ValueError, EOFError):
+            except Exception:  # noqa: BLE001 - the child is gone: _wait finds it and gives up
                 self._feed_failed = True
                 return
 
@@ -708,9 +713,11 @@ class _Side:
         if self._proc.is_alive():
             self._proc.kill()
         self._proc.join()
-        self._outbox.put(None)          # the feeding thread ends (a send in progress fails)
+        self._outbox.put(None)          # the feeding thread ends (a send in progress fails:
+        self._feeder.join(10.0)         # the reader is gone), then its pipe is closed
         self._recv.close()
-        self._jobs.close()
+        if not self._feeder.is_alive():
+            self._jobs.close()
         self._dead = True
 
 
