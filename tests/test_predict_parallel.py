@@ -193,3 +193,22 @@ def test_forked_helpers_run_opencascade_serially():
                          timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[True, True, True] [False, False, False]"
+
+
+def test_meshing_leaves_sigpipe_ignored():
+    """gmsh's initialize sets SIGPIPE back to its default (the process ends at a write to a
+    pipe whose reader is gone, as a job sent to a helper that was just killed); after a mesh the
+    process ignores it again, as Python does (an xdist worker died of it in the suite). A fresh
+    interpreter, read from the kernel's own record of the process."""
+    import subprocess
+    import sys
+
+    code = ("from designlab.geometry.fingertip import CantileverFingertip\n"
+            "from designlab.sensors.fingertip import FingertipModelSettings, mesh_fingertip\n"
+            "mesh_fingertip(CantileverFingertip(), FingertipModelSettings(edge_length=5.0))\n"
+            "ign = [l for l in open('/proc/self/status') if l.startswith('SigIgn')][0]\n"
+            "print((int(ign.split()[1], 16) >> 12) & 1)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip().splitlines()[-1] == "1"        # bit 13 - 1: SIGPIPE ignored

@@ -26,6 +26,7 @@ face (OpenCascade distance below ``NAMED_TOL``). The group's triangles are retur
 from __future__ import annotations
 
 import os
+import signal
 import tempfile
 import threading
 from typing import Any, Mapping, Sequence
@@ -220,6 +221,23 @@ def _named_triangles(named_faces, volumes_of, node_tags, points, diag: float
     return out
 
 
+def ignore_sigpipe() -> None:
+    """Ignore SIGPIPE again, as Python does from its start (a write to a pipe whose reader is
+    gone raises BrokenPipeError): gmsh's initialize sets it back to the default, which ends the
+    process at such a write without a word (a forked helper killed while a job was on its way
+    to it; ``designlab ... | head``). From any thread (``signal.signal`` is the main thread's
+    only), through the C library."""
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+    except OSError:
+        return
+    libc.signal.restype = ctypes.c_void_p
+    libc.signal.argtypes = (ctypes.c_int, ctypes.c_void_p)
+    libc.signal(int(signal.SIGPIPE), 1)                 # 1 = SIG_IGN
+
+
 def _tetrahedralize(shapes, names, edge_length, refinement, grading, min_edge, curvature,
                     named_faces=None, cell_order=1, optimize=0):
     import gmsh
@@ -227,7 +245,10 @@ def _tetrahedralize(shapes, names, edge_length, refinement, grading, min_edge, c
 
     own = not gmsh.isInitialized()
     if own:
+        ignored = signal.getsignal(signal.SIGPIPE) == signal.SIG_IGN
         gmsh.initialize(readConfigFiles=False, interruptible=False)
+        if ignored:
+            ignore_sigpipe()
     try:
         for k, v in DETERMINISTIC.items():
             gmsh.option.setNumber(k, v)
