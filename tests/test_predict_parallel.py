@@ -177,9 +177,6 @@ def test_forked_helpers_run_opencascade_serially():
     """In a forked helper OpenCascade's thread pool is the parent's (its threads are not in the
     child): ``_serial_occ`` makes the Booleans build123d asks to run in parallel run on the
     calling thread, as it does for the tessellation (a fresh interpreter: it patches globally)."""
-    import subprocess
-    import sys
-
     code = ("from designlab.sensors.predict import _serial_occ\n"
             "from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse\n"
             "from OCP.BOPAlgo import BOPAlgo_Builder\n"
@@ -189,10 +186,7 @@ def test_forked_helpers_run_opencascade_serially():
             "_serial_occ()\n"
             "for op in ops: op.SetRunParallel(True)\n"
             "print(before, [op.RunParallel() for op in ops])\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         timeout=120)
-    assert out.returncode == 0, out.stderr
-    assert out.stdout.strip() == "[True, True, True] [False, False, False]"
+    assert _fresh_python(code) == "[True, True, True] [False, False, False]"
 
 
 def test_meshing_leaves_sigpipe_ignored():
@@ -200,15 +194,20 @@ def test_meshing_leaves_sigpipe_ignored():
     pipe whose reader is gone, as a job sent to a helper that was just killed); after a mesh the
     process ignores it again, as Python does (an xdist worker died of it in the suite). A fresh
     interpreter, read from the kernel's own record of the process."""
-    import subprocess
-    import sys
-
     code = ("from designlab.geometry.fingertip import CantileverFingertip\n"
             "from designlab.sensors.fingertip import FingertipModelSettings, mesh_fingertip\n"
             "mesh_fingertip(CantileverFingertip(), FingertipModelSettings(edge_length=5.0))\n"
             "ign = [l for l in open('/proc/self/status') if l.startswith('SigIgn')][0]\n"
             "print((int(ign.split()[1], 16) >> 12) & 1)\n")
+    assert _fresh_python(code).splitlines()[-1] == "1"        # bit 13 - 1: SIGPIPE ignored
+
+
+def _fresh_python(code: str) -> str:
+    """What ``code`` prints in a new interpreter (which must exit 0)."""
+    import subprocess
+    import sys
+
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=300)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.strip().splitlines()[-1] == "1"        # bit 13 - 1: SIGPIPE ignored
+    return out.stdout.strip()
