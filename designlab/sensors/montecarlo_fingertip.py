@@ -9,7 +9,7 @@ import dataclasses
 from typing import Any
 
 from designlab.sensors.noise import FSS015_SENSITIVITY_MV_PER_V_PER_N
-from designlab.sensors.uncertainty import Distribution, Input, MonteCarloModel
+from designlab.sensors.distributions import Distribution, Input, MonteCarloModel
 
 _ABS_SCATTER = ("assumed: printed ABS modulus between the datasheet's across-layer and "
                 "in-plane ratio (ABSplus-P430 yield strength 26 MPa ZX / 31 MPa XZ = 0.84) and "

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from designlab.sensors.uncertainty import Distribution, Input, MonteCarloModel
+from designlab.sensors.distributions import Distribution, Input, MonteCarloModel
 
 #: the finger-support stiffnesses (N/mm^3) solved once per design; a build's k / s must lie
 #: inside (the default distributions stay inside: 0.007 / 1.15 ... 0.05 / 0.85)

@@ -26,9 +26,9 @@ import numpy as np
 
 from designlab.version import __version__
 from designlab.errors import ParameterError
-from designlab.sensors.protocols import load_protocol
+from designlab.sensors.protocols import protocol_for
 from designlab.sensors.registry import get_sensor
-from designlab.sensors.sensor import linear_sensor_model
+from designlab.sensors.sensor import linear_sensor_model, settings_from
 
 if TYPE_CHECKING:
     from designlab.loop.loop import SensorModel
@@ -228,13 +228,7 @@ class Prediction:
 
 def model_settings(name: str, values: dict[str, Any] | None):
     """The sensor's model settings from defaults and ``values`` (``--setting NAME=VALUE``)."""
-    from designlab.params import with_overrides
-
-    values = {k: (tuple(v) if isinstance(v, list) else v) for k, v in (values or {}).items()}
-    try:
-        return with_overrides(get_sensor(name).settings, values)
-    except ParameterError as exc:
-        raise ParameterError(f"settings.{exc.name}", exc.value, exc.allowed) from None
+    return settings_from(get_sensor(name).settings, values)
 
 
 def protocol_from(name: str, path: str | Path | None = None,
@@ -242,21 +236,7 @@ def protocol_from(name: str, path: str | Path | None = None,
     """The sensor's protocol: the paper's defaults (made to fit ``design`` where the sensor
     says how), a TOML file, and/or a dict of overrides (sweeps)."""
     sensor = get_sensor(name)
-    proto = load_protocol(sensor.protocol, path)
-    if path is None and design is not None and sensor.design_protocol is not None:
-        proto = sensor.design_protocol(proto, design, values)
-    if values:
-        data = dict(values)
-        preset = data.pop("preset", None)
-        if preset is not None:
-            proto = type(proto).preset(preset)
-        data = {k: (tuple(v) if isinstance(v, list) else v) for k, v in data.items()}
-        names = {f.name for f in dataclasses.fields(proto)}
-        for k in data:
-            if k not in names:
-                raise ParameterError(f"protocol.{k}", data[k], "one of " + ", ".join(sorted(names)))
-        proto = dataclasses.replace(proto, **data)
-    return proto
+    return protocol_for(sensor.protocol, path, values, design, sensor.design_protocol)
 
 
 def _check_model_path(name: str, model_path: str | Path) -> None:

@@ -225,3 +225,28 @@ def load_protocol(cls: type, path: str | Path | None = None) -> Any:
         from dataclasses import replace
         return replace(base, **kwargs)
     return cls(**kwargs)
+
+
+def protocol_for(cls: type, path: str | Path | None = None, values: dict[str, Any] | None = None,
+                 design=None, design_protocol=None) -> Any:
+    """A sensor's protocol: the paper's defaults (``cls()``), made to fit ``design`` by
+    ``design_protocol(protocol, design, values)`` when no file is given, a TOML file, and/or a
+    dict of overrides (sweeps; ``preset`` selects a preset first). An unknown key is a one-line
+    error naming ``protocol.<key>``."""
+    from dataclasses import replace
+
+    proto = load_protocol(cls, path)
+    if path is None and design is not None and design_protocol is not None:
+        proto = design_protocol(proto, design, values)
+    if values:
+        data = dict(values)
+        preset = data.pop("preset", None)
+        if preset is not None:
+            proto = type(proto).preset(preset)
+        data = {k: (tuple(v) if isinstance(v, list) else v) for k, v in data.items()}
+        names = {f.name for f in fields(proto)}
+        for k in data:
+            if k not in names:
+                raise ParameterError(f"protocol.{k}", data[k], "one of " + ", ".join(sorted(names)))
+        proto = replace(proto, **data)
+    return proto

@@ -45,7 +45,7 @@ class Sensor:
     load_cases: ``load_cases(part, protocol, settings, result, cache) -> [LoadCase]``: the
                virtual test's load cases as displacements of ``result.mesh`` (stress and
                safety factor of each); None: the one case of ``result.displacement``
-    uncertainty: its Monte Carlo model (:class:`designlab.sensors.uncertainty.MonteCarloModel`:
+    uncertainty: its Monte Carlo model (:class:`designlab.sensors.distributions.MonteCarloModel`:
                uncertain inputs, metrics, FEM stage, one virtual build); None: no Monte Carlo
     """
 
@@ -73,6 +73,20 @@ class Sensor:
         from designlab.geometry.parts import PARTS
 
         return PARTS[self.name]
+
+
+def settings_from(cls: type, values: dict[str, Any] | None):
+    """A sensor's model settings (its ``Sensor.settings`` class) from defaults and ``values``
+    (``--setting NAME=VALUE``; lists become tuples); a bad one is a one-line error naming
+    ``settings.<name>``."""
+    from designlab.errors import ParameterError
+    from designlab.params import with_overrides
+
+    values = {k: (tuple(v) if isinstance(v, list) else v) for k, v in (values or {}).items()}
+    try:
+        return with_overrides(cls, values)
+    except ParameterError as exc:
+        raise ParameterError(f"settings.{exc.name}", exc.value, exc.allowed) from None
 
 
 @dataclass

@@ -23,7 +23,7 @@ import numpy as np
 
 from designlab.sensors.noise import (FLEXURE_HYSTERESIS_RANGE_PCT, FLEXURE_TABLE_I,
                                      POSE_MAX_ERROR_XY_MM, POSE_NOISE_SIGMA_MM)
-from designlab.sensors.uncertainty import Distribution, Input, MonteCarloModel
+from designlab.sensors.distributions import Distribution, Input, MonteCarloModel
 
 #: the twist order of the 6x6 (as designlab.sensors.flexure.virtual.TWIST)
 TWIST = ("w_x", "w_y", "w_z", "v_x", "v_y", "v_z")
