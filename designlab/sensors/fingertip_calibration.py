@@ -2,7 +2,7 @@
 error a user sees on load points the calibration never saw (Fig. 9: P_x, P_y well, P_z poorly).
 
 **One FEM, exact in the printed modulus.** The printed structure (base and cap, one printed
-material) is meshed (:func:`designlab.sensors.fingertip.mesh_fingertip`), fixed as the linear
+material) is meshed (:func:`designlab.sensors.fingertip_model.mesh_fingertip`), fixed as the linear
 test fixes it, and condensed once (unit loads, one factorisation) at the three sensor wells
 (their distributing couplings) and the bolt head (rigid): a 24 x 24 stiffness ``K_s``. Every
 other part is small and analytic: the steel ball (rigid, 6 dofs), the M2.5 bolt (Timoshenko
@@ -22,7 +22,7 @@ weights of the test (<= 2.2 N) move about that state with the tangent stiffnesse
 minus the largest |T|/N over the calibration loads) says whether sticking holds; below 0 a
 contact slips and the hysteresis of the colleague's contact model
 (:mod:`designlab.sensors.fingertip_contact`) applies, not this linearisation. ``contact=False``
-gives the linear test's bilateral sensor springs (:func:`designlab.sensors.fingertip.build_model`),
+gives the linear test's bilateral sensor springs (:func:`designlab.sensors.fingertip_model.build_model`),
 which the tests compare with the full FEM.
 
 **Readings and calibration as the paper.** Reading = FSS015 sensitivity (2.4 mV/V/N typ.; per
@@ -102,7 +102,7 @@ def structure_key(part, settings, protocol) -> str:
     """Cache key of the condensed structure: the linear test's FEM key (part without its
     load-only parameters, model settings, material library) plus this stage's name."""
     from designlab.fem.cache import fem_key
-    from designlab.sensors.fingertip import fem_key as fingertip_key
+    from designlab.sensors.fingertip_model import fem_key as fingertip_key
 
     return fem_key("fingertip-structure-condensed", fem=fingertip_key(part, protocol, settings))
 
@@ -117,7 +117,7 @@ def condense_structure(part, settings, say: Callable[[str], None] = lambda s: No
 
     from designlab.fem import Model
     from designlab.fem.contact import condense
-    from designlab.sensors.fingertip import mesh_fingertip
+    from designlab.sensors.fingertip_model import mesh_fingertip
     from designlab.sensors.fingertip_contact import relaxed_materials
 
     t0 = time.perf_counter()
@@ -148,7 +148,7 @@ def structure(part, settings=None, protocol=None, cache=None, say=lambda s: None
               ) -> dict[str, np.ndarray]:
     """:func:`condense_structure` through the FEM cache (once per distinct mesh)."""
     from designlab.fem.cache import FEMCache
-    from designlab.sensors.fingertip import FingertipModelSettings
+    from designlab.sensors.fingertip_model import FingertipModelSettings
 
     settings = settings or FingertipModelSettings()
     protocol = protocol or HangingWeightTest.preset("optimized")
@@ -284,7 +284,7 @@ def load_sets(part, protocol: HangingWeightTest, rotations_deg) -> tuple[np.ndar
 
 
 def _load_sets(part, protocol, rotations_deg):
-    from designlab.sensors.fingertip import check_locations, wrench_at_ball
+    from designlab.sensors.fingertip_model import check_locations, wrench_at_ball
 
     check_locations(part, protocol)
     W, D = [], []
@@ -441,7 +441,7 @@ def fingertip_calibration_budget(part=None, settings=None, protocol=None,
                                  ) -> dict[str, Any]:
     """The nominal build's calibration test beside seed 001 Fig. 9."""
     from designlab.geometry.parts import make_part
-    from designlab.sensors.fingertip import FingertipModelSettings
+    from designlab.sensors.fingertip_model import FingertipModelSettings
 
     part = part or make_part("fingertip", {})
     settings = settings or FingertipModelSettings()

@@ -7,7 +7,7 @@ ball/sensor-ball contacts (Sec. III: "the induced friction could still cause the
 compressed FSS sensor ... to increase"). This module adds that physics:
 
 * **Condensed linear structure.** The printed base and cap, the M2.5 bolt (Timoshenko beam) and
-  the robot support of :func:`designlab.sensors.fingertip.build_model` stay linear and are
+  the robot support of :func:`designlab.sensors.fingertip_model.build_model` stay linear and are
   condensed (:func:`designlab.fem.contact.condense`) to 24 master dofs: the ball (6) and the
   three well floors (6 each, their distributing couplings). The linear model's sensor springs
   (between the ball contact point and the well) are subtracted exactly from the condensed
@@ -62,11 +62,11 @@ from designlab.fem.contact import (ContactLaw, ContactProblem, ContactState, Her
                                    partial_slip)
 # the settings and their sourced defaults live with the fingertip's model settings (which derive
 # from ContactSettings, so that ``--setting friction_coefficient=...`` reaches this model)
-from designlab.sensors.fingertip import (  # noqa: F401  (re-exported)
+from designlab.sensors.fingertip_model import (  # noqa: F401  (re-exported)
     BALL_E_MPA, BALL_NU, BOLT_TIGHTENING_TORQUE_NM, BUTTON_E_MPA, BUTTON_NU, DAQ_BITS,
     DAQ_RANGE_V, DEFAULT_BOLT_PRELOAD_N, FRICTION_CHROMIUM_ON_STEEL, FSS015_STIFFNESS_N_PER_MM,
     FSS015_V_PER_N, NUT_FACTOR, WRENCH, ContactSettings, FingertipModelSettings, build_model,
-    check_locations, wrench_at_ball)
+    LOAD_ONLY_PARAMS, check_locations, mesh_fingertip, wrench_at_ball)
 from designlab.sensors.protocols import FSS015_RANGE_N, HangingWeightTest
 
 #: seed 001 numbers the contact model is compared with (../shared/data/papers/fingertip_xu2014.json)
@@ -212,7 +212,7 @@ def contact_maps(part, ball_x, well_x) -> tuple[np.ndarray, np.ndarray, np.ndarr
 def condense_fingertip(part, mesh, fem_settings: FingertipModelSettings | None = None,
                        structure_moduli: str = "relaxing", materials=None,
                        with_fields: bool = False):
-    """Build the linear test's FEM (:func:`designlab.sensors.fingertip.build_model`) on
+    """Build the linear test's FEM (:func:`designlab.sensors.fingertip_model.build_model`) on
     ``mesh``, condense it at the ball and the three wells, remove the sensor springs. The
     expensive step (one factorisation, 31 back-substitutions); cache the result per mesh
     (:func:`designlab.sensors.fingertip.solve_fem` does, under its ``fem_key``).
@@ -662,7 +662,6 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
     timings: dict[str, float] = {}
     if condensed is None:
         if mesh is None:
-            from designlab.sensors.fingertip import mesh_fingertip
             mesh = mesh_fingertip(part, fem_settings)
         condensed = condense_fingertip(part, mesh, fem_settings, settings.structure_moduli)
         timings.update(condensed.timings_s)
@@ -1334,12 +1333,10 @@ def paper_design(part, which: str):
     """The paper's tested (``"II"``: h 28.5, r 9, Table II points) or optimised (``"III"``:
     h 0, r 9, Table III points) fingertip on this design's base, cap, ball, sensors and bolt:
     the fingertip's height, radius and load table only move the load points
-    (:data:`designlab.sensors.fingertip.LOAD_ONLY_PARAMS`), so both run on this design's
+    (:data:`designlab.sensors.fingertip_model.LOAD_ONLY_PARAMS`), so both run on this design's
     condensed FEM."""
     from designlab.geometry.fingertip import CantileverFingertip
     from designlab.params import as_dict
-    from designlab.sensors.fingertip import LOAD_ONLY_PARAMS
-
     ref = CantileverFingertip.tested() if which == "II" else CantileverFingertip()
     keep = {k: v for k, v in as_dict(part).items() if k not in LOAD_ONLY_PARAMS}
     return dataclasses.replace(ref, **keep)

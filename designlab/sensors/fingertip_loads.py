@@ -2,7 +2,7 @@
 groups) at every rotation of the test, at the largest hanging weight.
 
 The FEM stage keeps the displacement per unit wrench at the ball (``U_unit``, long time) in the
-FEM cache (:func:`designlab.sensors.fingertip.fem_key`); a load case is the wrench of its load
+FEM cache (:func:`designlab.sensors.fingertip_model.fem_key`); a load case is the wrench of its load
 point combined with those six fields (exact for the linear model). When the cache no longer
 holds the stage, the one displacement of the result (first load point, rotation 0) is used.
 """
@@ -16,7 +16,7 @@ from designlab.sensors.sensor import LoadCase
 
 def load_cases(part, protocol, settings, result, cache=None) -> list[LoadCase]:
     from designlab.fem.cache import FEMCache
-    from designlab.sensors.fingertip import fem_key, wrench_at_ball
+    from designlab.sensors.fingertip_model import fem_key, wrench_at_ball
 
     if getattr(result, "mesh", None) is None:
         return []

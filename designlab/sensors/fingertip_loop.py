@@ -59,7 +59,7 @@ class LoadRun:
 
 def load_runs(part, protocol: HangingWeightTest, rotations_deg) -> list[LoadRun]:
     """Every (load point, rotation) of the protocol on ``part``, G1 then G2."""
-    from designlab.sensors.fingertip import wrench_at_ball
+    from designlab.sensors.fingertip_model import wrench_at_ball
 
     out = []
     for group, names in (("G1", protocol.g1_locations), ("G2", protocol.g2_locations)):
@@ -74,7 +74,7 @@ def load_runs(part, protocol: HangingWeightTest, rotations_deg) -> list[LoadRun]
 def linear_readings(unit: np.ndarray, run: LoadRun, load: np.ndarray) -> np.ndarray:
     """(n_t, 3) sensor readings (V) of the linear virtual test: ``unit`` (n_t, 6, 3) sensor force
     per unit wrench (N), the run's wrench per N, the load history (N)."""
-    from designlab.sensors.fingertip import FSS015_V_PER_N
+    from designlab.sensors.fingertip_model import FSS015_V_PER_N
 
     return FSS015_V_PER_N * np.einsum("tcs,c->ts", unit, run.wrench) * load[:, None]
 
@@ -203,7 +203,7 @@ def evaluate_readings(protocol: HangingWeightTest, rotations_deg, t: np.ndarray,
     (n_t, 3) per run of :func:`load_runs`): eq. 1 per sensor over the sensors whose span is at
     least 10 % of the largest, mean over rotations, then locations; the calibration matrix from
     the reading changes at the largest weight; condition number, sensitivity, linearity."""
-    from designlab.sensors.fingertip import FSS015_V_PER_N
+    from designlab.sensors.fingertip_model import FSS015_V_PER_N
 
     masks = protocol.read_masks(t, step)
     seq = protocol.sequence_g

@@ -48,11 +48,12 @@ METRICS = ("force_error_std.x", "force_error_std.y", "force_error_std.z",
 def fem_stage(part, settings: dict | None, protocol: dict | None, cache) -> dict[str, Any]:
     """The condensed structure of the design (cached) with the settings and protocol."""
     from designlab.sensors.fingertip_calibration import structure
-    from designlab.sensors.predict import model_settings, protocol_from
-    from designlab.sensors.protocols import HangingWeightTest
+    from designlab.sensors.fingertip_model import FingertipModelSettings, design_protocol
+    from designlab.sensors.protocols import HangingWeightTest, protocol_for
+    from designlab.sensors.sensor import settings_from
 
-    sett = model_settings("fingertip", settings)
-    proto = (protocol_from("fingertip", None, protocol, design=part) if protocol
+    sett = settings_from(FingertipModelSettings, settings)
+    proto = (protocol_for(HangingWeightTest, None, protocol, part, design_protocol) if protocol
              else HangingWeightTest.preset("optimized"))
     fem = structure(part, sett, proto, cache)
     return {"part": part, "fem": fem, "settings": sett, "protocol": proto}
