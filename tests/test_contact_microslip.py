@@ -21,7 +21,7 @@ def _drive(law, gt_path, N=N0):
     for x in gt_path:
         g = np.array([[[-N / K_N, x, 0.0]]])
         p, _, Te = contact_forces(la, g, st, elements=True)
-        st = commit([law], g, p, Te)
+        st = commit(g, p, Te)
         out.append(p[0, 0, 1])
     return np.array(out)
 
@@ -88,7 +88,7 @@ def test_tangent_matches_finite_differences():
     st.Te = np.zeros((1, 1, 2, 16))
     g1 = np.array([[[-0.012, 0.0004, -0.0002]]])
     p, _, Te = contact_forces(la, g1, st, elements=True)
-    st = commit([law], g1, p, Te)
+    st = commit(g1, p, Te)
     g = np.array([[[-0.0118, 0.0009, 0.0001]]])
     p, D = contact_forces(la, g, st)
     Dn = np.zeros((3, 3))

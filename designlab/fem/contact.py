@@ -418,8 +418,8 @@ def partial_slip(la: LawArrays, N, dN, kt, dkt, dg, state: ContactState):
     return T, Dtt, DtN, Te
 
 
-def commit(laws: list[ContactLaw], g: np.ndarray, p: np.ndarray,
-           Te: np.ndarray | None = None, D: np.ndarray | None = None) -> ContactState:
+def commit(g: np.ndarray, p: np.ndarray, Te: np.ndarray | None = None,
+           D: np.ndarray | None = None) -> ContactState:
     """State after a converged increment: an open contact forgets its tangential history (its
     reference moves with it, so it re-closes stuck). ``Te``: the Iwan elements' forces; ``D``:
     the contact tangent at the solution."""
@@ -589,7 +589,7 @@ class ContactProblem:
         iterations, the (batch, contact) pairs that opened)."""
         closed_before = state.N > 0
         g, p, it, Te, D = self.solve_increment(g0, state, g_start)
-        st = commit(self.laws, g, p, Te, D)
+        st = commit(g, p, Te, D)
         opened = [(int(b), int(k)) for b, k in zip(*np.nonzero(closed_before & ~(st.N > 0)))]
         return g, p, st, it, opened
 
