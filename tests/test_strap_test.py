@@ -326,6 +326,7 @@ def test_a_mesher_fallback_is_recorded(monkeypatch):
 def test_a_wrap_that_inverts_a_cell_remeshes_finer(monkeypatch):
     """A flat sliver cell that the wrap turns inside out: the strap is meshed again with shorter
     edges (recorded in the attempts and the report's edge length); a given mesh is not."""
+    import designlab.sensors.strap_model as strap_model
     from designlab.errors import ModelError
     from designlab.fem.cache import FEMCache, clear_memory
 
@@ -338,7 +339,7 @@ def test_a_wrap_that_inverts_a_cell_remeshes_finer(monkeypatch):
                              "element id 7")
         return real(part, flat, settings, materials)
 
-    monkeypatch.setattr(st, "build_model", inverts_first)
+    monkeypatch.setattr(strap_model, "build_model", inverts_first)   # solve_fem looks it up there
     clear_memory()
     r = st.run(PART, SHORT, CHEAP, materials=_elastic(), cache=FEMCache()).report["mesh"]
     assert len(calls) >= 2 and calls[1] > calls[0]          # finer

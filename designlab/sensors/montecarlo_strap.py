@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from designlab.sensors.distributions import Distribution, Input, MonteCarloModel
+from designlab.sensors.strap_model import elastic_materials  # noqa: F401  (re-exported)
 
 #: the finger-support stiffnesses (N/mm^3) solved once per design; a build's k / s must lie
 #: inside (the default distributions stay inside: 0.007 / 1.15 ... 0.05 / 0.85)
@@ -80,33 +81,21 @@ METRICS = ("sensitivity.sum_F_n", "sensitivity.diff_F_x", "resistance_ohm", "ini
            "cross_talk.F_n_in_diff_per_N_percent", "wrap_stress_MPa")
 
 
-def elastic_materials(part) -> dict[str, Any]:
-    """The part's meshed bodies' library materials without their Prony series."""
-    from designlab.fem.materials import Material, get_material
-
-    built = part.build()
-    out = {}
-    for name in part.mesh_bodies():
-        spec = built[name].material
-        m = spec if isinstance(spec, Material) else get_material(spec)
-        out[name] = dataclasses.replace(m, prony=None)
-    return out
-
-
 def fem_stage(part, settings: dict | None, protocol: dict | None, cache) -> dict[str, Any]:
     """The elastic strain per newton (channel x case) at every :data:`TISSUE_GRID` stiffness
     (one cached FEM each) with the settings and protocol."""
-    from designlab.sensors.predict import model_settings, protocol_from
-    from designlab.sensors.strap import GAUGE_REGIONS, run
+    from designlab.sensors.protocols import StrapLoadTest, protocol_for
+    from designlab.sensors.sensor import settings_from
+    from designlab.sensors.strap_model import GAUGE_REGIONS, StrapModelSettings, run
 
-    sett = model_settings("strap", settings)
+    sett = settings_from(StrapModelSettings, settings)
     if getattr(sett, "finger_model", "winkler") != "winkler":
         from designlab.errors import ParameterError
 
         raise ParameterError("finger_model", sett.finger_model,
                              "'winkler' with --samples (the Monte Carlo scatters the Winkler "
                              "support's tissue_stiffness; the solid pulp has no scatter model)")
-    proto = protocol_from("strap", None, protocol, design=part)
+    proto = protocol_for(StrapLoadTest, None, protocol, part, None)   # no design_protocol
     mats = elastic_materials(part)
     units = []
     for k in TISSUE_GRID:
@@ -137,9 +126,9 @@ def build(ctx: dict[str, Any], values: dict[str, Any], seed: int) -> dict[str, A
     """One build: its strain per newton, resistance, operating point and divider readout over
     the protocol (sensitivities as the virtual test fits them), its electrical budget and the
     paper's calibration with readout noise from ``seed``."""
-    from designlab.sensors import strap_electrical as el
-    from designlab.sensors import strap_fit as sf
-    from designlab.sensors.strap import CHANNELS, _fit_transfer, _Gauge
+    import designlab.sensors.strap_electrical as el
+    import designlab.sensors.strap_prestrain as ps
+    from designlab.sensors.strap_model import CHANNELS, _fit_transfer, _Gauge
     from designlab.sensors.strap_noise import StrapForceTest, run_strap_force_test
 
     part, sett, proto = ctx["part"], ctx["settings"], ctx["protocol"]
@@ -159,7 +148,7 @@ def build(ctx: dict[str, Any], values: dict[str, Any], seed: int) -> dict[str, A
     eps0, mech = 0.0, 1.0
     if sett.prestrained:
         per = 2 * math.pi * sett.finger_radius * float(values.get("finger_perimeter_scale", 1.0))
-        pre = sf.prestrain_state(part, per, mat, R0, sett.divider_ohm,
+        pre = ps.prestrain_state(part, per, mat, R0, sett.divider_ohm,
                                  slot=sett.slot or None, length=sett.wrap_length or None)
         if pre["initial_strain"] > 0:
             eps0, mech = pre["initial_strain"], pre["mechanical_factor"]
@@ -186,7 +175,7 @@ def build(ctx: dict[str, Any], values: dict[str, Any], seed: int) -> dict[str, A
     # the wrap's membrane stress in the band (strap.wrap_stress: neo-Hookean stand-in, the
     # build's instantaneous modulus); 0 without a slot or wrap_length
     band = ctx["band_material"]
-    wrap = float(band.E * s_E * eps0 * sf.neo_hooke(eps0)["stress_over_linear"])
+    wrap = float(band.E * s_E * eps0 * ps.neo_hooke(eps0)["stress_over_linear"])
     return {"wrap_stress_MPa": wrap, "sensitivity.sum_F_n": float(M_sd[0, 0]), "sensitivity.diff_F_x": float(M_sd[1, 1]),
             "resistance_ohm": float(R0), "initial_strain": float(eps0),
             "resolution_mN.F_n": rep["resolution_mN"]["F_n"],

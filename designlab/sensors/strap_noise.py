@@ -157,13 +157,13 @@ def run_strap_force_test(report: dict[str, Any], test: StrapForceTest | None = N
 
 def strap_force_budget(part=None, protocol=None, settings=None,
                        test: StrapForceTest | None = None) -> dict[str, Any]:
-    """The designed strap's prediction (:func:`designlab.sensors.strap.run`: meshing and a
+    """The designed strap's prediction (:func:`designlab.sensors.strap_model.run`: meshing and a
     viscoelastic history, about 1.5 min) through :func:`run_strap_force_test`, the loads at
     the protocol's amplitudes."""
     import dataclasses
 
     from designlab.sensors.protocols import StrapLoadTest
-    from designlab.sensors.strap import run
+    from designlab.sensors.strap_model import run
 
     protocol = protocol or StrapLoadTest()
     pred = run(part, protocol, settings)
