@@ -7,7 +7,7 @@ with the pose the camera estimated: F_est = K_c X_est, error F_c - F_est (Table 
 std 0.30 / 0.30 / 0.34 N).
 
 The virtual test does the same on the built flexure (``K_true`` of
-:func:`designlab.sensors.flexure.virtual.run`, its ``truth`` setting: the beam chain as built at
+:func:`designlab.sensors.flexure.model.run`, its ``truth`` setting: the beam chain as built at
 the working load by default, or the solid FEM of the helix, or the Timoshenko column):
 
 * **poses**: random wrenches, forces uniform in +-``max_force_N`` (10 N, the fingertip force of
@@ -174,9 +174,9 @@ def hysteresis_band(K_true: np.ndarray, K_design: np.ndarray,
 
 def flexure_force_budget(part=None, protocol=None, settings=None,
                          test: FlexureForceTest | None = None) -> dict[str, Any]:
-    """The built flexure's stiffness (:func:`designlab.sensors.flexure.virtual.run`) through
+    """The built flexure's stiffness (:func:`designlab.sensors.flexure.model.run`) through
     :func:`run_force_test`, plus the band over the paper's hysteresis range."""
-    from designlab.sensors.flexure.virtual import run
+    from designlab.sensors.flexure.model import run
 
     if test is not None and not isinstance(test, FlexureForceTest):
         raise ParameterError("test", test, "a FlexureForceTest")

@@ -25,7 +25,8 @@ from designlab.sensors.noise import (FLEXURE_HYSTERESIS_RANGE_PCT, FLEXURE_TABLE
                                      POSE_MAX_ERROR_XY_MM, POSE_NOISE_SIGMA_MM)
 from designlab.sensors.distributions import Distribution, Input, MonteCarloModel
 
-#: the twist order of the 6x6 (as designlab.sensors.flexure.virtual.TWIST)
+#: the twist order of the 6x6 (as designlab.sensors.flexure.model.TWIST; not imported:
+#: this module stays light at import, the test is imported where it runs)
 TWIST = ("w_x", "w_y", "w_z", "v_x", "v_y", "v_z")
 #: catalogue wire diameter tolerance, +- mm (source: the wire_diameter_offset_mm input)
 WIRE_DIAMETER_TOLERANCE_MM = 0.015
@@ -100,11 +101,12 @@ def fem_stage(part, settings: dict | None, protocol: dict | None, cache) -> dict
     from designlab.errors import ParameterError
     from designlab.sensors.flexure.beam_chain import ChainSettings
     from designlab.sensors.flexure.stress import case_sections
-    from designlab.sensors.flexure.virtual import run, spring_as_built
-    from designlab.sensors.predict import model_settings, protocol_from
+    from designlab.sensors.flexure.model import FlexureModelSettings, run, spring_as_built
+    from designlab.sensors.protocols import FlexureWrenchTest, protocol_for
+    from designlab.sensors.sensor import settings_from
 
-    proto = protocol_from("flexure", None, protocol)
-    sett = model_settings("flexure", settings)
+    proto = protocol_for(FlexureWrenchTest, None, protocol, None, None)
+    sett = settings_from(FlexureModelSettings, settings)
     pred = run(part, proto, sett, wire_stress=False)
     d0 = 2 * part.wire_radius
     slope = sett if sett.truth != "fem" else dataclasses.replace(sett, truth="chain")

@@ -273,7 +273,7 @@ def wire_stress(spring: HelicalSpring, protocol=None, chain_settings=None, *,
     the largest von Mises stress of the closed form and of the beam chain of the spring as
     built, where, the wire's strength and the safety factor (of the larger of the two); the
     smallest safety factor over the cases and the warnings below :data:`WARN_SAFETY_FACTOR`.
-    ``spring``: the spring as built (:func:`designlab.sensors.flexure.virtual.spring_as_built`;
+    ``spring``: the spring as built (:func:`designlab.sensors.flexure.model.spring_as_built`;
     its moduli only matter to the chain's contact); ``chain``: True (assemble the chain), False
     (closed form only) or an assembled chain of that spring to re-use."""
     return stress_report(case_sections(spring, protocol, chain_settings, chain=chain), spring,
