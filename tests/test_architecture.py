@@ -87,6 +87,63 @@ def test_the_checker_sees_an_upward_import(tmp_path, monkeypatch):
     assert upward_imports() == ["designlab/fem/bad.py:2 imports designlab.sensors.predict"]
 
 
+def import_graph() -> dict[str, set[str]]:
+    """module -> the designlab modules it imports anywhere (function bodies included), with
+    ``from package import submodule`` resolved to the submodule and relative imports to their
+    absolute names. A package's ``__init__`` counts only when a name is taken from it."""
+    mods = dict((m.removesuffix(".__init__"), p) for p, m in _modules())
+    graph: dict[str, set[str]] = {}
+    for mod, path in mods.items():
+        pkg = mod if path.name == "__init__.py" else mod.rpartition(".")[0]
+        out = graph.setdefault(mod, set())
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                out |= {a.name for a in node.names if a.name in mods}
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    up = pkg.split(".")[:len(pkg.split(".")) - node.level + 1]
+                    base = ".".join(up + ([node.module] if node.module else []))
+                for a in node.names:
+                    sub = f"{base}.{a.name}"
+                    out.add(sub if sub in mods else base)
+        out &= set(mods)
+        out.discard(mod)
+    return graph
+
+
+def import_cycle() -> list[str]:
+    """One circle of imports among designlab's modules (empty when there is none)."""
+    import graphlib
+
+    try:
+        graphlib.TopologicalSorter(import_graph()).prepare()
+    except graphlib.CycleError as exc:
+        return list(exc.args[1])
+    return []
+
+
+def test_no_circle_of_imports():
+    """Within a layer too, imports go one way: a helper module never imports the module that
+    uses it, not even inside a function (a sensor's settings and constants sit below its
+    virtual test, the Monte Carlo's input types below the runner, the registry above the
+    sensors)."""
+    assert import_cycle() == []
+
+
+def test_the_circle_check_sees_a_circle_through_a_function(tmp_path, monkeypatch):
+    fake = tmp_path / "designlab"
+    (fake / "sensors").mkdir(parents=True)
+    (fake / "sensors" / "__init__.py").write_text("")
+    (fake / "sensors" / "a.py").write_text("from designlab.sensors import b\n")
+    (fake / "sensors" / "b.py").write_text("def f():\n    from .a import x\n    return x\n")
+    (fake / "sensors" / "c.py").write_text("from designlab.sensors import a\n")
+    monkeypatch.setattr(__import__(__name__), "PKG", fake)
+    assert sorted(set(import_cycle())) == ["designlab.sensors.a", "designlab.sensors.b"]
+    (fake / "sensors" / "b.py").write_text("def f():\n    return 1\n")
+    assert import_cycle() == []
+
+
 SENSOR_NAME = re.compile(r"""["'](fingertip|strap|flexure)["']""")
 
 #: everything outside geometry/ and sensors/: the layers' folders, the root modules, the API
