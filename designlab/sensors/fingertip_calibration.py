@@ -50,6 +50,10 @@ import numpy as np
 from designlab.calibration.calibration_matrix import condition_number, fit_calibration_matrix
 from designlab.errors import ParameterError
 from designlab.params import rng, validate
+from designlab.sensors.fingertip_model import (DAQ_BITS, DAQ_RANGE_V, DEFAULT_BOLT_PRELOAD_N,
+                                               FRICTION_CHROMIUM_ON_STEEL,
+                                               FSS015_REPEATABILITY_PERCENT_FS,
+                                               FSS015_STIFFNESS_N_PER_MM)
 from designlab.sensors.noise import FSS015_SENSITIVITY_MV_PER_V_PER_N
 from designlab.sensors.protocols import HangingWeightTest
 
@@ -61,20 +65,21 @@ AMPLIFIER_GAIN = 5.0  #: seed 001 Table I: amplifier gain 5
 @dataclass(frozen=True)
 class FingertipBuild:
     """One virtual build: the inputs the Monte Carlo varies (defaults: the nominal sensor,
-    sources in :mod:`designlab.sensors.noise` and :mod:`designlab.sensors.fingertip_contact`)."""
+    sources in :mod:`designlab.sensors.noise` and :mod:`designlab.sensors.fingertip_model`)."""
 
     printed_modulus_scale: float = field(default=1.0, metadata=rng(0, None, lo_open=True))
     bolt_modulus_scale: float = field(default=1.0, metadata=rng(0, None, lo_open=True))
     sensitivity_mV_per_V_per_N: tuple[float, float, float] = (
         FSS015_SENSITIVITY_MV_PER_V_PER_N[1],) * 3
-    sensor_stiffness_N_per_mm: float = field(default=15.0 / 0.030, metadata=rng(
+    sensor_stiffness_N_per_mm: float = field(default=FSS015_STIFFNESS_N_PER_MM, metadata=rng(
         0, None, lo_open=True, unit="N/mm"))
-    bolt_preload_N: float = field(default=20.0, metadata=rng(0, None, unit="N"))
-    friction_coefficient: float = field(default=0.25, metadata=rng(0, 2))
+    bolt_preload_N: float = field(default=DEFAULT_BOLT_PRELOAD_N, metadata=rng(0, None, unit="N"))
+    friction_coefficient: float = field(default=FRICTION_CHROMIUM_ON_STEEL, metadata=rng(0, 2))
     contact: bool = True
-    repeatability_percent_fs: float = field(default=0.2, metadata=rng(0, 10, unit="% FS"))
-    daq_bits: int = field(default=16, metadata=rng(1, 32))
-    daq_range_V: float = field(default=10.0, metadata=rng(0, None, lo_open=True, unit="V"))
+    repeatability_percent_fs: float = field(default=FSS015_REPEATABILITY_PERCENT_FS, metadata=rng(
+        0, 10, unit="% FS"))
+    daq_bits: int = field(default=DAQ_BITS, metadata=rng(1, 32))
+    daq_range_V: float = field(default=DAQ_RANGE_V, metadata=rng(0, None, lo_open=True, unit="V"))
     seed: int = field(default=0, metadata=rng(0, 2 ** 32 - 1))
 
     def __post_init__(self):
@@ -85,15 +90,10 @@ class FingertipBuild:
 
 
 def nominal_build() -> FingertipBuild:
-    """The nominal build with the colleagues' sourced defaults (preload T = K F d, chromium on
-    steel friction, FSS015 repeatability, NI PCI-6229 DAQ)."""
-    from designlab.sensors.fingertip_contact import ContactSettings
-
-    c = ContactSettings()
-    return FingertipBuild(bolt_preload_N=c.bolt_preload_N,
-                          friction_coefficient=c.friction_coefficient,
-                          repeatability_percent_fs=c.repeatability_percent_fs,
-                          daq_bits=c.daq_bits, daq_range_V=c.daq_range_V)
+    """The nominal build: the model's sourced defaults (preload T = K F d, chromium on steel
+    friction, FSS015 stiffness and repeatability, NI PCI-6229 DAQ:
+    :mod:`designlab.sensors.fingertip_model`), the datasheet's typical sensitivity."""
+    return FingertipBuild()
 
 
 # ------------------------------------------------------------------------------ the FEM stage

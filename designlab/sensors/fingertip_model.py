@@ -53,6 +53,8 @@ MICROSLIP_ELEMENTS = 24
 #: nu 0.29 (ASM handbook typical); the central ball: steel E 210 GPa, nu 0.30 (materials.py).
 BUTTON_E_MPA, BUTTON_NU = 193000.0, 0.29
 BALL_E_MPA, BALL_NU = 210000.0, 0.30
+#: FSS015 repeatability: +-0.2 % of span (seed 001 Table I)
+FSS015_REPEATABILITY_PERCENT_FS = 0.2
 #: NI PCI-6229 (the paper's DAQ): 16-bit ADC, widest input range +-10 V (NI datasheet).
 DAQ_BITS = 16
 DAQ_RANGE_V = 10.0
@@ -89,7 +91,7 @@ class ContactSettings:
         "tightening ratchets (the ball settles down the buttons); the paper's sensor had been "
         "through many loops (over 2000 tests)"))
     preload_increments: int = field(default=8, metadata=rng(1, 10000))
-    repeatability_percent_fs: float = field(default=0.2, metadata=rng(
+    repeatability_percent_fs: float = field(default=FSS015_REPEATABILITY_PERCENT_FS, metadata=rng(
         0, 10, unit="% FS", doc="FSS015 repeatability +-0.2 % span (Table I), read as a 2-sigma "
         "band on each 3-s reading"))
     zero_drift_percent_fs: float = field(default=0.0, metadata=rng(

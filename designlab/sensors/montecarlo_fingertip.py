@@ -10,6 +10,7 @@ from typing import Any
 
 from designlab.sensors.noise import FSS015_SENSITIVITY_MV_PER_V_PER_N
 from designlab.sensors.distributions import Distribution, Input, MonteCarloModel
+from designlab.sensors.fingertip_model import DEFAULT_BOLT_PRELOAD_N, FRICTION_CHROMIUM_ON_STEEL
 
 _ABS_SCATTER = ("assumed: printed ABS modulus between the datasheet's across-layer and "
                 "in-plane ratio (ABSplus-P430 yield strength 26 MPa ZX / 31 MPa XZ = 0.84) and "
@@ -26,15 +27,16 @@ INPUTS = (
                               "three units drawn independently"),
           "FSS015 sensitivity, mV/V/N, one draw per sensor", per_build=3),
     Input("bolt_preload_N",
-          Distribution("uniform", lo=0.7 * 20.0, hi=1.3 * 20.0,
-                       source="20 N from T = K F d at 0.01 N m (fingertip_contact); torque "
+          Distribution("uniform", lo=0.7 * DEFAULT_BOLT_PRELOAD_N,
+                       hi=1.3 * DEFAULT_BOLT_PRELOAD_N,
+                       source="20 N from T = K F d at 0.01 N m (fingertip_model); torque "
                               "tightening scatters the preload about +-30 % through the nut "
                               "factor (Shigley, Mechanical Engineering Design, Sec. 8-8)"),
           "bolt tension after tightening, N (sets the Hertz contact stiffnesses)"),
     Input("friction_coefficient",
-          Distribution("uniform", lo=0.21, hi=0.25,
+          Distribution("uniform", lo=0.21, hi=FRICTION_CHROMIUM_ON_STEEL,
                        source="chromium on steel, kinetic 0.21 to static 0.25 (Wypych 2018, "
-                              "Table 11.1; fingertip_contact)"),
+                              "Table 11.1; fingertip_model)"),
           "ball/sensor Coulomb coefficient (decides the stick margin)"),
 )
 
