@@ -314,3 +314,23 @@ def test_console_script_exit_runs_handlers_flushes_and_keeps_the_code():
                          text=True, timeout=120)
     assert bad.returncode == 2 and "handler ran" in bad.stderr
     assert "part='nope' is not allowed" in bad.stderr
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["predict", "fingertp", "--out", "{o}"],
+     "part='fingertp' is not allowed: one of strap, fingertip, flexure (did you mean 'fingertip'?)"),
+    (["export", "fingrtip", "--out", "{o}"], "(did you mean 'fingertip'?)"),
+    (["params", "strp"], "(did you mean 'strap'?)"),
+    (["loop", "--data", str(ROOT / "examples" / "stretch_card.toml"), "--base", "stretch-fme",
+      "--out", "{o}"], "or a model .json file (did you mean 'stretch-fem'?)"),
+])
+def test_a_misspelt_name_gets_the_close_one(argv, needle, tmp_path, capsys):
+    """A misspelt sensor, part or loop base: one line naming it, what is allowed and the close
+    one, exit 2, nothing written."""
+    out = tmp_path / "o"
+    with pytest.raises(SystemExit) as e:
+        main([a.format(o=out) for a in argv])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and not out.exists()
+    errors = [line for line in err.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and needle in errors[0]

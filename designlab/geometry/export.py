@@ -298,10 +298,12 @@ def resolve_parts(target: str, overrides: Mapping[str, str] | None = None,
     ``width=12`` is allowed too. Unknown parts or parameters raise ParameterError.
     """
     from designlab.geometry.parts import PARTS, make_part
+    from designlab.params import did_you_mean
 
     names = list(PARTS) if target == "all" else [target]
     if target != "all" and target not in PARTS:
-        raise ParameterError("part", target, "one of " + ", ".join([*PARTS, "all"]))
+        raise ParameterError("part", target, "one of " + ", ".join([*PARTS, "all"])
+                             + did_you_mean(target, [*PARTS, "all"]))
     per_part: dict[str, dict[str, str]] = {n: {} for n in names}
     for key, value in (overrides or {}).items():
         part, dot, pname = key.partition(".")

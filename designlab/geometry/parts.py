@@ -8,7 +8,7 @@ from designlab.errors import ParameterError
 from designlab.geometry.fingertip import CantileverFingertip
 from designlab.geometry.flexure import SpringFlexure
 from designlab.geometry.strap import ArchStrap
-from designlab.params import with_overrides
+from designlab.params import did_you_mean, with_overrides
 
 PARTS: dict[str, type] = {"strap": ArchStrap, "fingertip": CantileverFingertip,
                           "flexure": SpringFlexure}
@@ -24,7 +24,8 @@ def make_part(name: str, overrides: Mapping[str, str | float] | None = None,
     bad values raise a one-line :class:`ParameterError`.
     """
     if name not in PARTS:
-        raise ParameterError("part", name, "one of " + ", ".join(PARTS))
+        raise ParameterError("part", name, "one of " + ", ".join(PARTS)
+                             + did_you_mean(name, PARTS))
     values: dict[str, Any] = {}
     if config:
         table = config.get(name, config)

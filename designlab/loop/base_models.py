@@ -31,6 +31,7 @@ import numpy as np
 
 from designlab.measured.dataset import Dataset
 from designlab.errors import DataError, ModelError, ParameterError
+from designlab.params import did_you_mean
 
 SPECIMEN = {"length": 40.0, "width": 10.0, "thickness": 4.0, "nu": 0.49}
 BASE_KINDS = ("linear", "stretch-fem", "specimen", "stretch-closed", "load-arm")
@@ -91,7 +92,7 @@ def fit_base(kind: str, train: Dataset, outputs: list[str]) -> Base:
     if name not in BASE_KINDS:
         raise ParameterError("--base", kind, "linear, linear:INPUT[,INPUT..], stretch-fem, "
                              "specimen, stretch-closed, load-arm[:LOAD,ARM[,ANGLE]] or a model "
-                             ".json file")
+                             ".json file" + did_you_mean(name, BASE_KINDS))
     if name == "load-arm":
         return _fit_load_arm(kind, arg, train, outputs)
     if name == "linear":

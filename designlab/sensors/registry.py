@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 from designlab.errors import ParameterError
+from designlab.params import did_you_mean
 from designlab.sensors import fingertip, strap
 from designlab.sensors.flexure import virtual as flexure
 from designlab.sensors.sensor import Sensor
@@ -21,4 +22,5 @@ def get_sensor(name: str) -> Sensor:
     try:
         return SENSORS[name]
     except (KeyError, TypeError):
-        raise ParameterError("part", name, "one of " + ", ".join(SENSORS)) from None
+        raise ParameterError("part", name, "one of " + ", ".join(SENSORS)
+                             + did_you_mean(name, SENSORS)) from None
