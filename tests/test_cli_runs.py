@@ -334,3 +334,17 @@ def test_a_misspelt_name_gets_the_close_one(argv, needle, tmp_path, capsys):
     assert e.value.code == 2 and not out.exists()
     errors = [line for line in err.splitlines() if line.startswith("error:")]
     assert len(errors) == 1 and needle in errors[0]
+
+
+@pytest.mark.parametrize("toml, needle", [
+    ("weigths_g = [0, 10]\n", "a parameter of HangingWeightTest: dt_s, "),
+    ('preset = "optimised"\n', "one of tested, optimized (did you mean 'optimized'?)"),
+])
+def test_a_misspelt_protocol_key_gets_the_close_one(toml, needle, tmp_path, capsys):
+    (tmp_path / "p.toml").write_text(toml)
+    with pytest.raises(SystemExit) as e:
+        main(["predict", "fingertip", "--protocol", str(tmp_path / "p.toml"), "--out",
+              str(tmp_path / "o")])
+    errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("error:")]
+    assert e.value.code == 2 and not (tmp_path / "o").exists()
+    assert len(errors) == 1 and needle in errors[0] and "(did you mean '" in errors[0]

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from designlab.errors import ParameterError
-from designlab.params import at_least, load_toml, rng, validate
+from designlab.params import at_least, did_you_mean, load_toml, rng, validate
 
 G_ACC = 9.81  #: m/s^2, grams -> newtons: F = m_g * 1e-3 * G_ACC
 
@@ -88,7 +88,8 @@ class HangingWeightTest:
             return cls(weights_g=TABLE_III_WEIGHTS_G,
                        g1_locations=tuple(f"h{i}" for i in range(1, 7)),
                        g2_locations=tuple(f"r{i}" for i in range(1, 7)))
-        raise ParameterError("preset", name, "one of tested, optimized")
+        raise ParameterError("preset", name, "one of tested, optimized"
+                             + did_you_mean(name, ("tested", "optimized")))
 
     @property
     def sequence_g(self) -> np.ndarray:
@@ -203,7 +204,8 @@ def _coerce(cls, values: dict[str, Any]) -> dict[str, Any]:
     out = {}
     for k, v in values.items():
         if k not in names:
-            raise ParameterError(k, v, f"a parameter of {cls.__name__}: " + ", ".join(sorted(names)))
+            raise ParameterError(k, v, f"a parameter of {cls.__name__}: " + ", ".join(sorted(names))
+                                 + did_you_mean(k, names))
         out[k] = tuple(v) if isinstance(v, list) else v
     return out
 
@@ -247,6 +249,7 @@ def protocol_for(cls: type, path: str | Path | None = None, values: dict[str, An
         names = {f.name for f in fields(proto)}
         for k in data:
             if k not in names:
-                raise ParameterError(f"protocol.{k}", data[k], "one of " + ", ".join(sorted(names)))
+                raise ParameterError(f"protocol.{k}", data[k], "one of " + ", ".join(sorted(names))
+                                     + did_you_mean(k, names))
         proto = replace(proto, **data)
     return proto
