@@ -219,11 +219,13 @@ def optimize(ctx: typer.Context,
 
     from designlab.errors import ParameterError
     from designlab.geometry.export import parse_formats
+    from designlab.params import did_you_mean
 
     _check_out(out)
     _check_options(("--workers", workers, 1, 512), ("--maxiter", maxiter, 1, 1000))
     if method not in ("auto", "surrogate", "de", "pareto"):
-        raise ParameterError("--method", method, "one of auto, surrogate, de, pareto")
+        raise ParameterError("--method", method, "one of auto, surrogate, de, pareto"
+                             + did_you_mean(method, ("auto", "surrogate", "de", "pareto")))
     parse_formats(formats)
     cfg, evaluator = load_sweep(config)      # [uncertainty]: robust (Monte Carlo per design)
     executor = _executor(scheduler, workers)
@@ -354,11 +356,12 @@ def flexure(preset: str = typer.Option("visiflex-catalog", "--preset",
     from designlab.sensors.flexure import report as fr
     from designlab.sensors.flexure.beam_chain import ChainSettings, chain_stiffness
     from designlab.sensors.flexure.spring import preset as spring_preset
-    from designlab.params import parse_sets, with_overrides
+    from designlab.params import did_you_mean, parse_sets, with_overrides
 
     if frame not in fr.FRAMES:
         from designlab.errors import ParameterError
-        raise ParameterError("--frame", frame, "one of " + ", ".join(fr.FRAMES))
+        raise ParameterError("--frame", frame, "one of " + ", ".join(fr.FRAMES)
+                             + did_you_mean(frame, fr.FRAMES))
     spring = with_overrides(spring_preset(preset), parse_sets(set_))
     paper = fr.load_paper(paper_json)
     if not 0 <= mu <= 2:

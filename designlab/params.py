@@ -51,7 +51,8 @@ def check_field(name: str, value: Any, meta: Mapping[str, Any]) -> None:
     """Raise :class:`ParameterError` if ``value`` violates the field's metadata."""
     if meta.get("choices"):
         if value not in meta["choices"]:
-            raise ParameterError(name, value, allowed_text(meta))
+            hint = did_you_mean(value, meta["choices"]) if isinstance(value, str) else ""
+            raise ParameterError(name, value, allowed_text(meta) + hint)
         return
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         if meta.get("lo") is None and meta.get("hi") is None:

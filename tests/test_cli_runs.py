@@ -323,9 +323,15 @@ def test_console_script_exit_runs_handlers_flushes_and_keeps_the_code():
     (["params", "strp"], "(did you mean 'strap'?)"),
     (["loop", "--data", str(ROOT / "examples" / "stretch_card.toml"), "--base", "stretch-fme",
       "--out", "{o}"], "or a model .json file (did you mean 'stretch-fem'?)"),
+    (["predict", "fingertip", "--setting", "solver=pardso", "--out", "{o}"],
+     "settings.solver='pardso' is not allowed: one of auto, direct, pardiso, cholmod, amg (did "
+     "you mean 'pardiso'?)"),
+    (["flexure", "--frame", "camra"], "one of spring, camera (did you mean 'camera'?)"),
+    (["optimize", str(ROOT / "examples" / "sweep_fingertip_quick.toml"), "--method", "surogate",
+      "--out", "{o}"], "(did you mean 'surrogate'?)"),
 ])
 def test_a_misspelt_name_gets_the_close_one(argv, needle, tmp_path, capsys):
-    """A misspelt sensor, part or loop base: one line naming it, what is allowed and the close
+    """A misspelt sensor, part, loop base, setting choice or option: one line naming it, what is allowed and the close
     one, exit 2, nothing written."""
     out = tmp_path / "o"
     with pytest.raises(SystemExit) as e:

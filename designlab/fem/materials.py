@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from designlab.errors import ParameterError
+from designlab.params import did_you_mean
 from designlab.fem.prony import Prony
 
 
@@ -293,4 +294,5 @@ def get_material(name: str) -> Material:
     try:
         return MATERIALS[name]
     except KeyError:
-        raise ParameterError("material", name, "one of " + ", ".join(MATERIALS)) from None
+        raise ParameterError("material", name, "one of " + ", ".join(MATERIALS)
+                             + did_you_mean(name, MATERIALS)) from None

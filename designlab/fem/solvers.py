@@ -23,6 +23,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from designlab.errors import ModelError, ParameterError
+from designlab.params import did_you_mean
 
 try:  # optional: scikit-sparse's CHOLMOD
     from sksparse.cholmod import CholmodNotPositiveDefiniteError
@@ -404,7 +405,8 @@ def choose_solver(n: int, solver: str = "auto", n_rhs: int = 1) -> str:
     """The concrete method ``factorize`` uses for ``n`` unknowns and ``n_rhs`` expected
     right-hand sides; an unknown ``solver`` is a one-line :class:`ParameterError`."""
     if solver not in SOLVERS:
-        raise ParameterError("solver", solver, "one of " + ", ".join(SOLVERS))
+        raise ParameterError("solver", solver, "one of " + ", ".join(SOLVERS)
+                             + did_you_mean(solver, SOLVERS))
     if solver == "auto":
         if n < (PARDISO_MIN_DOFS_MANY_RHS if n_rhs >= MANY_RHS else PARDISO_MIN_DOFS):
             return "direct"

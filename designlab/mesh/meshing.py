@@ -42,6 +42,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 
 from designlab.errors import MeshingError, ParameterError
+from designlab.params import did_you_mean
 from designlab.geometry.body import Body, FacetSelector
 from designlab.mesh.tetmesh import TetMesh, box_tet_mesh
 from designlab.mesh.facets import interface_facets, select_facets
@@ -405,7 +406,8 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
     if epsilon is not None and not (np.isfinite(epsilon) and epsilon > 0):
         raise ParameterError("epsilon", epsilon, "a number > 0 mm")
     if mesher not in MESHERS:
-        raise ParameterError("mesher", mesher, "one of " + ", ".join(MESHERS))
+        raise ParameterError("mesher", mesher, "one of " + ", ".join(MESHERS)
+                             + did_you_mean(mesher, MESHERS))
     factor, energy = PRESETS[quality]
     refinement = [(c, r, factor * e) for c, r, e in _check_refinement(refinement)]
     items = _as_bodies(bodies)

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from designlab.errors import DataError, ParameterError
+from designlab.params import did_you_mean
 from designlab.sensors.flexure.spring import (HelicalSpring, centre_terms, stiffness_ratios,
                                   stiffness_timoshenko, stiffness_zero_pitch, to_si)
 from designlab.frames import offset_along_z, transform, transform_stiffness
@@ -79,7 +80,8 @@ def camera_offset(paper: dict) -> float:
 def to_frame(K_spring_si: np.ndarray, frame: str, h_m: float) -> np.ndarray:
     """SI stiffness at the spring centre expressed in ``frame`` (camera: centre at +h along z)."""
     if frame not in FRAMES:
-        raise ParameterError("--frame", frame, "one of " + ", ".join(FRAMES))
+        raise ParameterError("--frame", frame, "one of " + ", ".join(FRAMES)
+                             + did_you_mean(frame, FRAMES))
     if frame == "spring":
         return np.asarray(K_spring_si, float)
     return transform_stiffness(K_spring_si, transform(translation=(0.0, 0.0, h_m)))

@@ -33,7 +33,7 @@ import numpy as np
 
 from designlab.errors import ParameterError
 from designlab.frames import transform, transform_stiffness
-from designlab.params import rng, validate
+from designlab.params import did_you_mean, rng, validate
 
 #: SS302 (ASTM A313) typical moduli, MPa: E 193 GPa, G 69 GPa (E/G = 2.797; seed 002's K_f has
 #: k_x/k_z = E/G = 10913/3911 = 2.790, consistent with these to 0.3 %)
@@ -123,7 +123,8 @@ PRESETS = {"visiflex": VISIFLEX_AS_PRINTED, "visiflex-catalog": VISIFLEX_CATALOG
 def preset(name: str) -> HelicalSpring:
     """A named spring; unknown names raise ParameterError listing the presets."""
     if name not in PRESETS:
-        raise ParameterError("--preset", name, "one of " + ", ".join(PRESETS))
+        raise ParameterError("--preset", name, "one of " + ", ".join(PRESETS)
+                             + did_you_mean(name, PRESETS))
     return PRESETS[name]
 
 
