@@ -49,9 +49,8 @@ from designlab.calibration.stiffness_fit import fit_stiffness
 from designlab.errors import ModelError
 from designlab.fem.settings import FEMSettings
 from designlab.params import rng, validate
+from designlab.sensors.flexure.spring import TWIST, WRENCH  # noqa: F401  (the 6x6's order)
 
-WRENCH = ("m_x", "m_y", "m_z", "f_x", "f_y", "f_z")
-TWIST = ("w_x", "w_y", "w_z", "v_x", "v_y", "v_z")
 K_F_UNITS = ("SI: N*m/rad (rotational), N/m (translational), N (couplings); rows m_x, m_y, m_z, "
              "f_x, f_y, f_z; columns w_x, w_y, w_z, v_x, v_y, v_z; frame {f}: spring centre, "
              "rigid with the fingertip")

@@ -24,10 +24,8 @@ import numpy as np
 from designlab.sensors.noise import (FLEXURE_HYSTERESIS_RANGE_PCT, FLEXURE_TABLE_I,
                                      POSE_MAX_ERROR_XY_MM, POSE_NOISE_SIGMA_MM)
 from designlab.sensors.distributions import Distribution, Input, MonteCarloModel
+from designlab.sensors.flexure.spring import TWIST
 
-#: the twist order of the 6x6 (as designlab.sensors.flexure.model.TWIST; not imported:
-#: this module stays light at import, the test is imported where it runs)
-TWIST = ("w_x", "w_y", "w_z", "v_x", "v_y", "v_z")
 #: catalogue wire diameter tolerance, +- mm (source: the wire_diameter_offset_mm input)
 WIRE_DIAMETER_TOLERANCE_MM = 0.015
 

@@ -35,6 +35,10 @@ from designlab.errors import ParameterError
 from designlab.frames import transform, transform_stiffness
 from designlab.params import did_you_mean, rng, validate
 
+#: the 6x6's order: twists (rad, mm) in, wrenches (N mm, N) out
+TWIST = ("w_x", "w_y", "w_z", "v_x", "v_y", "v_z")
+WRENCH = ("m_x", "m_y", "m_z", "f_x", "f_y", "f_z")
+
 #: SS302 (ASTM A313) typical moduli, MPa: E 193 GPa, G 69 GPa (E/G = 2.797; seed 002's K_f has
 #: k_x/k_z = E/G = 10913/3911 = 2.790, consistent with these to 0.3 %)
 SS302_E_MPA = 193_000.0
