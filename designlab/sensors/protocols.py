@@ -234,7 +234,7 @@ def protocol_for(cls: type, path: str | Path | None = None, values: dict[str, An
     """A sensor's protocol: the paper's defaults (``cls()``), made to fit ``design`` by
     ``design_protocol(protocol, design, values)`` when no file is given, a TOML file, and/or a
     dict of overrides (sweeps; ``preset`` selects a preset first). An unknown key is a one-line
-    error naming ``protocol.<key>``."""
+    error naming ``protocol.<key>`` (:func:`_coerce`'s, as for a TOML file)."""
     from dataclasses import replace
 
     proto = load_protocol(cls, path)
@@ -245,11 +245,9 @@ def protocol_for(cls: type, path: str | Path | None = None, values: dict[str, An
         preset = data.pop("preset", None)
         if preset is not None:
             proto = type(proto).preset(preset)
-        data = {k: (tuple(v) if isinstance(v, list) else v) for k, v in data.items()}
-        names = {f.name for f in fields(proto)}
-        for k in data:
-            if k not in names:
-                raise ParameterError(f"protocol.{k}", data[k], "one of " + ", ".join(sorted(names))
-                                     + did_you_mean(k, names))
+        try:
+            data = _coerce(type(proto), data)
+        except ParameterError as exc:
+            raise ParameterError(f"protocol.{exc.name}", exc.value, exc.allowed) from None
         proto = replace(proto, **data)
     return proto
