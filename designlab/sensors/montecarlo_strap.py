@@ -95,7 +95,7 @@ def fem_stage(part, settings: dict | None, protocol: dict | None, cache) -> dict
         raise ParameterError("finger_model", sett.finger_model,
                              "'winkler' with --samples (the Monte Carlo scatters the Winkler "
                              "support's tissue_stiffness; the solid pulp has no scatter model)")
-    proto = protocol_for(StrapLoadTest, None, protocol, part, None)   # no design_protocol
+    proto = protocol_for(StrapLoadTest, None, protocol)      # the strap has no design_protocol
     mats = elastic_materials(part)
     units = []
     for k in TISSUE_GRID:

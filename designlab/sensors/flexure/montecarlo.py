@@ -103,7 +103,7 @@ def fem_stage(part, settings: dict | None, protocol: dict | None, cache) -> dict
     from designlab.sensors.protocols import FlexureWrenchTest, protocol_for
     from designlab.sensors.sensor import settings_from
 
-    proto = protocol_for(FlexureWrenchTest, None, protocol, None, None)
+    proto = protocol_for(FlexureWrenchTest, None, protocol)
     sett = settings_from(FlexureModelSettings, settings)
     pred = run(part, proto, sett, wire_stress=False)
     d0 = 2 * part.wire_radius
