@@ -422,6 +422,28 @@ def test_meshed_moment_sensitivity_agrees_with_the_hand_estimate(meshed):
     assert gc["stuck"]["ball_rotation_rad"] < theta
 
 
+
+def test_a_missed_h9_to_h1_goal_names_the_moment_sensitivity(meshed):
+    """prediction.json's h9 -> h1 goal carries its diagnosis: the meshed structure's moment
+    sensitivity against the paper's implied one and the ball restraint that would close the gap
+    (more than the bolt gives); the sentence in does_not_match says both."""
+    from designlab.sensors.fingertip_contact import paper_comparison
+
+    s = ContactSettings()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rep = run_contact_test(PART, SHORT, s, meshed, rotations_deg=(0.0,))
+        pc = paper_comparison(PART, SHORT, s, meshed, rep, rotations_deg=(0.0,))
+    g = pc["goals"]["compressed_change_h9_to_h1"]
+    m = g["moment_sensitivity"]
+    assert m["rho_per_mm_fem"]["frictionless"] > 2 * m["rho_per_mm_paper"]
+    restraint = m["rotational_restraint_for_paper_N_mm_per_rad"]
+    assert restraint > 5 * m["bolt_rotational_stiffness_at_ball_centre_N_mm_per_rad"]
+    assert not m["gap_closes"]
+    said = [t for t in pc["does_not_match"] if t.startswith("compressed-sensor change h9 -> h1")]
+    assert not g["met"] and len(said) == 1
+    assert "moment sensitivity" in said[0] and f"{restraint:.2g} N mm/rad" in said[0]
+
 def test_readout_draws_first_is_the_reading_and_spread_is_reported():
     """The hysteresis with readout over noise draws: draw 0 is the reported reading (no zero
     drift), the others continue each run's seeded generator; same input, same spread."""

@@ -84,6 +84,18 @@ def test_paper_comparison_reports_the_change_in_every_definition():
     assert r["by_definition"]["relative_to_first_span"] == pytest.approx(r["value_pct"], rel=1e-3)
     assert any("percentage of the applied force" in t
                for t in pc["matches"] + pc["does_not_match"])
+    # the diagnosis beside the goal: the moment sensitivity against the paper's implied one
+    ms = moment_sensitivity(part, cf, s)
+    m = g["moment_sensitivity"]
+    assert m["rho_per_mm_fem"]["frictionless"] == ms["frictionless"]["fem"]["rho_per_mm"]
+    assert m["rho_per_mm_paper"] == pytest.approx(0.0307, abs=1e-4)
+    said = [t for t in pc["matches"] + pc["does_not_match"]
+            if t.startswith("compressed-sensor change h9 -> h1")]
+    assert len(said) == 1
+    # the lumped stand-in sends no moment to frictionless sensors: no restraint needed, none said
+    assert m["rho_per_mm_fem"]["frictionless"] < m["rho_per_mm_paper"]
+    assert m["rotational_restraint_for_paper_N_mm_per_rad"] == 0.0
+    assert "moment sensitivity" not in said[0]
 
 
 def test_table_ii_points_lie_on_one_dome_centred_at_h5():

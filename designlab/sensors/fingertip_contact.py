@@ -1168,9 +1168,12 @@ def moment_sensitivity(part, cf: CondensedFingertip, settings: ContactSettings |
     c = PAPER["compressed_change_h9_to_h1_pct"] / 100.0
     rho_paper = c / (h1 - (1 + c) * h9)
     lo, hi = 0.0, 1e9
-    for _ in range(200):
-        mid = np.sqrt(max(lo, 1.0) * hi)
-        lo, hi = (mid, hi) if summary(fem(False, mid))["rho_per_mm"] > rho_paper else (lo, mid)
+    if summary(fem(False))["rho_per_mm"] <= rho_paper:
+        hi = 0.0                                        # no restraint needed
+    else:
+        for _ in range(200):
+            mid = np.sqrt(max(lo, 1.0) * hi)
+            lo, hi = (mid, hi) if summary(fem(False, mid))["rho_per_mm"] > rho_paper else (lo, mid)
     bolt_rot = 1.0 / np.linalg.inv(K_hand)[4, 4]
     out["paper_rho_per_mm"] = rho_paper
     out["rotational_restraint_for_paper_N_mm_per_rad"] = float(hi)
@@ -1521,8 +1524,31 @@ def paper_comparison(part, protocol: HangingWeightTest, settings: ContactSetting
                 f"measured profile, does in {100 * gk['share_of_draws_monotonic']:.0f} % of "
                 "draws: the lowest locations differ by less than the readout scatter")
         gk = goals["compressed_change_h9_to_h1"]
+        ms = moment_sensitivity(part, cf, settings)
+        gk["moment_sensitivity"] = {
+            "rho_per_mm_fem": {k: ms[k]["fem"]["rho_per_mm"] for k in ("frictionless", "stuck")},
+            "rho_per_mm_hand": {k: ms[k]["hand"]["rho_per_mm"] for k in ("frictionless", "stuck")},
+            "rho_per_mm_paper": ms["paper_rho_per_mm"],
+            "rotational_restraint_for_paper_N_mm_per_rad":
+                ms["rotational_restraint_for_paper_N_mm_per_rad"],
+            "bolt_rotational_stiffness_at_ball_centre_N_mm_per_rad":
+                ms["bolt_rotational_stiffness_at_ball_centre_N_mm_per_rad"],
+            "gap_closes": ms["gap_closure"]["closes"],
+            "note": "the compressed sensor's force per N mm of the load's moment about the ball "
+                    "over its force per N of the load (rho, per mm of arm), linearised at the "
+                    "preload; the paper's 33.9 % needs rho_per_mm_paper"}
+        rho_f = ms["frictionless"]["fem"]["rho_per_mm"]
+        restraint = ms["rotational_restraint_for_paper_N_mm_per_rad"]
+        bolt = ms["bolt_rotational_stiffness_at_ball_centre_N_mm_per_rad"]
         (matches if gk["met"] else mismatches).append(
-            f"compressed-sensor change h9 -> h1 {ch1:.3g} % vs 33.9 %")
+            f"compressed-sensor change h9 -> h1 {ch1:.3g} % vs 33.9 %"
+            + ("" if gk["met"] or restraint <= 0 else
+               f": the sensors' moment sensitivity about the ball (rho {rho_f:.3g} per mm "
+               f"frictionless, FEM; hand estimate {ms['frictionless']['hand']['rho_per_mm']:.3g}) "
+               f"is {rho_f / ms['paper_rho_per_mm']:.2g}x the {ms['paper_rho_per_mm']:.2g} the "
+               f"paper's number implies; a rotational restraint of the ball of "
+               f"{restraint:.2g} N mm/rad would give it, {restraint / bolt:.2g}x the bolt's, and "
+               "no modelled part supplies it"))
         pa1 = d1.get("percent_of_applied_force")
         pa2 = d2.get("percent_of_applied_force")
         if pa1 is not None and pa2 is not None:
