@@ -1339,10 +1339,10 @@ def paper_design(part, which: str):
     (:data:`designlab.sensors.fingertip_model.LOAD_ONLY_PARAMS`), so both run on this design's
     condensed FEM."""
     from designlab.geometry.fingertip import CantileverFingertip
-    from designlab.params import as_dict
     ref = CantileverFingertip.tested() if which == "II" else CantileverFingertip()
-    keep = {k: v for k, v in as_dict(part).items() if k not in LOAD_ONLY_PARAMS}
-    return dataclasses.replace(ref, **keep)
+    # the reference's load-only parameters on this design (its class and any field of its own,
+    # e.g. a load datum, kept)
+    return dataclasses.replace(part, **{k: getattr(ref, k) for k in LOAD_ONLY_PARAMS})
 
 
 def _axial_share(report: dict[str, Any], cf: CondensedFingertip) -> float | None:
