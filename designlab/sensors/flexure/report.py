@@ -403,14 +403,16 @@ def bending_invariants(K: np.ndarray) -> dict:
 BENDING_PLANES = {"x": (3, 1), "y": (4, 0)}
 
 
-def _plane_floor(R: float, K: float, C: float, q: float, e: float, factor: float) -> float:
+def _plane_floor(R: float, K: float, C: float, q: float, e, factor: float) -> np.ndarray:
     """Smallest ``|k_rot / R - 1| + |k / K - 1|`` over the lateral stiffness ``k`` of a plane whose
-    rocking at the elastic centre is ``k / q``, seen from ``e`` (m) below that centre
+    rocking at the elastic centre is ``k / q``, seen from ``e`` (m, an array) below that centre
     (``k_rot = k (1/q + e^2)``), with the coupling ``e k`` within ``factor`` of ``C``. The
     objective is convex and piecewise linear in ``k``: its minimum is at a kink or an end."""
+    e = np.asarray(e, float)
     lo, hi = C / (factor * e), factor * C / e
-    cand = [min(max(k, lo), hi) for k in (R / (1.0 / q + e * e), K, lo, hi)]
-    return min(abs(k * (1.0 / q + e * e) / R - 1.0) + abs(k / K - 1.0) for k in cand)
+    g = 1.0 / q + e * e
+    k = np.clip(np.stack([R / g, np.full_like(e, K), lo, hi]), lo, hi)
+    return np.min(np.abs(k * g / R - 1.0) + np.abs(k / K - 1.0), axis=0)
 
 
 def diagonal_error_floor(measured: np.ndarray, lateral_over_rocking: dict,
@@ -424,15 +426,15 @@ def diagonal_error_floor(measured: np.ndarray, lateral_over_rocking: dict,
     bound: a real model of the family does no better. SI."""
     M = np.asarray(measured, float)
 
-    def floor(e: float) -> float:
+    def floor(e):
         return 100.0 * sum(_plane_floor(M[r, r], M[t, t], abs(M[r, t]), lateral_over_rocking[a], e,
                                         coupling_factor)
                            for a, (t, r) in BENDING_PLANES.items()) / 6.0
 
     if offset_m is not None:
-        return {"offset_m": float(offset_m), "diagonal_floor_pct": floor(offset_m)}
+        return {"offset_m": float(offset_m), "diagonal_floor_pct": float(floor(offset_m))}
     grid = np.linspace(1e-4, 0.03, 3000)  # 0.1-30 mm, 10 um steps
-    vals = np.array([floor(e) for e in grid])
+    vals = floor(grid)
     i = int(np.argmin(vals))
     return {"offset_m": float(grid[i]), "diagonal_floor_pct": float(vals[i])}
 
