@@ -331,6 +331,9 @@ def test_paper_designs_share_this_designs_fem_and_report_the_goals():
     t2 = pc["table_II_design"]["hysteresis_percent"]["robust_eq1_span10_noise_free"]
     assert list(t2["G1_by_location"]) == [f"h{i}" for i in range(1, 10)]
     assert pc["table_III_design"]["condition_number"] > 1.4
+    # the structure the paper's Table II fingertip ran on is said, with its base
+    assert pc["table_II_design"]["base_below_ball_centre_mm"] == pytest.approx(-PART.cap_z[0])
+    assert "25.43 mm" in pc["table_II_design"]["structure"]
     assert g["Pz_error_over_xy"]["met"] == (g["Pz_error_over_xy"]["value"] >= 3)
     pz = [m for m in pc["matches"] + pc["does_not_match"] if m.startswith("P_z relative error")]
     assert len(pz) == 1 and (("not matched" in pz[0]) == (not g["Pz_error_over_xy"]["met"]))

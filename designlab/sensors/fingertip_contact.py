@@ -1478,6 +1478,12 @@ def paper_comparison(part, protocol: HangingWeightTest, settings: ContactSetting
             "by_definition": {k: _rounded(v) for k, v in d2.items()}}
         out["table_II_design"] = {
             "design": {"h": designs["II"].h, "r": designs["II"].r, "load_table": "II"},
+            "base_below_ball_centre_mm": -float(designs["II"].cap_z[0]),
+            "structure": ("this design's base, cap, bolt and sensors; Table II does not give the "
+                          "tested sensor's base: with its heights measured from the ball centre "
+                          "its 48.5 mm total height leaves 25.43 mm under the ball "
+                          "(examples/fingertip_table_ii.toml; docs/fingertip_contact.md, "
+                          "'Fourth investigation')"),
             "fig6_trend_paper": PAPER["trend_G1"],
             "heights_mm": list(CantileverFingertip.tested().load_table_values()[0]),
             "radii_mm": list(CantileverFingertip.tested().load_table_values()[1]),
