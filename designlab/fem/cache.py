@@ -136,6 +136,22 @@ def cached_stage(compute: Callable[[], dict[str, np.ndarray]], key: str | None,
     return data, cache.hits > hits
 
 
+def timed_stage(compute: Callable[[], dict[str, np.ndarray]], key: str | None,
+                cache: FEMCache | None = None) -> tuple[dict[str, np.ndarray], bool, dict]:
+    """:func:`cached_stage` with the stage's timings (s): ``mesh``, ``assemble``, ``solve`` from
+    the arrays' ``timings`` when computed here, zeros and ``fem_cache`` (the lookup's wall time)
+    when reused."""
+    import time
+
+    t0 = time.perf_counter()
+    data, reused = cached_stage(compute, key, cache)
+    wall = time.perf_counter() - t0
+    if reused:
+        return data, True, {"mesh": 0.0, "assemble": 0.0, "solve": 0.0, "fem_cache": wall}
+    mesh_t, assemble_t, solve_t = (float(x) for x in data["timings"])
+    return data, False, {"mesh": mesh_t, "assemble": assemble_t, "solve": solve_t}
+
+
 def clear_memory() -> None:
     """Forget the in-process layer (tests; a changed material library)."""
     _MEMORY.clear()

@@ -581,7 +581,7 @@ def run(part=None, protocol: StrapLoadTest | None = None,
     FEM stage (:func:`solve_fem`) is computed once per :func:`fem_key` and reused by every
     design that shares it (readout settings, the wrap's slot, the nail plate)."""
     from designlab.fem import Model
-    from designlab.fem.cache import cached_stage
+    from designlab.fem.cache import timed_stage
     from designlab.geometry.strap import ArchStrap
     from designlab.mesh.tetmesh import TetMesh
 
@@ -589,15 +589,9 @@ def run(part=None, protocol: StrapLoadTest | None = None,
     protocol = protocol or StrapLoadTest()
     settings = settings or StrapModelSettings()
     say = progress or (lambda s: None)
-    t0 = time.perf_counter()
     key = None if mesh is not None else fem_key(part, protocol, settings, materials)
-    fem, reused = cached_stage(lambda: solve_fem(part, protocol, settings, materials, mesh, say),
-                               key, cache)
-    wall = time.perf_counter() - t0
-    mesh_t, assemble_t, solve_t = (float(x) for x in fem["timings"])
-    timings: dict[str, float] = ({"mesh": 0.0, "assemble": 0.0, "solve": 0.0, "fem_cache": wall}
-                                 if reused else {"mesh": mesh_t, "assemble": assemble_t,
-                                                 "solve": solve_t})
+    fem, reused, timings = timed_stage(
+        lambda: solve_fem(part, protocol, settings, materials, mesh, say), key, cache)
     names = [str(n) for n in fem["region_names"]]
     n_keep = len(fem["points"])
     keep = np.ones(len(fem["cells"]), bool)
