@@ -87,5 +87,16 @@ def test_symmetric_helix_models_cannot_meet_both_goals_at_the_paper_offset(paper
     assert inv["closed_form_timoshenko"]["goal_floor_paper_offset"]["diagonal_floor_pct"] > 15.0
     assert inv["paper_measured"]["goal_floor_paper_offset"]["diagonal_floor_pct"] < 15.0
     assert all(v["goal_floor_paper_offset"]["diagonal_floor_pct"] > 15.0
-               for k, v in inv.items() if not k.startswith("paper_"))
+               for k, v in inv.items() if not k.startswith(("paper_", "ratio_")))
+    # the ratio above which no model meets the pair at the paper's offset: 6822 1/m^2, between
+    # the measured ratio and every model's
+    q = inv["ratio_limit_paper_offset"]["lateral_over_rocking"]
+    assert q == pytest.approx(6822, abs=1)
+    M = np.asarray(paper["K_c_measured"], float)
+    h = fr.camera_offset(paper)
+    at = fr.diagonal_error_floor(M, {"x": q, "y": q}, h)["diagonal_floor_pct"]
+    assert at == pytest.approx(15.0, abs=1e-3)
+    assert fr.diagonal_error_floor(M, {"x": 1.01 * q, "y": 1.01 * q}, h)["diagonal_floor_pct"] > 15.0
+    assert max(inv["paper_measured"]["lateral_over_rocking"].values()) < q < min(
+        inv["chain_loaded"]["lateral_over_rocking"].values())
     assert any("offset-free" in n for n in r["notes"])

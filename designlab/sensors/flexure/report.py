@@ -262,6 +262,9 @@ def flexure_report(spring: HelicalSpring, frame: str = "camera", K_fem_spring_si
             q = inv["lateral_over_rocking"]
             inv["goal_floor_paper_offset"] = diagonal_error_floor(measured, q, h)
             inv["goal_floor_any_offset"] = diagonal_error_floor(measured, q)
+        offset_free["ratio_limit_paper_offset"] = {
+            "diagonal_pct": 15.0, "offset_m": h,
+            "lateral_over_rocking": ratio_for_floor(measured, h, 15.0)}
     notes.append(offset_free_note(offset_free))
     tolist = lambda K: None if K is None else np.asarray(K).tolist()  # noqa: E731
     return {"frame": frame, "units": UNITS, "offset_m": h,
@@ -348,7 +351,8 @@ def report_tables(report: dict) -> list:
                      "on the 8 measured entries (relative errors), a quantity fitted to the "
                      "measurement. Goal metrics are in the camera frame.")
     tables = [values, errors, goals]
-    inv = report.get("offset_free") or {}
+    inv = {k: v for k, v in (report.get("offset_free") or {}).items() if k != "ratio_limit_paper_offset"}
+    limit = (report.get("offset_free") or {}).get("ratio_limit_paper_offset") or {}
     if all("goal_floor_paper_offset" in v for v in inv.values()) and inv:
         floor = Table(title="what no camera offset changes: lateral / rocking stiffness at the "
                             "elastic centre (1/m^2), and the goals' bound it sets",
@@ -365,7 +369,10 @@ def report_tables(report: dict) -> list:
                          "model with this lateral/rocking ratio reaches with both couplings within "
                          "1.5x (lateral stiffness free, axial and torsion exact: a lower bound), "
                          "its elastic centre at the paper's offset (symmetric ends) or at the best "
-                         "height above the camera.")
+                         "height above the camera."
+                         + (f" At the paper's offset the floor is 15 % at a ratio of "
+                            f"{limit['lateral_over_rocking']:.0f}: above it no model meets both "
+                            "goals." if limit.get("lateral_over_rocking") else ""))
         tables.append(floor)
     return tables
 
@@ -439,10 +446,30 @@ def diagonal_error_floor(measured: np.ndarray, lateral_over_rocking: dict,
     return {"offset_m": float(grid[i]), "diagonal_floor_pct": float(vals[i])}
 
 
+def ratio_for_floor(measured: np.ndarray, offset_m: float, target_pct: float = 15.0,
+                    coupling_factor: float = 1.5) -> float | None:
+    """The lateral/rocking ratio (1/m^2, the same in both planes) at which
+    :func:`diagonal_error_floor` at ``offset_m`` is ``target_pct``: a model of a larger ratio
+    cannot meet the goal pair there. Bracketed from the measured matrix's own ratio (None when
+    even that one's floor is above the target)."""
+    from scipy.optimize import brentq
+
+    M = np.asarray(measured, float)
+
+    def excess(q: float) -> float:
+        return diagonal_error_floor(M, {"x": q, "y": q}, offset_m,
+                                    coupling_factor)["diagonal_floor_pct"] - target_pct
+
+    lo = min(bending_invariants(M)["lateral_over_rocking"].values())
+    if excess(lo) >= 0:
+        return None
+    return float(brentq(excess, lo, 1e6, xtol=1e-3))
+
+
 def offset_free_note(invariants: dict) -> str:
     """One line: the measured lateral/rocking ratio beside the range of the models'."""
     meas = invariants["paper_measured"]["lateral_over_rocking"]
-    models = [v for k, inv in invariants.items() if not k.startswith("paper_")
+    models = [v for k, inv in invariants.items() if not k.startswith(("paper_", "ratio_"))
               for v in inv["lateral_over_rocking"].values()]
     return (f"offset-free: lateral stiffness over rocking stiffness at the elastic centre "
             f"{meas['x']:.0f} / {meas['y']:.0f} 1/m^2 (x / y) in the measured K_c, "
