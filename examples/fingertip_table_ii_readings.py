@@ -13,7 +13,8 @@
 Each runs the paper's Table II protocol (14 locations x 6 rotations, preconditioning loop, 200
 readout draws) through the contact model on its own condensed FEM (default mesh and settings:
 mu 0.25, preload 20 N, ABS relaxation kept) and prints the goals as ``prediction.json`` states
-them, with the moment sensitivity behind the h9 -> h1 change.
+them, with the moment sensitivity behind the h9 -> h1 change; then reading (a) with one setting
+changed at a time (mesh, moduli, friction).
 
     .venv/bin/python examples/fingertip_table_ii_readings.py
 """
@@ -28,9 +29,8 @@ from pathlib import Path
 
 from designlab.geometry.fingertip import CantileverFingertip
 from designlab.geometry.parts import make_part
-from designlab.sensors.fingertip_contact import (condense_fingertip, moment_sensitivity,
-                                                 paper_comparison, run_contact_test,
-                                                 table_ii_dome)
+from designlab.sensors.fingertip_contact import (condense_fingertip, paper_comparison,
+                                                 run_contact_test, table_ii_dome)
 from designlab.sensors.fingertip_model import FingertipModelSettings, mesh_fingertip
 from designlab.sensors.protocols import HangingWeightTest
 
@@ -67,15 +67,22 @@ def goals(part, fs: FingertipModelSettings) -> dict:
         warnings.simplefilter("ignore")
         rep = run_contact_test(part, proto, fs, cf)
         pc = paper_comparison(part, proto, fs, cf, rep, meshed_fingertip=False)
-    ms = moment_sensitivity(part, cf, fs)
     g = pc["goals"]
+    ms = g["compressed_change_h9_to_h1"]["moment_sensitivity"]   # paper_comparison's diagnosis
     nf = pc["table_II_design"]["hysteresis_percent"]["robust_eq1_span10_noise_free"]
     return {"below_ball_mm": -part.cap_z[0], "G1_noise_free": list(nf["G1_by_location"].values()),
             "trend": g["G1_falls_monotonically_h1_to_h9"], "G1": g["lowest_mean_G1"],
             "G2": g["lowest_mean_G2"], "h9_h1": g["compressed_change_h9_to_h1"],
-            "r1_r5": pc["compressed_change_r1_to_r5"], "rho": ms["frictionless"]["fem"]["rho_per_mm"],
-            "rho_stuck": ms["stuck"]["fem"]["rho_per_mm"],
+            "r1_r5": pc["compressed_change_r1_to_r5"],
+            "rho": ms["rho_per_mm_fem"]["frictionless"], "rho_stuck": ms["rho_per_mm_fem"]["stuck"],
             "bolt": ms["bolt_rotational_stiffness_at_ball_centre_N_mm_per_rad"]}
+
+
+#: how firm reading (a)'s lowest G1 is: one setting changed at a time
+VARIANTS = {"coarse mesh (edge 3.75 mm)": {"edge_length": 3.75},
+            "relaxed moduli throughout": {"structure_moduli": "long_time"},
+            "mu 0.21 (kinetic chromium on steel)": {"friction_coefficient": 0.21},
+            "mu 0.3": {"friction_coefficient": 0.3}}
 
 
 def main() -> int:
@@ -107,6 +114,15 @@ def main() -> int:
               f" % / {rb['percent_of_applied_force']:.1f} % of the applied force; paper 9.6 %")
         print(f"  moment sensitivity rho {r['rho']:.3f} per mm frictionless, {r['rho_stuck']:.3f} "
               f"stuck (paper's 33.9 % implies 0.031); bolt at the ball {r['bolt']:.3g} N mm/rad")
+    part = readings()["(a) datum at the ball centre"]
+    print("\n(a), one setting changed at a time:")
+    for name, change in VARIANTS.items():
+        r = goals(part, dataclasses.replace(fs, **change))
+        g1, d = r["G1"], r["h9_h1"]["by_definition"]
+        print(f"  {name}: lowest mean G1 {g1['value_with_readout_mean_of_draws_pct']:.2f} +- "
+              f"{g1['sd_over_draws_pct']:.2f} % (met {g1['met']}), G1 falls {r['trend']['met']}, "
+              f"h9 -> h1 {d['relative_to_first_span']['value_pct']:.1f} / "
+              f"{d['percent_of_applied_force']['value_pct']:.1f} % of the applied force")
     print(f"\n{time.perf_counter() - t_all:.0f} s in all")
     return 0
 
