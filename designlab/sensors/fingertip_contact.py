@@ -1294,6 +1294,10 @@ def bolt_head_joint(part, settings: ContactSettings | None = None,
     return out
 
 
+#: seed 001 Table II: the tested sensor's total height, mm
+TABLE_II_TOTAL_HEIGHT_MM = 48.5
+
+
 def table_ii_dome(part=None) -> dict[str, Any]:
     """What Table II's load points say about the tested fingertip's top. The four highest
     heights above h5 = 16.76 mm (h1..h4: 6.00, 5.16, 3.76, 1.96 mm) and the radii r2..r5 (1.90,
@@ -1318,8 +1322,8 @@ def table_ii_dome(part=None) -> dict[str, Any]:
     if part is not None:
         below = -float(part.cap_z[0])
         out["below_ball_centre_mm"] = below
-        out["total_height_table_II_mm"] = 48.5
-        out["datum_above_ball_centre_mm"] = 48.5 - below - out["pole_mm"]
+        out["total_height_table_II_mm"] = TABLE_II_TOTAL_HEIGHT_MM
+        out["datum_above_ball_centre_mm"] = TABLE_II_TOTAL_HEIGHT_MM - below - out["pole_mm"]
     return out
 
 
@@ -1481,8 +1485,9 @@ def paper_comparison(part, protocol: HangingWeightTest, settings: ContactSetting
             "base_below_ball_centre_mm": -float(designs["II"].cap_z[0]),
             "structure": ("this design's base, cap, bolt and sensors; Table II does not give the "
                           "tested sensor's base: with its heights measured from the ball centre "
-                          "its 48.5 mm total height leaves 25.43 mm under the ball "
-                          "(examples/fingertip_table_ii.toml; docs/fingertip_contact.md, "
+                          f"its {TABLE_II_TOTAL_HEIGHT_MM:g} mm total height leaves "
+                          f"{TABLE_II_TOTAL_HEIGHT_MM - table_ii_dome()['pole_mm']:.2f} mm under "
+                          "the ball (examples/fingertip_table_ii.toml; docs/fingertip_contact.md, "
                           "'Fourth investigation')"),
             "fig6_trend_paper": PAPER["trend_G1"],
             "heights_mm": list(CantileverFingertip.tested().load_table_values()[0]),
