@@ -67,3 +67,28 @@ def test_the_tall_base_halves_the_moment_sensitivity(table_ii):
         rho[name] = fem
     assert rho["table_ii"] < 0.6 * rho["default"]
     assert rho["table_ii"] > ms["paper_rho_per_mm"]
+
+
+def test_table_ii_is_the_config(table_ii):
+    assert CantileverFingertip.table_ii() == table_ii
+
+
+def test_a_prediction_compares_table_ii_on_the_tested_sensors_own_structure():
+    """Whatever the design, ``paper_comparison``'s Table II goals are the tested sensor's (its
+    25.43 mm base and 24.43 mm bolt): the same numbers as predicting that sensor itself."""
+    from designlab.sensors.predict import predict
+
+    sett = {"edge_length": 4.0, "mesh_convergence": False}
+    other = predict("fingertip", {}, settings=sett).to_json()["paper_comparison"]["contact"]
+    own = predict(CantileverFingertip.table_ii(), settings=sett).to_json()
+    pc = own["paper_comparison"]["contact"]
+    t = other["table_II_design"]
+    assert t["base_below_ball_centre_mm"] == pytest.approx(25.43, abs=1e-9)
+    assert t["design"] | {"base_height": 22.43, "bolt_length": 24.43} == t["design"]
+    assert t["structure"].startswith("the tested sensor's own base")
+    for g in ("G1_falls_monotonically_h1_to_h9", "lowest_mean_G1", "lowest_mean_G2",
+              "compressed_change_h9_to_h1"):
+        assert other["goals"][g] == pc["goals"][g], g
+    # the tested sensor's own run is its prediction: the goal reads its hysteresis
+    assert pc["goals"]["lowest_mean_G1"]["value_with_readout_pct"] == pytest.approx(
+        own["paper_comparison"]["contact"]["this_design"]["robust"]["G1_lowest"])

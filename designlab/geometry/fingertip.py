@@ -11,7 +11,7 @@ holds three Honeywell FSS015 sensors in wells whose axes point at the ball centr
 the vertical, at azimuths 270/30/150 deg (eqs. 4-6 of the paper: sensors r, g, b). The bottom
 cap carries an M2.5 cantilever bolt that runs up through the base and is screwed into a tapped
 blind hole in the ball, pulling it onto the sensors (preload). The tested sensor of Table II
-(total height 48.5 mm) is :meth:`CantileverFingertip.tested`.
+(total height 48.5 mm) is :meth:`CantileverFingertip.table_ii`.
 
 Load points follow the hanging-weight tests: ``h1..`` are lateral loads on the fingertip's side at
 heights ``z = h_i`` above the fingertip bottom (Table III heights, or Table II with
@@ -105,8 +105,24 @@ class CantileverFingertip:
         self._check()
 
     @classmethod
+    def table_ii(cls) -> "CantileverFingertip":
+        """The sensor of seed 001 Table II (total height 48.5 mm, diameter 18 mm) read from its
+        own table, heights measured from the ball centre as every arm here (and Table III's
+        dome): its load points h1..h4 / r2..r5 lie on a 6.37 mm dome centred 16.70 mm up (the
+        fingertip h 16.70, r = fingertip_radius = 6.37, top 23.07 mm up), so the 48.5 mm leave
+        25.43 mm under the ball (gap 0.5 + base 22.43 + cap 2.5), spanned by a 24.43 mm M2.5
+        bolt, the paper's "extended cantilever-bolt" (Sec. II-B). The paper draws no base:
+        ``examples/fingertip_table_ii.toml``, docs/fingertip_contact.md ("Fourth
+        investigation")."""
+        return cls(h=16.70, r=6.37, fingertip_radius=6.37, base_height=22.43, bolt_length=24.43,
+                   load_table="II")
+
+    @classmethod
     def tested(cls) -> "CantileverFingertip":
-        """The sensor of seed 001 Table II: total height 48.5 mm, diameter 18 mm."""
+        """Table II's load points on a tall fingertip (h 28.5, r 9: 48.5 mm total) on the
+        optimised sensor's base: the heights on its straight side, its top not the table's
+        dome. The model's Table II sensor before :meth:`table_ii`, kept for the examples and
+        tests that compare with it."""
         return cls(h=28.5, r=9.0, load_table="II")
 
     # ------------------------------------------------------------------ derived geometry (mm)

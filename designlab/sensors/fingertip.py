@@ -64,6 +64,7 @@ class FingertipPrediction:
     settings: Any = None                  # the FingertipModelSettings of the run
     cache: Any = None                     # the FEMCache of the run and its FEM key
     fem_key: str | None = None
+    materials: Any = None                 # the measured materials the run used (None: stand-ins)
 
 
 def step_responses(model, sensors, tau_max: float, dt: float, t_end: float,
@@ -233,7 +234,8 @@ def run(part, protocol: HangingWeightTest | None = None,
         w = wrench_at_ball(*pts[first]) * float(load.max())
         u = np.einsum("c,cpk->pk", w, fem["U_unit"])
         report["vtu_load"] = {"location": first, "load_N": float(load.max())}
-    return FingertipPrediction(t, load, unit, report, mesh, u, condensed, settings, cache, key)
+    return FingertipPrediction(t, load, unit, report, mesh, u, condensed, settings, cache, key,
+                               materials)
 
 
 def evaluate(part, protocol: HangingWeightTest, settings: FingertipModelSettings, t, load, step,
@@ -366,13 +368,16 @@ def finish(report: dict[str, Any], prediction: FingertipPrediction, part,
         t0 = time.perf_counter()
         cs = contact_settings(prediction.settings)
 
+        tested, tested_key = table_ii_sensor(part, prediction)
+
         def compute():
             from designlab.atomic import jsonable
 
             out = paper_comparison(part, protocol, cs, prediction.condensed,
                                    {**report, "paper_comparison": own},
                                    prediction.settings.rotations_deg,
-                                   prediction.settings.mesh_fingertip)
+                                   prediction.settings.mesh_fingertip,
+                                   table_ii=tested())
             return {"json": np.array(json.dumps(jsonable(out)))}
 
         if prediction.fem_key is not None and not prediction.settings.mesh_fingertip:
@@ -386,7 +391,7 @@ def finish(report: dict[str, Any], prediction: FingertipPrediction, part,
             # comparisons stored before it lack fig9_errors
             ckey = key_of("fingertip-paper-comparison", fem=prediction.fem_key,
                           contact=as_dict(cs), rotations=list(prediction.settings.rotations_deg),
-                          fig9="paper_eq3_normal_component")
+                          fig9="paper_eq3_normal_component", table_ii_fem=tested_key)
             stored = cache.get_or_compute(ckey, compute)
         else:
             stored = compute()
@@ -405,6 +410,30 @@ def finish(report: dict[str, Any], prediction: FingertipPrediction, part,
     report["locations_omitted"] = [
         n for n in (*table.g1_locations, *table.g2_locations)
         if n not in (*protocol.g1_locations, *protocol.g2_locations)]
+
+
+def table_ii_sensor(part, prediction: FingertipPrediction):
+    """The paper's tested sensor (:meth:`CantileverFingertip.table_ii`) with its own condensed
+    structure, at this prediction's model settings and materials: ``(get, key)``, ``get()``
+    returning ``(design, CondensedFingertip)`` (its FEM from ``prediction.cache`` under ``key``,
+    computed once: a sweep shares it). The prediction's own when the design is that sensor."""
+    from designlab.fem.cache import FEMCache, timed_stage
+    from designlab.geometry.fingertip import CantileverFingertip
+    from designlab.sensors.fingertip_contact import CondensedFingertip
+
+    tested = CantileverFingertip.table_ii()
+    if tested == part and prediction.condensed is not None:
+        return (lambda: (tested, prediction.condensed)), prediction.fem_key
+    proto, sett = HangingWeightTest(), prediction.settings
+    key = fem_key(tested, proto, sett, prediction.materials)
+
+    def get():
+        cache = prediction.cache if prediction.cache is not None else FEMCache()
+        fem, _, _ = timed_stage(lambda: solve_fem(tested, proto, sett, prediction.materials),
+                                key, cache)
+        return tested, CondensedFingertip.from_arrays(fem)
+
+    return get, key
 
 
 def gains(report: dict[str, Any], prediction: FingertipPrediction) -> tuple[dict, dict]:

@@ -1337,11 +1337,12 @@ GOAL_PZ_OVER_XY = 3.0          # Fig. 9: P_z relative error >= 3 x the x/y error
 
 
 def paper_design(part, which: str):
-    """The paper's tested (``"II"``: h 28.5, r 9, Table II points) or optimised (``"III"``:
-    h 0, r 9, Table III points) fingertip on this design's base, cap, ball, sensors and bolt:
-    the fingertip's height, radius and load table only move the load points
-    (:data:`designlab.sensors.fingertip_model.LOAD_ONLY_PARAMS`), so both run on this design's
-    condensed FEM."""
+    """The paper's Table II (``"II"``: h 28.5, r 9, Table II points, :meth:`CantileverFingertip.
+    tested`) or optimised (``"III"``: h 0, r 9, Table III points) fingertip on this design's
+    base, cap, ball, sensors and bolt: the fingertip's height, radius and load table only move
+    the load points (:data:`designlab.sensors.fingertip_model.LOAD_ONLY_PARAMS`), so both run on
+    this design's condensed FEM. (The paper's tested sensor with its own base and bolt is
+    :meth:`CantileverFingertip.table_ii`: :func:`paper_comparison`'s ``table_ii``.)"""
     from designlab.geometry.fingertip import CantileverFingertip
     ref = CantileverFingertip.tested() if which == "II" else CantileverFingertip()
     # the reference's load-only parameters on this design (its class and any field of its own,
@@ -1370,35 +1371,43 @@ def _rounded(x, n=4):
 def paper_comparison(part, protocol: HangingWeightTest, settings: ContactSettings,
                      cf: CondensedFingertip, report: dict[str, Any],
                      rotations_deg: tuple[float, ...] | None = None,
-                     meshed_fingertip: bool = False) -> dict[str, Any]:
-    """The contact model beside seed 001, on the paper's two designs built on this design's
-    structure: Table II (tested sensor: Fig. 6 G1/G2 hysteresis by location and its lowest
-    means, the compressed-sensor changes h9 -> h1 and r1 -> r5 of Sec. III) and Table III
-    (optimised sensor: cond(A) vs 34.92 and Fig. 9's applied-vs-estimated errors per axis).
-    Each goal of issue 12 with its value, target and whether it is met; ``matches`` and
-    ``does_not_match`` in words. A design that is one of the two (with the paper's protocol)
-    reuses its own report."""
+                     meshed_fingertip: bool = False,
+                     table_ii: tuple[Any, CondensedFingertip] | None = None) -> dict[str, Any]:
+    """The contact model beside seed 001, on the paper's two designs: Table II (tested sensor:
+    Fig. 6 G1/G2 hysteresis by location and its lowest means, the compressed-sensor changes
+    h9 -> h1 and r1 -> r5 of Sec. III) and Table III (optimised sensor, on this design's
+    structure: cond(A) vs 34.92 and Fig. 9's applied-vs-estimated errors per axis). ``table_ii``:
+    the tested sensor and its own condensed structure (``predict`` passes
+    :meth:`CantileverFingertip.table_ii`'s); without it Table II's points run on this design's
+    structure (:func:`paper_design`). Each goal of issue 12 with its value, target and whether it
+    is met; ``matches`` and ``does_not_match`` in words. A design that is one of the two (with
+    the paper's protocol) reuses its own report."""
     from designlab.geometry.fingertip import CantileverFingertip  # noqa: F401
 
     out: dict[str, Any] = {"paper": PAPER}
-    runs, designs = {}, {}
+    runs, designs, structures = {}, {}, {}
     if meshed_fingertip:
         out["note"] = ("the fingertip is meshed (mesh_fingertip): its height and radius change "
                        "the FEM, so the paper's designs are not run on this one")
         return out
     for which, proto in (("II", HangingWeightTest()),
                          ("III", HangingWeightTest.preset("optimized"))):
-        try:
-            design = designs[which] = paper_design(part, which)
-        except ParameterError as exc:
-            out[f"table_{which}_design"] = {"error": str(exc)}
-            continue
+        if which == "II" and table_ii is not None:
+            design = designs[which] = table_ii[0]
+            structures[which] = table_ii[1]
+        else:
+            try:
+                design = designs[which] = paper_design(part, which)
+            except ParameterError as exc:
+                out[f"table_{which}_design"] = {"error": str(exc)}
+                continue
+            structures[which] = cf
         if design == part and proto == protocol:
             runs[which] = report
             continue
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            runs[which] = run_contact_test(design, proto, settings, cf,
+            runs[which] = run_contact_test(design, proto, settings, structures[which],
                                            rotations_deg=rotations_deg)
         runs[which]["_companion_warnings"] = len(caught)
     goals: dict[str, Any] = {}
@@ -1480,18 +1489,30 @@ def paper_comparison(part, protocol: HangingWeightTest, settings: ContactSetting
             "value_pct": ch2, "paper_pct": PAPER["compressed_change_r1_to_r5_pct"],
             "definition": "relative_to_first_span",
             "by_definition": {k: _rounded(v) for k, v in d2.items()}}
+        tii = designs["II"]
+        own = table_ii is not None
         out["table_II_design"] = {
-            "design": {"h": designs["II"].h, "r": designs["II"].r, "load_table": "II"},
-            "base_below_ball_centre_mm": -float(designs["II"].cap_z[0]),
-            "structure": ("this design's base, cap, bolt and sensors; Table II does not give the "
-                          "tested sensor's base: with its heights measured from the ball centre "
-                          f"its {TABLE_II_TOTAL_HEIGHT_MM:g} mm total height leaves "
-                          f"{TABLE_II_TOTAL_HEIGHT_MM - table_ii_dome()['pole_mm']:.2f} mm under "
-                          "the ball (examples/fingertip_table_ii.toml; docs/fingertip_contact.md, "
-                          "'Fourth investigation')"),
+            "design": {"h": tii.h, "r": tii.r, "load_table": "II"} | (
+                {"fingertip_radius": tii.fingertip_radius, "base_height": tii.base_height,
+                 "bolt_length": tii.bolt_length} if own else {}),
+            "base_below_ball_centre_mm": -float(tii.cap_z[0]),
+            "structure": (
+                ("the tested sensor's own base, cap and bolt (CantileverFingertip.table_ii): "
+                 "its load points lie on a dome centred "
+                 f"{table_ii_dome()['z0_mm']:.2f} mm above the ball centre, so its "
+                 f"{TABLE_II_TOTAL_HEIGHT_MM:g} mm total height leaves "
+                 f"{TABLE_II_TOTAL_HEIGHT_MM - table_ii_dome()['pole_mm']:.2f} mm under the "
+                 "ball; the paper draws no base (docs/fingertip_contact.md, 'Fourth "
+                 "investigation')") if own else
+                ("this design's base, cap, bolt and sensors; Table II does not give the "
+                 "tested sensor's base: with its heights measured from the ball centre "
+                 f"its {TABLE_II_TOTAL_HEIGHT_MM:g} mm total height leaves "
+                 f"{TABLE_II_TOTAL_HEIGHT_MM - table_ii_dome()['pole_mm']:.2f} mm under "
+                 "the ball (CantileverFingertip.table_ii; docs/fingertip_contact.md, "
+                 "'Fourth investigation')")),
             "fig6_trend_paper": PAPER["trend_G1"],
-            "heights_mm": list(CantileverFingertip.tested().load_table_values()[0]),
-            "radii_mm": list(CantileverFingertip.tested().load_table_values()[1]),
+            "heights_mm": list(tii.load_table_values()[0]),
+            "radii_mm": list(tii.load_table_values()[1]),
             "hysteresis_percent": defs,
             "readout_draws": {k: v for k, v in dr.items() if k != "by_location"} | {
                 "G1_by_location": {n: dr["by_location"][n] for n in g1 if n in dr.get(
@@ -1535,7 +1556,7 @@ def paper_comparison(part, protocol: HangingWeightTest, settings: ContactSetting
                 f"measured profile, does in {100 * gk['share_of_draws_monotonic']:.0f} % of "
                 "draws: the lowest locations differ by less than the readout scatter")
         gk = goals["compressed_change_h9_to_h1"]
-        ms = moment_sensitivity(part, cf, settings)
+        ms = moment_sensitivity(tii, structures["II"], settings)
         gk["moment_sensitivity"] = {
             "rho_per_mm_fem": {k: ms[k]["fem"]["rho_per_mm"] for k in ("frictionless", "stuck")},
             "rho_per_mm_hand": {k: ms[k]["hand"]["rho_per_mm"] for k in ("frictionless", "stuck")},
@@ -1569,7 +1590,7 @@ def paper_comparison(part, protocol: HangingWeightTest, settings: ContactSetting
                 f"increasing force from 0 to 2.27 N'): h9 -> h1 {pa1:.3g} % vs 33.9 %, r1 -> r5 "
                 f"{pa2:.3g} % vs 9.6 %, G1/G2 {pa1 / pa2:.3g} vs the paper's 3.53"
                 if pa2 else f"h9 -> h1 as a percentage of the applied force {pa1:.3g} %")
-        share_z = _axial_share(report, cf)
+        share_z = _axial_share(report if structures["II"] is cf else {}, structures["II"])
         why = (f" ({100 * share_z:.3g} % of P_z reaches the sensors, the rest goes through the "
                "bolt and the cap, so the moment of an off-axis P_z dominates the small axial "
                "reading)") if share_z is not None else ""
