@@ -49,8 +49,9 @@ BLOCK = re.compile(r"(<!-- main job: python scripts/readme_figures.py --only mai
 
 # ---------------------------------------------------------------------------------- figure
 def fingertip_figure(path: Path = FIGURE) -> Path:
-    """Two sections of the seed 001 fingertip (x-z plane): the tested sensor of Table II
-    (h = 28.5, r = 9) and the main job's h = 3, r = 6 on the same Table II load points, with the
+    """Two sections of the seed 001 fingertip (x-z plane): the tested sensor of Table II read
+    from its table (h = 16.70, r = 6.37 on its 25.4 mm base: ``CantileverFingertip.table_ii``)
+    and the main job's h = 3, r = 6 on the same Table II load points, with the
     straight height h, the rounding radius r, the G1 (lateral, at heights h_i) and G2 (axial, at
     radii r_i) loads, the ball, the base and the cap."""
     import matplotlib
@@ -61,7 +62,7 @@ def fingertip_figure(path: Path = FIGURE) -> Path:
 
     from designlab.geometry.fingertip import CantileverFingertip
 
-    designs = [("seed 001 Table II sensor (h = 28.5, r = 9)", CantileverFingertip.tested()),
+    designs = [("seed 001 Table II sensor (h = 16.70, r = 6.37)", CantileverFingertip.table_ii()),
                ("the main job's h = 3, r = 6 on the Table II points",
                 CantileverFingertip(h=3.0, r=6.0, load_table="II"))]
     plt.rcParams.update({"font.size": 9, "svg.hashsalt": "designlab"})

@@ -240,7 +240,8 @@ def test_fingertip_Pz_worst_as_fig9(fingertip_fem):
 
     part, fem, sett, proto = fingertip_fem
     r = fingertip_calibration_budget(part, sett, proto)
-    assert r["worst_axis"] == "z" and r["Pz_error_over_xy"] > 1.2
+    # 1.07 with the repeatability as Honeywell defines it (1.5 with the band on one reading)
+    assert r["worst_axis"] == "z" and r["Pz_error_over_xy"] > 1.0
     assert r["split_std"]["z"]["readout_noise"] > r["split_std"]["z"]["model_error"]
     # no readout noise: the remaining error is the 3-sensor model's alone
     import dataclasses

@@ -421,7 +421,9 @@ def paper_fig9() -> dict[str, Any]:
 def _budget(build: FingertipBuild, materials) -> dict[str, Any]:
     return {
         "repeatability_percent_fs": build.repeatability_percent_fs,
-        "repeatability_source": "FSS015 +-0.2 % span (seed 001 Table I) as a 2-sigma band",
+        "repeatability_source": ("FSS015 +-0.2 % span (seed 001 Table I): Honeywell's largest "
+                                 "difference of two readings at the same force, as a 2-sigma "
+                                 "band on that difference (sigma 0.0707 % FS a reading)"),
         "zero_shift": "not applied: the FSS015 null shift (+-0.5 mV at 5 V, ~0.3 % FS) is over "
                       "25 K and a calibration lasts minutes at room temperature (each load "
                       "set is a reading minus the one at no weight)",

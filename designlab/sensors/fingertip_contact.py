@@ -33,7 +33,8 @@ compressed FSS sensor ... to increase"). This module adds that physics:
   of a weight change is a straight load ramp in ``increments_per_step`` instantaneous
   increments.
 * **Readout as the paper's**: axial force minus the tare after tightening, x 0.06 V/N (Table I),
-  plus the FSS015 repeatability (+-0.2 % of 15 N), an optional zero drift and the DAQ
+  plus the FSS015 repeatability (+-0.2 % of 15 N between two readings: sigma 0.0707 % FS a
+  reading, :func:`repeatability_sigma_V`), an optional zero drift and the DAQ
   quantisation (NI PCI-6229, 16 bit); eq. (1) per location in the paper's definition (all three
   sensors) and in the robust one of the linear test (sensors whose span is >= 10 % of the
   largest), with and without the readout errors.
@@ -539,12 +540,23 @@ def _relaxing_protocol(part, cf, settings, protocol: HangingWeightTest, st, f_po
                       hist.state, hist.iterations, lift)
 
 
+def repeatability_sigma_V(percent_fs: float) -> float:
+    """Standard deviation (V) of one reading's repeatability error. Honeywell defines the FSS
+    repeatability as "the maximum difference between output readings when the same force is
+    applied consecutively ... approaching from the same direction" (FSS datasheet, Table 2 note
+    9): the +-band bounds the difference of two readings, whose sigma is sqrt(2) x a reading's.
+    Read as a 2-sigma band on that difference: sigma = band / (2 sqrt 2), 0.0707 % FS for the
+    FSS015's 0.2 % (seed 001 Table I). (Until 2026-11-26 the band was taken on one reading,
+    sigma = band / 2: sqrt 2 too wide.)"""
+    return percent_fs / 100.0 * FSS015_RANGE_N * FSS015_V_PER_N / (2.0 * np.sqrt(2.0))
+
+
 def readings_noise(S_true: np.ndarray, settings: ContactSettings, rng_: np.random.Generator):
-    """Readings (V) with the FSS015 repeatability (normal, sigma = half the +-band), a linear
-    zero drift over each loop (random sign), and the DAQ quantisation. ``S_true`` (B, steps,
-    3)."""
+    """Readings (V) with the FSS015 repeatability (normal, :func:`repeatability_sigma_V`), a
+    linear zero drift over each loop (random sign), and the DAQ quantisation. ``S_true`` (B,
+    steps, 3)."""
     fs_V = FSS015_RANGE_N * FSS015_V_PER_N
-    sig = 0.5 * settings.repeatability_percent_fs / 100.0 * fs_V
+    sig = repeatability_sigma_V(settings.repeatability_percent_fs)
     S = S_true + sig * rng_.standard_normal(S_true.shape)
     if settings.zero_drift_percent_fs > 0:
         n = S_true.shape[1]

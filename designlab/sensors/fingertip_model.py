@@ -92,8 +92,9 @@ class ContactSettings:
         "through many loops (over 2000 tests)"))
     preload_increments: int = field(default=8, metadata=rng(1, 10000))
     repeatability_percent_fs: float = field(default=FSS015_REPEATABILITY_PERCENT_FS, metadata=rng(
-        0, 10, unit="% FS", doc="FSS015 repeatability +-0.2 % span (Table I), read as a 2-sigma "
-        "band on each 3-s reading"))
+        0, 10, unit="% FS", doc="FSS015 repeatability +-0.2 % span (Table I): the datasheet's "
+        "largest difference of two readings at the same force, read as a 2-sigma band on that "
+        "difference (sigma band / (2 sqrt 2) on each 3-s reading)"))
     zero_drift_percent_fs: float = field(default=0.0, metadata=rng(
         0, 10, unit="% FS", doc="zero drift over one loop (linear ramp, random sign). The "
         "datasheet's null shift (+-0.5 mV at 5 V, ~0.3 % FS) is over 25 K; a loop lasts "
