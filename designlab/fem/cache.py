@@ -96,6 +96,11 @@ class FEMCache:
             fcntl.flock(fd, fcntl.LOCK_UN)
             os.close(fd)
 
+    def keep(self, key: str, arrays: dict[str, np.ndarray]) -> None:
+        """Keep ``arrays`` under ``key`` in this process's memory layer (a stage computed
+        elsewhere, e.g. by ``predict``'s side process); the folder is not written."""
+        self._remember(key, {k: np.asarray(v) for k, v in arrays.items()})
+
     def get(self, key: str) -> dict[str, np.ndarray] | None:
         """The arrays stored under ``key`` (memory, then the folder), or None: never computes."""
         return self._load(key)

@@ -412,28 +412,48 @@ def finish(report: dict[str, Any], prediction: FingertipPrediction, part,
         if n not in (*protocol.g1_locations, *protocol.g2_locations)]
 
 
+def _table_ii_stage(settings: FingertipModelSettings, materials):
+    """The paper's tested sensor (:meth:`CantileverFingertip.table_ii`), its FEM stage's key
+    and the function that computes it."""
+    from designlab.geometry.fingertip import CantileverFingertip
+
+    tested, proto = CantileverFingertip.table_ii(), HangingWeightTest()
+    return (tested, fem_key(tested, proto, settings, materials),
+            lambda: solve_fem(tested, proto, settings, materials))
+
+
 def table_ii_sensor(part, prediction: FingertipPrediction):
     """The paper's tested sensor (:meth:`CantileverFingertip.table_ii`) with its own condensed
     structure, at this prediction's model settings and materials: ``(get, key)``, ``get()``
     returning ``(design, CondensedFingertip)`` (its FEM from ``prediction.cache`` under ``key``,
-    computed once: a sweep shares it). The prediction's own when the design is that sensor."""
+    computed once: a sweep shares it; ``predict`` may have had it computed beside the design's
+    run, :func:`prefetch`). The prediction's own when the design is that sensor."""
     from designlab.fem.cache import FEMCache, timed_stage
-    from designlab.geometry.fingertip import CantileverFingertip
     from designlab.sensors.fingertip_contact import CondensedFingertip
 
-    tested = CantileverFingertip.table_ii()
+    tested, key, compute = _table_ii_stage(prediction.settings, prediction.materials)
     if tested == part and prediction.condensed is not None:
         return (lambda: (tested, prediction.condensed)), prediction.fem_key
-    proto, sett = HangingWeightTest(), prediction.settings
-    key = fem_key(tested, proto, sett, prediction.materials)
 
     def get():
         cache = prediction.cache if prediction.cache is not None else FEMCache()
-        fem, _, _ = timed_stage(lambda: solve_fem(tested, proto, sett, prediction.materials),
-                                key, cache)
+        fem, _, _ = timed_stage(compute, key, cache)
         return tested, CondensedFingertip.from_arrays(fem)
 
     return get, key
+
+
+def prefetch(part, protocol, settings: FingertipModelSettings, kw: dict) -> list:
+    """What :func:`finish` needs beyond the design's FEM, for ``predict``'s side process: the
+    Table II sensor's FEM stage ``[(key, arrays)]`` (none when the design is that sensor, the
+    paper comparison is not run, or the cache's folder already holds it)."""
+    if not settings.contact or settings.mesh_fingertip:
+        return []
+    tested, key, compute = _table_ii_stage(settings, kw.get("materials"))
+    cache = kw.get("cache")
+    if tested == part or (cache is not None and cache.get(key) is not None):
+        return []
+    return [(key, compute())]
 
 
 def gains(report: dict[str, Any], prediction: FingertipPrediction) -> tuple[dict, dict]:
@@ -676,6 +696,7 @@ SENSOR = Sensor(
     plot_groups=PLOT_GROUPS, plots_before_finish=PLOTS_BEFORE_FINISH, gains=gains, finish=finish,
     design_protocol=design_protocol,
     cached=True, apply_model=apply_model, load_cases=load_cases, uncertainty=MONTE_CARLO,
+    prefetch=prefetch,
     convergence=("condition_number", "hysteresis_percent.overall",
                  "hysteresis_percent.overall_noise_free",
                  "hysteresis_percent.by_group_noise_free.G1"))

@@ -300,7 +300,7 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
     mats, records = measured_materials(part, measured)
     if mats:
         kw["materials"] = mats
-    side, side_out, design = None, None, None
+    side, side_out, design, prefetched = None, None, None, None
     if pictures is not None:
         try:
             design = pictures.painter.submit(_design_png, name, _portable(part))
@@ -311,7 +311,13 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
             from designlab.geometry.render import ensure_display
 
             ensure_display()
-        side = _Side(lambda: _side_work(sensor, part, proto, sett, kw, render=pictures is None))
+        side = _Side(None)
+        if sensor.prefetch is not None:
+            # the FEM stages finish() needs beyond the design's own, first: they are ready
+            # when the design's run ends (the coarse mesh is wanted only after finish)
+            prefetched = side.submit(_prefetch_job, sensor.name, part, proto, sett, kw)
+        side.first = side.submit(_side_work_job, sensor.name, part, proto, sett, kw,
+                                 pictures is None)
         if pictures is not None:        # then it draws the plots: import matplotlib meanwhile
             side.submit(_warm_matplotlib)
             pictures.side = side
@@ -323,6 +329,8 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
             early = _early_plots(sensor, pictures, name, result, report, model_path)
             cases = _early_deformed(sensor, pictures, part, proto, sett, result, cache, report)
             if sensor.finish is not None:
+                for key, arrays in (prefetched.get() or []) if prefetched is not None else []:
+                    cache.keep(key, arrays)
                 sensor.finish(report, result, part, proto)
             side_out = side.first.get() if side is not None else None
             if side_out is None or side_out.get("coarse") is None:
@@ -414,6 +422,18 @@ def _side_work(sensor, part, protocol, settings, kw, render: bool = True) -> dic
     except Exception as exc:  # noqa: BLE001 - a render is a convenience (as in-process)
         out["design_png"] = f"{type(exc).__name__}: {exc}"
     return out
+
+
+def _side_work_job(name: str, part, protocol, settings, kw, render: bool) -> dict[str, Any]:
+    """:func:`_side_work` as a job of the side process (the sensor by its registry name)."""
+    return _side_work(get_sensor(name), part, protocol, settings, kw, render=render)
+
+
+def _prefetch_job(name: str, part, protocol, settings, kw) -> list[tuple[str, dict]]:
+    """The sensor's ``prefetch`` in the side process: ``[(FEM cache key, arrays)]`` that
+    ``predict`` keeps in its cache's memory before ``finish``."""
+    _serial_occ()
+    return get_sensor(name).prefetch(part, protocol, settings, kw)
 
 
 def _portable(part):
@@ -569,7 +589,11 @@ def _serial_occ() -> None:
     child), so a parallel ``BRepMesh`` or Boolean would wait for ever; tessellate and run the
     Booleans on the calling thread (the same triangles and shapes). build123d asks every
     Boolean to run in parallel (``SetRunParallel(True)``): the setter itself is made to ask for
-    the serial algorithm."""
+    the serial algorithm. Once per process."""
+    global _OCC_SERIAL
+    if _OCC_SERIAL:
+        return
+    _OCC_SERIAL = True
     try:
         import OCP.BRepMesh as brepmesh
         from OCP.BOPAlgo import BOPAlgo_Options
@@ -587,6 +611,9 @@ def _serial_occ() -> None:
     for owner in (BRepAlgoAPI_Algo, BOPAlgo_Options):
         setter = owner.SetRunParallel
         owner.SetRunParallel = (lambda set_: lambda self, flag: set_(self, False))(setter)
+
+
+_OCC_SERIAL = False
 
 
 class _Side:

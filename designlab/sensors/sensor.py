@@ -45,6 +45,10 @@ class Sensor:
     load_cases: ``load_cases(part, protocol, settings, result, cache) -> [LoadCase]``: the
                virtual test's load cases as displacements of ``result.mesh`` (stress and
                safety factor of each); None: the one case of ``result.displacement``
+    prefetch:  ``prefetch(part, protocol, settings, kw) -> [(key, arrays)]``: FEM stages that
+               ``finish`` will need beyond the design's own (the fingertip's: the Table II
+               sensor's for the paper comparison), computed by ``predict``'s side process while
+               the design runs and kept in the FEM cache's memory; None: none
     uncertainty: its Monte Carlo model (:class:`designlab.sensors.distributions.MonteCarloModel`:
                uncertain inputs, metrics, FEM stage, one virtual build); None: no Monte Carlo
     """
@@ -66,6 +70,7 @@ class Sensor:
     uncertainty: Any = None
     plot_groups: tuple[tuple[str, ...], ...] = ()
     plots_before_finish: frozenset[str] = frozenset()
+    prefetch: Callable[[Any, Any, Any, dict], list] | None = None
 
     @property
     def part(self) -> type:
