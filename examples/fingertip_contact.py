@@ -2,10 +2,11 @@
 points of the tall fingertip on the 11 mm base (``CantileverFingertip.tested()``, the model's
 Table II design until 26 Nov 2026; the tested sensor read from its table is
 ``CantileverFingertip.table_ii()``: ``examples/fingertip_table_ii_readings.py``): mesh,
-condense once, run the full protocol, print the numbers beside the paper's, the effect of the bolt preload, the friction coefficients at which
-G1 falls from h1 to h9 (20 and 40 N preload; with and without Mindlin's partial slip), the
-partial slip's element count and the readout seed, the moment sensitivity beside a hand
-estimate, the sensor's sideways compliance, and a fine-step check.
+condense once, run the full protocol, print the numbers beside the paper's, the effect of the
+bolt preload, the friction coefficients at which G1 falls from h1 to h9 (20 and 40 N preload;
+with and without Mindlin's partial slip), the partial slip's element count and the readout
+seed, the moment sensitivity beside a hand estimate, the sensor's sideways compliance, and a
+fine-step check.
 
     .venv/bin/python examples/fingertip_contact.py [--json out.json]
 """
