@@ -170,7 +170,7 @@ def contact_protocol(repeats: int = 3) -> None:
                                                      run_contact_test)
     from designlab.sensors.protocols import HangingWeightTest
 
-    part, fs = CantileverFingertip.tested(), FingertipModelSettings()
+    part, fs = CantileverFingertip.table_ii(), FingertipModelSettings()   # the Table II sensor
     relaxing = condense_fingertip(part, mesh_fingertip(part, fs), fs, "relaxing")
     cases = {"default (relaxing)": (relaxing, ContactSettings()),
              "long_time": (dataclasses.replace(relaxing, C_instant=None,

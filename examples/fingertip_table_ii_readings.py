@@ -84,6 +84,12 @@ def goals(part, fs: FingertipModelSettings, cf=None) -> dict:
             "bolt": ms["bolt_rotational_stiffness_at_ball_centre_N_mm_per_rad"]}
 
 
+def lowest(g: dict, digits: int = 2) -> str:
+    """A lowest-mean goal as printed: the draws' mean +- their sd, and friction alone."""
+    return (f"{g['value_with_readout_mean_of_draws_pct']:.2f} +- {g['sd_over_draws_pct']:.2f} % "
+            f"({g['value_noise_free_pct']:.{digits}f} % friction alone)")
+
+
 #: how firm reading (a)'s lowest G1 is: one setting changed at a time
 VARIANTS = {"coarse mesh (edge 3.75 mm)": {"edge_length": 3.75},
             "relaxed moduli throughout": {"structure_moduli": "long_time"},
@@ -108,12 +114,8 @@ def main() -> int:
         print("  G1 friction alone h1..h9 %: " + " ".join(f"{v:.3g}" for v in r["G1_noise_free"]))
         print(f"  G1 falls h1 -> h9 (draws' mean): {g1 and r['trend']['met']}; h1/h9 noise free "
               f"{r['G1_noise_free'][0] / r['G1_noise_free'][-1]:.2f}")
-        print(f"  lowest mean G1 {g1['value_with_readout_mean_of_draws_pct']:.2f} +- "
-              f"{g1['sd_over_draws_pct']:.2f} % ({g1['value_noise_free_pct']:.2f} % friction "
-              f"alone) vs 0.98 %: met {g1['met']}")
-        print(f"  lowest mean G2 {g2['value_with_readout_mean_of_draws_pct']:.2f} +- "
-              f"{g2['sd_over_draws_pct']:.2f} % ({g2['value_noise_free_pct']:.3f} % friction "
-              f"alone) vs 2.19 %: met {g2['met']}")
+        print(f"  lowest mean G1 {lowest(g1)} vs 0.98 %: met {g1['met']}")
+        print(f"  lowest mean G2 {lowest(g2, 3)} vs 2.19 %: met {g2['met']}")
         print(f"  h9 -> h1 relative to h9's span {d['relative_to_first_span']['value_pct']:.1f} % "
               f"(met {d['relative_to_first_span']['met']}), to h1's "
               f"{d['relative_to_last_span']['value_pct']:.1f} %, of the applied force "
@@ -141,12 +143,9 @@ def main() -> int:
     for mu in MU_SCAN:
         r = goals(part, dataclasses.replace(fs, friction_coefficient=mu), cf)
         g1, g2 = r["G1"], r["G2"]
-        print(f"  mu {mu:g}: lowest mean G1 {g1['value_with_readout_mean_of_draws_pct']:.2f} +- "
-              f"{g1['sd_over_draws_pct']:.2f} % ({g1['value_noise_free_pct']:.2f} % friction "
-              f"alone), G1 falls {r['trend']['met']} (h1/h9 noise free "
-              f"{r['G1_noise_free'][0] / r['G1_noise_free'][-1]:.2f}); lowest mean G2 "
-              f"{g2['value_with_readout_mean_of_draws_pct']:.2f} % "
-              f"({g2['value_noise_free_pct']:.3f} % friction alone)")
+        print(f"  mu {mu:g}: lowest mean G1 {lowest(g1)}, G1 falls {r['trend']['met']} (h1/h9 "
+              f"noise free {r['G1_noise_free'][0] / r['G1_noise_free'][-1]:.2f}); lowest mean "
+              f"G2 {lowest(g2, 3)}")
     print(f"\n{time.perf_counter() - t_all:.0f} s in all")
     return 0
 

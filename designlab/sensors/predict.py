@@ -316,7 +316,7 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
             # the FEM stages finish() needs beyond the design's own, first: they are ready
             # when the design's run ends (the coarse mesh is wanted only after finish)
             prefetched = side.submit(_prefetch_job, sensor.name, part, proto, sett, kw)
-        side.first = side.submit(_side_work_job, sensor.name, part, proto, sett, kw,
+        side.first = side.submit(_side_work, sensor.name, part, proto, sett, kw,
                                  pictures is None)
         if pictures is not None:        # then it draws the plots: import matplotlib meanwhile
             side.submit(_warm_matplotlib)
@@ -406,10 +406,12 @@ def _wants_convergence(sensor, settings) -> bool:
     return sensor.meshed is None or bool(sensor.meshed(settings))
 
 
-def _side_work(sensor, part, protocol, settings, kw, render: bool = True) -> dict[str, Any]:
-    """What the forked process of ``predict(parallel=True)`` computes: the coarse run's
-    convergence values and warnings (:func:`_coarse_values`), then (``render``) ``design.png``
-    (:func:`_design_png`; bytes, or the error as text)."""
+def _side_work(name: str, part, protocol, settings, kw, render: bool = True) -> dict[str, Any]:
+    """What the forked process of ``predict(parallel=True)`` computes (a job of its
+    :class:`_Side`; the sensor by its registry name): the coarse run's convergence values and
+    warnings (:func:`_coarse_values`), then (``render``) ``design.png`` (:func:`_design_png`;
+    bytes, or the error as text)."""
+    sensor = get_sensor(name)
     _serial_occ()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -422,11 +424,6 @@ def _side_work(sensor, part, protocol, settings, kw, render: bool = True) -> dic
     except Exception as exc:  # noqa: BLE001 - a render is a convenience (as in-process)
         out["design_png"] = f"{type(exc).__name__}: {exc}"
     return out
-
-
-def _side_work_job(name: str, part, protocol, settings, kw, render: bool) -> dict[str, Any]:
-    """:func:`_side_work` as a job of the side process (the sensor by its registry name)."""
-    return _side_work(get_sensor(name), part, protocol, settings, kw, render=render)
 
 
 def _prefetch_job(name: str, part, protocol, settings, kw) -> list[tuple[str, dict]]:
