@@ -21,7 +21,9 @@ import time
 
 import numpy as np
 
-from designlab.fem import Material, Model, solve_static
+from designlab.fem.materials import Material
+from designlab.fem.model import Model
+from designlab.fem.static import solve_static
 from designlab.fem.assembly import block_pattern, cell_basis, stiffness
 from designlab.fem.prony import Prony
 from designlab.mesh.tetmesh import box_tet_mesh

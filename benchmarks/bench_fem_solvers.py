@@ -10,7 +10,9 @@ import sys
 import time
 
 
-from designlab.fem import Material, Model, solve_static
+from designlab.fem.materials import Material
+from designlab.fem.model import Model
+from designlab.fem.static import solve_static
 from designlab.fem.assembly import block_pattern, cell_basis, stiffness
 from designlab.fem.prony import Prony
 

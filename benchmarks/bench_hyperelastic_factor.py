@@ -17,7 +17,7 @@ import time
 import numpy as np
 import scipy.sparse as sp
 
-from designlab.fem import Model
+from designlab.fem.model import Model
 from designlab.fem.hyperelastic import Continuum, NeoHooke
 from designlab.fem.materials import Material
 from designlab.fem.solvers import PardisoSolver, has_pardiso

@@ -13,7 +13,8 @@ import numpy as np
 
 
 def main(n_max: int = 12) -> None:
-    from designlab.fem import Material, Model
+    from designlab.fem.materials import Material
+    from designlab.fem.model import Model
     from designlab.fem.solvers import DirectSolver, PardisoSolver
     from designlab.mesh.tetmesh import box_tet_mesh
 

@@ -39,7 +39,7 @@ def _one(part: str, settings: dict, conn) -> None:
     "writing" stage, the rest is the writing."""
     import tempfile
 
-    from designlab.sensors.predict import predict_and_write
+    from designlab.predict.run import predict_and_write
 
     marks, at_write = [], {}
 
@@ -122,11 +122,11 @@ def main(parts, peer: bool) -> None:
 
 def calculix_peer() -> None:
     """Ours and CalculiX on the fingertip's mesh (see the module docstring)."""
-    from designlab.fem import Model
+    from designlab.fem.model import Model
     from designlab.fem.calculix import ccx_path
     from designlab.fem.verify import compare_with_calculix
     from designlab.geometry.fingertip import CantileverFingertip
-    from designlab.sensors.fingertip import FingertipModelSettings, mesh_fingertip
+    from designlab.sensors.fingertip.model import FingertipModelSettings, mesh_fingertip
 
     ccx_path()                                  # one line if ccx is not installed
     part, fs = CantileverFingertip(), FingertipModelSettings()
@@ -165,9 +165,9 @@ def contact_protocol(repeats: int = 3) -> None:
     import warnings
 
     from designlab.geometry.fingertip import CantileverFingertip
-    from designlab.sensors.fingertip import FingertipModelSettings, mesh_fingertip
-    from designlab.sensors.fingertip_contact import (ContactSettings, condense_fingertip,
-                                                     run_contact_test)
+    from designlab.sensors.fingertip.model import FingertipModelSettings, mesh_fingertip
+    from designlab.sensors.fingertip.model import ContactSettings
+    from designlab.sensors.fingertip.contact import condense_fingertip, run_contact_test
     from designlab.sensors.protocols import HangingWeightTest
 
     part, fs = CantileverFingertip.table_ii(), FingertipModelSettings()   # the Table II sensor

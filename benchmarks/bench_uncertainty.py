@@ -21,7 +21,7 @@ from pathlib import Path
 def main(n: int, sensor: str, dask: bool) -> int:
     from designlab.optimize.executors import DaskExecutor, LocalExecutor
     from designlab.optimize.montecarlo import monte_carlo
-    from designlab.sensors.uncertainty import parse_uncertainty
+    from designlab.predict.uncertainty import parse_uncertainty
 
     spec = parse_uncertainty(sensor, {"samples": n})
     with tempfile.TemporaryDirectory() as d:

@@ -20,7 +20,7 @@ import numpy as np
 def main(coarse: float = 1.0) -> None:
     from designlab.fem.viscoelastic import History, long_time_displacements, solve_history
     from designlab.geometry.strap import ArchStrap
-    from designlab.sensors import strap as S
+    from designlab.sensors.strap import virtual as S
     from designlab.sensors.protocols import StrapLoadTest
 
     part, protocol = ArchStrap(), StrapLoadTest()

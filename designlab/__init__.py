@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from designlab.geometry.flexure import SpringFlexure as Flexure
     from designlab.geometry.parts import PARTS
     from designlab.geometry.strap import ArchStrap as Strap
-    from designlab.sensors.predict import Prediction, predict, write_prediction
+    from designlab.predict.run import Prediction, predict, write_prediction
     from designlab.sensors.registry import SENSORS
 
 
@@ -48,8 +48,7 @@ def __getattr__(name: str) -> Any:
 
         return PARTS
     if name in ("Prediction", "predict", "write_prediction"):
-        from designlab.sensors import predict as _p
-
+        from designlab.predict import run as _p
         return getattr(_p, name)
     if name == "SENSORS":
         from designlab.sensors.registry import SENSORS

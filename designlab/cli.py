@@ -313,7 +313,7 @@ def _export_chosen(cfg, params: dict, design_dir: Path, formats: str, fem_cache:
                               settings=cfg.settings, protocol=cfg.protocol, fem_cache=fem_cache)
     doc_files = [Path(f).resolve().relative_to(design_dir.resolve()).as_posix() for f in files]
     from designlab.atomic import atomic_write_json
-    from designlab.sensors.predict import run_manifest
+    from designlab.predict.run import run_manifest
 
     atomic_write_json(design_dir / "run.json",
                       {**run_manifest("optimize chosen design", key), "files": doc_files})
@@ -831,7 +831,7 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
     """Virtual test of a design before printing: hysteresis, calibration matrix, condition number, K_f."""
     from rich.table import Table
 
-    from designlab.sensors.predict import predict_and_write
+    from designlab.predict.run import predict_and_write
     from designlab.params import load_toml, parse_sets
 
     from designlab.sensors.registry import get_sensor
@@ -848,7 +848,7 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
     if samples is not None or uncertainty is not None:
         from designlab.errors import ParameterError
         from designlab.optimize.montecarlo import monte_carlo
-        from designlab.sensors.uncertainty import load_uncertainty, summary_rows
+        from designlab.predict.uncertainty import load_uncertainty, summary_rows
 
         _check_options(("--workers", workers, 1, 512))
         if model is not None or protocol is not None:
@@ -873,7 +873,7 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
         console.print(t)
         for err, n in summary["failed_errors"].items():
             err_console.print(_plain(("failed:", "yellow"), " ", f"{n} builds: {err}"), highlight=False)
-        from designlab.sensors.report_html import write_uncertainty_report
+        from designlab.predict.report import write_uncertainty_report
 
         report = write_uncertainty_report(out, summary, params=overrides, settings=settings or None)
         console.print(f"wrote {out / 'uncertainty.json'}, {report}", markup=False, highlight=False)
@@ -898,7 +898,7 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", 
         t.add_row("geometric condition number", f"{pred['geometric_condition_number']:.4g}")
     if pred.get("paper_comparison"):
         t.add_row("paper condition number", f"{pred['paper_comparison']['condition_number_paper']:.4g}")
-    from designlab.sensors.report_html import force_error_lines
+    from designlab.predict.report import force_error_lines
 
     for name, value in force_error_lines(pred):    # the calibration with the noise budget
         t.add_row(name, value)
@@ -950,8 +950,7 @@ def fit_strap(finger: Optional[str] = typer.Option(None, "--finger", metavar="WI
     from rich.table import Table
 
     from designlab.errors import ParameterError
-    from designlab.sensors import strap_fit as sf
-
+    from designlab.sensors.strap import fit as sf
     if (finger is None) == (scan is None):
         raise ParameterError("--finger/--scan", finger or scan, "exactly one of the two")
     fg = sf.parse_finger(finger) if finger is not None else sf.finger_from_scan(scan)
@@ -1081,7 +1080,7 @@ def _write_run(out: Path, what: str, settings: dict, identity: Optional[str] = N
     """``run.json`` of a command's output folder (command, version, date, settings; the
     identity ``--out`` compares before reusing the folder)."""
     from designlab.atomic import atomic_write_json
-    from designlab.sensors.predict import run_manifest
+    from designlab.predict.run import run_manifest
 
     doc = run_manifest(what, settings)
     if identity is not None:

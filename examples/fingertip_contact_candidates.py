@@ -23,10 +23,9 @@ import numpy as np
 
 from designlab.calibration.calibration_matrix import condition_number, fit_calibration_matrix
 from designlab.geometry.fingertip import TABLE_II_HEIGHTS, CantileverFingertip
-from designlab.sensors.fingertip import FSS015_V_PER_N, FingertipModelSettings, mesh_fingertip
-from designlab.sensors.fingertip_contact import (ContactSettings, bolt_head_joint,
-                                                 condense_fingertip, paper_design,
-                                                 run_contact_test, table_ii_dome)
+from designlab.sensors.fingertip.model import (FSS015_V_PER_N, FingertipModelSettings, mesh_fingertip)
+from designlab.sensors.fingertip.model import ContactSettings
+from designlab.sensors.fingertip.contact import (bolt_head_joint, condense_fingertip, paper_design, run_contact_test, table_ii_dome)
 from designlab.sensors.protocols import HangingWeightTest
 
 PAPER_G1, PAPER_G2 = 33.9, 9.6

@@ -32,9 +32,9 @@ from pathlib import Path
 
 from designlab.geometry.fingertip import CantileverFingertip
 from designlab.geometry.parts import make_part
-from designlab.sensors.fingertip_contact import (condense_fingertip, paper_comparison,
+from designlab.sensors.fingertip.contact import (condense_fingertip, paper_comparison,
                                                  run_contact_test, table_ii_dome)
-from designlab.sensors.fingertip_model import FingertipModelSettings, mesh_fingertip
+from designlab.sensors.fingertip.model import FingertipModelSettings, mesh_fingertip
 from designlab.sensors.protocols import HangingWeightTest
 
 CONFIG = Path(__file__).with_name("fingertip_table_ii.toml")

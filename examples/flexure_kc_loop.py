@@ -109,7 +109,7 @@ def design_base(path: Path, pose_at: str = "centre") -> dict:
     from designlab.frames import adjoint, transform
     from designlab.sensors.flexure.report import camera_offset, fit_camera_offset, load_paper
     from designlab.sensors.flexure.spring import to_si
-    from designlab.sensors.predict import predict
+    from designlab.predict.run import predict
 
     if pose_at not in ("centre", "camera"):
         raise SystemExit(f"--pose-at {pose_at!r}: centre or camera")

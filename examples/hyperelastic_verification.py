@@ -2,7 +2,7 @@
 
     .venv/bin/python examples/hyperelastic_verification.py
 
-The same problems as tests/test_hyperelastic.py, with the measured errors printed instead of
+The same problems as tests/fem/test_hyperelastic.py, with the measured errors printed instead of
 asserted: tangent vs central differences, uniaxial stretch vs the closed form, the small-strain
 limit vs solve_static, and CalculiX (*HYPERELASTIC, NEO HOOKE, NLGEOM) on a bonded block at
 30 % compression and a cantilever at 59 % tip deflection; plus the cost of one Newton
@@ -22,7 +22,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from designlab.fem import Model, solve_static  # noqa: E402
+from designlab.fem.model import Model
+from designlab.fem.static import solve_static
 from designlab.fem.hyperelastic import (Continuum, NeoHooke, solve_calculix_neo_hooke,  # noqa: E402
                                         solve_hyperelastic, uniaxial_closed_form)
 from designlab.fem.materials import Material  # noqa: E402

@@ -51,8 +51,8 @@ def fingertip_measured(part, unit: np.ndarray, seed: int = 1,
     """Columns of one hanging-weight log: ``unit`` (6, 3) sensor force (N) per unit wrench at
     the ball (the virtual test's gains), every load point of ``protocol`` at every rotation
     (load points in a seeded random order), friction x moment arm planted."""
-    from designlab.loop.effects import dahl
-    from designlab.sensors.fingertip_loop import OUTPUTS, linear_readings, load_runs
+    from designlab.loop.effects.base import dahl
+    from designlab.sensors.fingertip.loop import OUTPUTS, linear_readings, load_runs
 
     rng = np.random.default_rng(seed)
     protocol = protocol or fingertip_protocol()
@@ -88,7 +88,7 @@ def flexure_measured(K_true: np.ndarray, seed: int = 2, T: float = 300.0, dt: fl
                      ) -> dict[str, np.ndarray]:
     """Columns of one flexure log (wrench N mm / N, pose rad / mm) through ``K_true`` (6x6,
     designlab units) with the planted axial gain and v_x offset."""
-    from designlab.sensors.flexure.virtual import TWIST, WRENCH
+    from designlab.sensors.flexure.spring import TWIST, WRENCH
 
     rng = np.random.default_rng(seed)
     amp = [60.0, 60.0, 60.0, 6.0, 6.0, 6.0]          # within the 100 N mm / 10 N protocol
@@ -169,7 +169,8 @@ spikes = false
 
 def fingertip_unit(part, edge_length: float = 4.0) -> np.ndarray:
     """(6, 3) sensor force per unit wrench of ``part`` from its linear virtual test (FEM)."""
-    from designlab.sensors.fingertip import FingertipModelSettings, run
+    from designlab.sensors.fingertip.model import FingertipModelSettings
+    from designlab.sensors.fingertip.virtual import run
 
     pred = run(part, fingertip_protocol(),
                FingertipModelSettings(edge_length=edge_length, contact=False,
@@ -190,7 +191,7 @@ def write_fingertip(out: Path, part=None, unit=None, seed: int = 1) -> Path:
 
 def write_flexure(out: Path, seed: int = 2) -> Path:
     from designlab.atomic import atomic_write_bytes
-    from designlab.sensors.flexure.virtual import run
+    from designlab.sensors.flexure.model import run
 
     write_csv(out / "flexure_log.csv", flexure_measured(run().K_true, seed))
     atomic_write_bytes(out / "flexure_card.toml", FLEXURE_CARD.encode())

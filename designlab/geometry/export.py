@@ -30,7 +30,7 @@ import trimesh
 from designlab.errors import OutputError, ParameterError
 from designlab.geometry.body import Body
 from designlab.geometry.printability import BodyReport, PrintabilityError, check_part
-from designlab.geometry.tessellate import tessellate  # noqa: F401  (re-exported)
+from designlab.geometry.tessellate import tessellate
 from designlab.geometry.threemf import Object3MF, Volume3MF, plate_layout, threemf_bytes
 
 FORMATS = ("stl", "3mf", "step", "gltf")

@@ -21,7 +21,7 @@ Per printed body:
   which a slicer drops without consequence) are reported as warnings. Bodies printed by another extruder inside a host
   body (the traces) need ``MM_WALL_FACTOR`` nozzle widths: PrusaSlicer 2.5 (default Arachne
   perimeters, 0.4 mm nozzle, 0.1 mm layers) silently drops an embedded second-extruder line
-  0.6 mm wide and prints one 0.7 mm wide (measured with ``tests/test_export.py``'s fixture).
+  0.6 mm wide and prints one 0.7 mm wide (measured with ``tests/geometry/test_export.py``'s fixture).
 
 Per part: printed bodies must not overlap each other (manifold3d intersection volume), otherwise
 the slicer would print the shared volume with one material only.

@@ -65,7 +65,9 @@ def specimen_stiffness_factor(length: float = 40.0, width: float = 10.0, thickne
     """Axial stiffness of the box clamped at both ends (one end pulled by 1 mm, lateral motion
     of both grip faces held) over the closed form E A / L: > 1 because the grips stop the
     lateral contraction. Static TET10 FEM at E = 1 MPa (designlab.fem)."""
-    from designlab.fem import Material, Model, solve_static
+    from designlab.fem.materials import Material
+    from designlab.fem.model import Model
+    from designlab.fem.static import solve_static
     from designlab.mesh.tetmesh import box_tet_mesh
 
     mesh = box_tet_mesh(length, width, thickness, *divisions).quadratic()

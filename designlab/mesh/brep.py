@@ -47,7 +47,7 @@ DETERMINISTIC = {
 
 #: gmsh's 10-node tetrahedron (element type 11: corners, then the mid-nodes of (0,1), (1,2),
 #: (2,0), (3,0), (3,2), (3,1)) -> C3D10 order (corners, then (0,1), (1,2), (2,0), (0,3), (1,3),
-#: (2,3)); checked on an all-flat body (tests/test_mesh_curved.py: every mid-node on its edge's
+#: (2,3)); checked on an all-flat body (tests/mesh/test_mesh_curved.py: every mid-node on its edge's
 #: midpoint to 1e-9 mm)
 GMSH_TET10_TO_C3D10 = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
 

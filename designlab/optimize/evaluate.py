@@ -30,7 +30,7 @@ def geometry_metrics(part_name: str, part) -> dict[str, Any]:
 
 def evaluate_design(task: dict[str, Any]) -> dict[str, Any]:
     """One design of a sweep -> flat-ish metrics dict (see module docstring)."""
-    from designlab.sensors.predict import predict
+    from designlab.predict.run import predict
     from designlab.geometry.parts import make_part
 
     part_name, params = task["part"], task["params"]
@@ -70,7 +70,7 @@ def export_design(part_name: str, params: dict[str, Any], out: str | Path, *,
                   protocol: dict[str, Any] | None = None,
                   fem_cache: str | Path | None = None) -> list[Path]:
     """Export the chosen design for printing and write its full prediction report."""
-    from designlab.sensors.predict import predict, write_prediction
+    from designlab.predict.run import predict, write_prediction
     from designlab.geometry.export import export_parts
     from designlab.geometry.parts import make_part
 

@@ -1,11 +1,11 @@
-"""``designlab predict PART --samples N``: the Monte Carlo of :mod:`designlab.sensors.uncertainty`
+"""``designlab predict PART --samples N``: the Monte Carlo of :mod:`designlab.predict.uncertainty`
 on the sweep executors (local processes or a Dask cluster), stored as it goes and resumable.
 
 Layout of ``OUT``::
 
     fem/<key>.npz                 the design's FEM stage (computed once, by the parent)
     samples/<run>.<batch>.json    the builds of one batch (atomic; a rerun skips them)
-    uncertainty.json              the summary (:func:`designlab.sensors.uncertainty.summarize`)
+    uncertainty.json              the summary (:func:`designlab.predict.uncertainty.summarize`)
 
 ``<run>`` hashes the spec, the design, settings, protocol and the designlab version: a changed
 input never reuses old builds.
@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from designlab.errors import ParameterError
-from designlab.sensors.uncertainty import (UncertaintySpec, _fem_stage, build_values, draw,
+from designlab.predict.uncertainty import (UncertaintySpec, _fem_stage, build_values, draw,
                                            run_batch, summarize)
 
 

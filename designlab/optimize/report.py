@@ -147,7 +147,7 @@ def scatter_of_row(row: dict, samples: int | None = None, spec: dict | None = No
     """The "Scatter (Monte Carlo)" section of one design of a robust sweep: per Monte Carlo
     metric its nominal value (the row's nominal column of the same name, where there is one),
     mean, 5 % and 95 %; the failed builds (``mc.failed``); the drivers are not kept in a row."""
-    from designlab.sensors.report_html import scatter_section
+    from designlab.predict.report import scatter_section
 
     names = mc_metrics_of(row)
     if not names:
@@ -233,14 +233,14 @@ def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: 
                  chosen_dir: Path | None = None, kind: str = "sweep",
                  uncertainty=None) -> dict[str, Path]:
     """Write ``pareto.png``, ``sensitivity.png`` and ``report.html`` (the shared template of
-    :mod:`designlab.sensors.report_html`, images embedded). ``choice``: why the design was
+    :mod:`designlab.predict.report`, images embedded). ``choice``: why the design was
     chosen (optimize); ``chosen_dir``: the exported chosen design with its ``prediction/``
     (renders, plots, stress, paper comparison, files). A robust run's rows (``mc.*``
     columns): each objective's 5-95 % band beside it and the chosen design's "Scatter (Monte
     Carlo)" section; ``uncertainty`` (its spec) gives the builds per design."""
     from designlab.sensors.labels import fmt_value, metric_label, metric_name_unit, param_label
     from designlab.sensors.registry import SENSORS
-    from designlab.sensors.report_html import (file_links, param_table, png_uri,
+    from designlab.predict.report import (file_links, param_table, png_uri,
                                                prediction_sections, render_report)
 
     out = Path(out)
@@ -320,7 +320,7 @@ def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: 
         if uncertainty is not None:
             import dataclasses
 
-            from designlab.sensors.uncertainty import draw
+            from designlab.predict.uncertainty import draw
 
             spec_p = dataclasses.replace(uncertainty, sensor=config.part)
             samples, spec = len(draw(spec_p)[1]), spec_p.to_json()      # Sobol: N (2d + 2)

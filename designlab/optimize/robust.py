@@ -1,6 +1,6 @@
 """Robust design: sweep or optimise a quantile of the Monte Carlo instead of the nominal value.
 
-A sweep TOML with an ``[uncertainty]`` table (:mod:`designlab.sensors.uncertainty`) runs, for
+A sweep TOML with an ``[uncertainty]`` table (:mod:`designlab.predict.uncertainty`) runs, for
 every design, its nominal prediction plus ``samples`` virtual builds; each Monte Carlo metric
 ``M`` becomes the columns ``mc.M.mean``, ``mc.M.std``, ``mc.M.p5``, ``mc.M.p50``, ``mc.M.p95``
 of the design's row, and ``mc.failed`` counts its failed builds. Objectives and constraints may
@@ -25,7 +25,7 @@ from typing import Any
 
 from designlab.errors import ParameterError
 from designlab.params import did_you_mean, load_toml
-from designlab.sensors.uncertainty import mc_metrics
+from designlab.predict.uncertainty import mc_metrics
 
 STATS = ("mean", "std", "p5", "p50", "p95")
 
@@ -43,7 +43,7 @@ def robust_config(data: dict[str, Any]):
     """(SweepConfig, the checked uncertainty spec) of a sweep TOML dict with ``[uncertainty]``;
     ``mc.*`` objectives/constraints are checked here, the rest by the sweep's own loader."""
     from designlab.optimize.space import sweep_config
-    from designlab.sensors.uncertainty import parse_uncertainty
+    from designlab.predict.uncertainty import parse_uncertainty
 
     data = dict(data)
     table = data.pop("uncertainty", None)
@@ -86,7 +86,7 @@ class RobustEvaluator:
 
     def __call__(self, task: dict[str, Any]) -> dict[str, Any]:
         from designlab.optimize.evaluate import evaluate_design
-        from designlab.sensors.uncertainty import build_values, draw, run_batch, summarize
+        from designlab.predict.uncertainty import build_values, draw, run_batch, summarize
 
         out = evaluate_design(task)
         spec = dataclasses.replace(self.spec, sensor=task["part"])

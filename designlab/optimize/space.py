@@ -245,7 +245,7 @@ def sweep_config(data: dict[str, Any]) -> SweepConfig:
         raise ParameterError(f"fixed.{exc.name}", exc.value, exc.allowed) from None
     settings = dict(_table("settings", data.get("settings", {})))
     check_keys(settings, SETTINGS, "settings")
-    from designlab.sensors.predict import model_settings, protocol_from
+    from designlab.predict.run import model_settings, protocol_from
 
     if "model" in settings:
         model_settings(part, _table("settings.model", settings["model"]))

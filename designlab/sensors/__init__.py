@@ -2,7 +2,7 @@
 comparison, its linear model for the loop) and ``SENSORS``, the registry every command reads::
 
     from designlab.sensors import SENSORS
-    from designlab.sensors.predict import predict
+    from designlab.predict.run import predict
     pred = predict("fingertip", {"h": 3.0})
     pred.condition_number, pred.hysteresis_percent
 """

@@ -1,4 +1,4 @@
-"""The inputs of a Monte Carlo (:mod:`designlab.sensors.uncertainty`): a :class:`Distribution`
+"""The inputs of a Monte Carlo (:mod:`designlab.predict.uncertainty`): a :class:`Distribution`
 (normal, lognormal, uniform, fixed; bounds truncate by inverse CDF), an uncertain
 :class:`Input` of a sensor with its default distribution and source, and the
 :class:`MonteCarloModel` each sensor brings in its ``Sensor.uncertainty``. Names no sensor and

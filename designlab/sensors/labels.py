@@ -12,7 +12,6 @@ import dataclasses
 import re
 from typing import Any
 
-from designlab.geometry.api import field_rows  # noqa: F401 (re-exported)
 from designlab.params import fmt_bound
 
 #: metric key -> (readable name, unit); "" unit: dimensionless

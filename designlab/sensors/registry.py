@@ -6,7 +6,8 @@ from __future__ import annotations
 
 from designlab.errors import ParameterError
 from designlab.params import did_you_mean
-from designlab.sensors import fingertip, strap
+from designlab.sensors.fingertip import virtual as fingertip
+from designlab.sensors.strap import virtual as strap
 from designlab.sensors.flexure import virtual as flexure
 from designlab.sensors.sensor import Sensor
 

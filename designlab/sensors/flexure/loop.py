@@ -23,7 +23,8 @@ from typing import Any
 import numpy as np
 
 from designlab.errors import ParameterError
-from designlab.sensors.flexure.model import TWIST, WRENCH, evaluate, staircase_hysteresis
+from designlab.sensors.flexure.spring import TWIST, WRENCH
+from designlab.sensors.flexure.model import evaluate, staircase_hysteresis
 
 INPUT_UNITS = {**{w: "Nmm" for w in WRENCH[:3]}, **{w: "N" for w in WRENCH[3:]}}
 OUTPUT_UNITS = {**{t: "rad" for t in TWIST[:3]}, **{t: "mm" for t in TWIST[3:]}}

@@ -150,7 +150,7 @@ def _wire_stress(part, protocol: FlexureWrenchTest, settings: "FlexureModelSetti
 
 def _fem_model(mesh, settings: FlexureModelSettings, centre, materials=None):
     """Base clamped, tip rigid to a master at the spring centre, six unit wrench cases."""
-    from designlab.fem import Model
+    from designlab.fem.model import Model
 
     model = Model(mesh, materials)
     model.fix(settings.base_set)
@@ -217,7 +217,7 @@ def run(part=None, protocol: FlexureWrenchTest | None = None,
         timings["assemble"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         say("solving 6 unit wrenches")
-        from designlab.fem import solve_static
+        from designlab.fem.static import solve_static
 
         res = solve_static(model, solver=settings.solver)
         C = np.column_stack([res.twist(ref, name) for name in WRENCH])

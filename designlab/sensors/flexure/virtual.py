@@ -13,9 +13,8 @@ import numpy as np
 from designlab.atomic import atomic_savefig
 from designlab.sensors.protocols import FlexureWrenchTest
 from designlab.sensors.flexure.montecarlo import MONTE_CARLO
-from designlab.sensors.flexure.model import (  # noqa: F401  (re-exported)
-    K_F_UNITS, TWIST, WRENCH, FlexureModelSettings, FlexurePrediction, chain_truth, evaluate,
-    helical_spring, run, spring_as_built, staircase, staircase_hysteresis)
+from designlab.sensors.flexure.model import (FlexureModelSettings, FlexurePrediction, run)
+from designlab.sensors.flexure.spring import TWIST, WRENCH
 from designlab.sensors.sensor import Sensor
 
 

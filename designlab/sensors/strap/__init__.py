@@ -1,0 +1,1 @@
+"""The seed 000 arch strap: soft TPU with two printed conductive-TPU strain gauges."""

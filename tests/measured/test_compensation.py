@@ -1,0 +1,190 @@
+"""Compensation of seed 000: linear fit, common evaluation (NCC/RMSE/Wilcoxon), real data, CLI."""
+
+import json
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from designlab.measured import compensation as comp
+from designlab.measured import linear_fit
+from designlab.measured import mpl
+from designlab.cli import main
+from designlab.errors import DataError, ParameterError
+
+
+def test_linear_fit_exact_on_sum_and_difference_channels():
+    rng = np.random.default_rng(0)
+    ch = rng.normal(size=(500, 2))
+    fn = 3.0 * (ch[:, 0] + ch[:, 1]) + 0.5
+    fx = -1.5 * (ch[:, 0] - ch[:, 1]) + 0.1
+    fit = linear_fit.fit_linear(ch, np.column_stack([fn, fx]))      # auto: sum/diff (seed 000)
+    assert fit.channels == ((1.0, 1.0), (1.0, -1.0))
+    np.testing.assert_allclose(fit.A, [[3.0, 3.0], [-1.5, 1.5]], atol=1e-12)
+    np.testing.assert_allclose(fit.b, [0.5, 0.1], atol=1e-12)
+    np.testing.assert_allclose(fit.predict(ch), np.column_stack([fn, fx]), atol=1e-12)
+
+
+def test_linear_fit_any_number_of_channels():
+    rng = np.random.default_rng(1)
+    u = rng.normal(size=(300, 3))
+    A = np.array([[1.0, -2.0, 0.5], [0.3, 0.0, 4.0]])
+    y = u @ A.T + [1.0, -2.0]
+    fit = linear_fit.fit_linear(u, y)                               # 3 -> 2: full fit
+    assert fit.channels is None
+    np.testing.assert_allclose(fit.A, A, atol=1e-12)
+    one = linear_fit.fit_linear(u[:, 0], 2 * u[:, 0] - 1)           # 1 -> 1
+    np.testing.assert_allclose(one.predict(u[:, 0])[:, 0], 2 * u[:, 0] - 1, atol=1e-12)
+    with pytest.raises(ParameterError, match="mix"):
+        linear_fit.fit_linear(u, y, mix="sum-diff")
+    with pytest.raises(ParameterError, match="2x3"):
+        linear_fit.fit_linear(u, y, mix=np.eye(3))
+    with pytest.raises(DataError, match="lengths differ"):
+        linear_fit.fit_linear(u, y[:-1])
+    with pytest.raises(DataError, match="NaN"):
+        linear_fit.fit_linear(np.where(u > 2.5, np.nan, u), y)
+
+
+def gauges(T, dt, seed):
+    """Two hysteretic gauges (Ch1 <- F_n + F_x, Ch2 <- F_n - F_x) and the forces."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(T) * dt
+    fn = 2 + np.sin(rng.uniform(0.2, 0.4) * t) + 0.5 * np.sin(rng.uniform(0.9, 1.4) * t + 1)
+    fx = 0.3 * np.sin(rng.uniform(0.4, 0.6) * t + 2)
+    g = mpl.MPLParams(w0=1.0, w=(-0.5,), V_b=0.0, P_T=(0.1,), P_S=(0.05,), g=(0.0, 1.0, 0.05))
+    return np.column_stack([g.simulate(fn + fx, dt), g.simulate(fn - fx, dt)]), \
+        np.column_stack([fn, fx])
+
+
+def records(n=3, T=2500, dt=0.05):
+    out = []
+    for i in range(n):
+        u, y = gauges(T, dt, i)
+        out.append(comp.Record(f"task{i + 1}", u, y, dt, ("Ch1", "Ch2"), ("Fn", "Fx")))
+    return out
+
+
+def test_compare_metrics_and_wilcoxon_on_synthetic_tasks():
+    recs = records()
+    opts = comp.CompensationOptions(mpl_cells=1, mpl_order=3, narx_max_iter=100)
+    res = comp.compare(recs[:1], recs[1:], ("linear", "mpl"), opts)
+    assert len(res.rows) == 2 * 3 * 2                                # models x tasks x outputs
+    row = {(r["model"], r["task"], r["output"]): r for r in res.rows}
+    assert row[("linear", "task1", "Fn")]["role"] == "train"
+    assert row[("mpl", "task3", "Fx")]["role"] == "validate"
+    for task in ("task2", "task3"):
+        assert row[("mpl", task, "Fn")]["rmse"] < 0.3 * row[("linear", task, "Fn")]["rmse"]
+        assert row[("mpl", task, "Fn")]["ncc"] > row[("linear", task, "Fn")]["ncc"]
+        assert len(row[("mpl", task, "Fn")]["segment_rmse"]) == 10
+    # the mPL is better on every one of the 10 segments: smallest two-sided p of n = 10
+    w = [b for b in res.between_models if b["task"] == "task2" and b["output"] == "Fn"][0]
+    assert (w["a"], w["b"]) == ("linear", "mpl")
+    assert w["rmse"]["p_value"] == pytest.approx(2 / 2 ** 10)
+    assert len(res.between_tasks) == 2 * 2 * 3                       # models x outputs x pairs
+    # per-segment metrics are the metrics of the segment
+    r = row[("linear", "task2", "Fx")]
+    y, yh = recs[1].y[:250, 1], res.predictions[("linear", "task2")][:250, 1]
+    assert r["segment_rmse"][0] == pytest.approx(np.sqrt(np.mean((y - yh) ** 2)))
+
+
+def test_records_check_their_input():
+    with pytest.raises(DataError, match="lengths differ"):
+        comp.Record("a", np.ones((10, 2)), np.ones((9, 2)), 0.1)
+    with pytest.raises(ParameterError, match="dt"):
+        comp.Record("a", np.ones((10, 2)), np.ones((10, 2)), 0.0)
+    a, b = records(2, T=400)
+    b2 = comp.Record("b", b.u, b.y, 0.07)
+    with pytest.raises(DataError, match="sample periods"):
+        comp.fit_compensator("linear", [a, b2])
+    with pytest.raises(ParameterError, match="model"):
+        comp.fit_compensator("kalman", [a])
+
+
+
+
+@pytest.fixture
+def stretch_card(shared):
+    """The example card (paths relative to it reach ../shared/data/stretch)."""
+    return Path(__file__).resolve().parents[2] / "examples" / "cards" / "stretch_compensation.toml"
+
+
+def test_real_stretch_data_mpl_and_narx_beat_linear(stretch_card):
+    """Force (N) from the 4-wire resistance of a carbon-black silicone strip: train on one
+    multisine run, validate on another multisine run and a random sawtooth."""
+    train, val = comp.records_from_card(stretch_card, ["resistance"], ["force"])
+    assert [r.name for r in train] == ["multisine_600s_1"]
+    assert [r.name for r in val] == ["multisine_300s_2", "2_7-5_4Epin_rand_sawtooth"]
+    res = comp.compare(train, val, options=comp.CompensationOptions(narx_max_iter=200))
+    row = {(r["model"], r["task"]): r for r in res.rows}
+    for r in val:
+        lin = row[("linear", r.name)]
+        for m in ("mpl", "narx"):
+            assert row[(m, r.name)]["rmse"] < 0.9 * lin["rmse"]
+            assert row[(m, r.name)]["ncc"] > lin["ncc"]
+        assert 0.3 < lin["rmse"] < 0.7          # N: the uncompensated error is large
+
+
+def write_csv(path, u, y, dt, names=("Ch1", "Ch2", "Fn", "Fx")):
+    t = np.arange(u.shape[0]) * dt
+    data = np.column_stack([t, u, y])
+    np.savetxt(path, data, delimiter=",", header=",".join(("t",) + names), comments="")
+
+
+def test_cli_writes_json_and_png(tmp_path):
+    recs = records(2, T=1200)
+    write_csv(tmp_path / "task1.csv", recs[0].u, recs[0].y, recs[0].dt)
+    write_csv(tmp_path / "task2.csv", recs[1].u, recs[1].y, recs[1].dt)
+    out = tmp_path / "out"
+    main(["compensate", "--model", "linear,mpl", "--model", "narx", "--train",
+          str(tmp_path / "task1.csv"), "--validate", str(tmp_path / "task2.csv"), "--input",
+          "Ch1,Ch2", "--output", "Fn,Fx", "--time", "t", "--cells", "1", "--order", "3",
+          "--narx-delays", "20", "--out", str(out)])
+    assert sorted(p.name for p in out.iterdir()) == ["compensation.json", "compensation.png"]
+    doc = json.loads((out / "compensation.json").read_text())
+    got = {(r["model"], r["task"], r["output"]) for r in doc["metrics"]}
+    assert got == {(m, t, o) for m in ("linear", "mpl", "narx") for t in ("task1", "task2")
+                   for o in ("Fn", "Fx")}
+    assert set(doc["fits"]) == {"linear", "mpl", "narx"}
+    assert doc["wilcoxon_between_models"] and doc["wilcoxon_between_tasks"]
+    assert (out / "compensation.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_cli_with_dataset_card(stretch_card, tmp_path):
+    main(["compensate", "--data", str(stretch_card), "--input", "resistance", "--output", "force",
+          "--model", "linear", "--out", str(tmp_path / "o")])
+    doc = json.loads((tmp_path / "o" / "compensation.json").read_text())
+    assert {r["task"] for r in doc["metrics"]} == {"multisine_600s_1", "multisine_300s_2",
+                                                  "2_7-5_4Epin_rand_sawtooth"}
+
+
+def test_cli_bad_input_exits_2_and_writes_nothing(tmp_path, capsys):
+    recs = records(1, T=300)
+    good = tmp_path / "good.csv"
+    write_csv(good, recs[0].u, recs[0].y, recs[0].dt)
+    nan = tmp_path / "nan.csv"
+    y = recs[0].y.copy()
+    y[17, 0] = np.nan
+    write_csv(nan, recs[0].u, y, recs[0].dt)
+    jitter = tmp_path / "jitter.csv"
+    np.savetxt(jitter, np.column_stack([np.cumsum(np.r_[0, np.tile([0.05, 0.2], 149), 0.05]),
+                                        recs[0].u, recs[0].y]),
+               delimiter=",", header="t,Ch1,Ch2,Fn,Fx", comments="")
+    base = ["compensate", "--input", "Ch1,Ch2", "--output", "Fn,Fx", "--model", "linear"]
+    cases = [
+        (["--train", str(good), "--output", "Fz", "--time", "t"], "Fz"),      # unknown column
+        (["--train", str(nan), "--time", "t"], "NaN"),
+        (["--train", str(jitter), "--time", "t"], "not uniformly sampled"),
+        (["--train", str(good)], "time"),                                     # neither --time nor --dt
+        (["--train", str(good), "--dt", "0.05", "--model", "kalman"], "model"),
+        (["--train", str(good), "--dt", "0.05", "--cells", "-1"], "--cells"),
+        (["--train", str(tmp_path / "missing.csv"), "--dt", "0.05"], "not found"),
+    ]
+    for k, (extra, text) in enumerate(cases):
+        out = tmp_path / f"out{k}"
+        with pytest.raises(SystemExit) as info:
+            main(base + extra + ["--out", str(out)])
+        assert info.value.code == 2
+        err = capsys.readouterr().err
+        assert text in err and err.strip().count("\n") == 0, err
+        assert not out.exists() or not any(out.iterdir())
