@@ -47,8 +47,14 @@ def __getattr__(name: str) -> Any:
         from designlab.geometry.parts import PARTS
 
         return PARTS
-    if name in ("Prediction", "predict", "write_prediction"):
+    if name == "predict":
+        # the package designlab.predict is callable: dl.predict(part) runs the prediction
+        import designlab.predict as _pkg
+
+        return _pkg
+    if name in ("Prediction", "write_prediction"):
         from designlab.predict import run as _p
+
         return getattr(_p, name)
     if name == "SENSORS":
         from designlab.sensors.registry import SENSORS
