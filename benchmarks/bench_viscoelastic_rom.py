@@ -21,12 +21,13 @@ def main(coarse: float = 1.0) -> None:
     from designlab.fem.viscoelastic import History, long_time_displacements, solve_history
     from designlab.geometry.strap import ArchStrap
     from designlab.sensors.strap import virtual as S
+    from designlab.sensors.strap import model as strap_model
     from designlab.sensors.protocols import StrapLoadTest
 
     part, protocol = ArchStrap(), StrapLoadTest()
     settings = S.StrapModelSettings()
     settings = dataclasses.replace(settings, edge_length=settings.edge_length * coarse)
-    model, gauges, _ = S.build_model(part, S.mesh_strap(part, settings), settings)
+    model, gauges, _ = strap_model.build_model(part, strap_model.mesh_strap(part, settings), settings)
     model.build()
     t, fn, fx = protocol.time_history()
     history = History(t, {"F_n": fn, "F_x": fx})

@@ -195,10 +195,11 @@ def test_strap_default_protocol_reduced_equals_full():
     and the peak displacement of the two marches (measured: ~5e-12 of the largest strain)."""
     from designlab.geometry.strap import ArchStrap
     from designlab.sensors.strap import virtual as S
+    from designlab.sensors.strap import model as strap_model
     from designlab.sensors.protocols import StrapLoadTest
 
     part, protocol, settings = ArchStrap(), StrapLoadTest(), S.StrapModelSettings()
-    model, gauges, _ = S.build_model(part, S.mesh_strap(part, settings), settings)
+    model, gauges, _ = strap_model.build_model(part, strap_model.mesh_strap(part, settings), settings)
     t, fn, fx = protocol.time_history()
     hist = History(t, {"F_n": fn, "F_x": fx})
     out = {}

@@ -9,6 +9,7 @@ import json
 import numpy as np
 import pytest
 
+from designlab.sensors.flexure import model as flexure_model
 from designlab.sensors.flexure import virtual as ft
 from designlab.sensors.protocols import FlexureWrenchTest
 from designlab.fem.materials import get_material
@@ -23,7 +24,7 @@ TIM = ft.FlexureModelSettings(truth="timoshenko")
 
 
 def test_part_gives_the_catalogue_spring():
-    s = ft.helical_spring(PART)
+    s = flexure_model.helical_spring(PART)
     assert to_si(stiffness_zero_pitch(s)) == pytest.approx(
         to_si(stiffness_zero_pitch(VISIFLEX_CATALOG)), rel=1e-12)
     assert s.active_length == pytest.approx(VISIFLEX_CATALOG.active_length)
@@ -38,7 +39,7 @@ def test_default_truth_is_the_chain_of_the_spring_as_built():
     from designlab.sensors.flexure.beam_chain import ChainSettings, chain_stiffness
 
     assert ft.FlexureModelSettings().truth == "chain"
-    s = ft.spring_as_built(PART)
+    s = flexure_model.spring_as_built(PART)
     assert (s.wire_radius, s.coils, s.inactive_coils) == (VISIFLEX_CATALOG.wire_radius,
                                                            VISIFLEX_CATALOG.coils,
                                                            VISIFLEX_CATALOG.inactive_coils)
@@ -51,7 +52,7 @@ def test_default_truth_is_the_chain_of_the_spring_as_built():
     assert p.report["chain"]["length_mm"] == pytest.approx(PART.length, abs=1e-3)
     assert p.report["K_f_source"] == "chain" and p.report["mesh"] is None
     # the chain is not the Timoshenko column: the ground ends and contact move the lateral term
-    Kt = to_si(stiffness_timoshenko(ft.helical_spring(PART)))
+    Kt = to_si(stiffness_timoshenko(flexure_model.helical_spring(PART)))
     assert abs(p.report["K_f"][3][3] / Kt[3, 3] - 1) > 0.2
     # unloaded: the chain's first state
     p0 = ft.run(PART, None, ft.FlexureModelSettings(working_load_N=0.0))
@@ -71,7 +72,7 @@ def test_chain_truth_of_plain_ends_and_bad_designs():
     from designlab.errors import ParameterError
 
     plain = SpringFlexure(ends="plain", active_coils=3.0)
-    s = ft.spring_as_built(plain)
+    s = flexure_model.spring_as_built(plain)
     assert s.inactive_coils == 0 and s.coils == 3.0
     p = ft.run(plain)
     assert p.report["chain"]["contacts"] == 0 and p.report["K_f_chain_loaded"] is None
@@ -88,8 +89,8 @@ def test_closed_form_truth_error_statistics():
     p = ft.run(PART, prot, TIM)
     r = p.report
     json.dumps(r)
-    Kd = stiffness_zero_pitch(ft.helical_spring(PART))
-    Kt = stiffness_timoshenko(ft.helical_spring(PART), frame="centre")
+    Kd = stiffness_zero_pitch(flexure_model.helical_spring(PART))
+    Kt = stiffness_timoshenko(flexure_model.helical_spring(PART), frame="centre")
     W = prot.wrenches()
     E = W - W @ np.linalg.inv(Kt).T @ Kd.T
     fx = r["wrench_error"]["stats"]["f_x"]
@@ -118,7 +119,7 @@ def test_pose_noise_adds_scatter():
     noisy = ft.run(PART, None, dataclasses.replace(TIM, pose_noise_mm=0.02)).report
     assert base == pytest.approx(0, abs=1e-9)
     assert noisy["wrench_error"]["stats"]["f_z"]["std"] == pytest.approx(
-        0.02 * stiffness_zero_pitch(ft.helical_spring(PART))[5, 5], rel=0.3)
+        0.02 * stiffness_zero_pitch(flexure_model.helical_spring(PART))[5, 5], rel=0.3)
 
 
 def test_plots(tmp_path):

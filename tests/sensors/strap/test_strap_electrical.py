@@ -16,6 +16,7 @@ from designlab.fem.transducers import (divider_slope, johnson_noise_vrms,
 from designlab.geometry.strap import CORNER_SQUARES, ArchStrap
 from designlab.sensors.strap import electrical as el
 from designlab.sensors.strap import fit as sf
+from designlab.sensors.strap import prestrain as strap_prestrain
 PAPER = ArchStrap()
 ETPU = get_material("PI-ETPU")
 
@@ -150,7 +151,7 @@ def test_size_table_slots_vs_personalised():
 
 
 def test_slot_table_uses_the_same_cv():
-    t = sf.slot_table(PAPER, 2 * math.pi * 9.0, ETPU, 1800.0, 2200.0, 0.05, 0.03)
+    t = strap_prestrain.slot_table(PAPER, 2 * math.pi * 9.0, ETPU, 1800.0, 2200.0, 0.05, 0.03)
     S = [r["sum_F_n_V_per_N"] for r in t["slots"]]
     assert t["sum_sensitivity_cv_percent"] == pytest.approx(100 * np.std(S) / np.mean(S))
     assert t["spread_definition"].startswith(sf.SPREAD_DEFINITION)
@@ -415,7 +416,7 @@ def test_pulp_compliance_lowers_the_worn_strain_by_its_closed_form():
     cv = [b["personalised_strain_cv_percent"] for b in c["by_modulus"]]
     assert cv[0] > cv[1] > cv[2] > cv[3] and cv[3] < 1e-3
     # a stiff pulp gives back the rigid finger's slot spread (slot_table)
-    rigid = sf.slot_table(PAPER, P, ETPU, 1800.0, 2200.0, 0.05, 0.03)
+    rigid = strap_prestrain.slot_table(PAPER, P, ETPU, 1800.0, 2200.0, 0.05, 0.03)
     assert c["by_modulus"][3]["slots_sum_sensitivity_cv_percent"] == pytest.approx(
         rigid["sum_sensitivity_cv_percent"], rel=1e-4)
     assert "NOT a literature value" in c["pulp_modulus_note"]

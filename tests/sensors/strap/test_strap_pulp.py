@@ -10,6 +10,7 @@ from designlab.fem.model import Model
 from designlab.fem.static import solve_static
 from designlab.mesh.tetmesh import TetMesh, box_tet_mesh
 from designlab.sensors.strap import pulp as sp
+from designlab.sensors.strap import pulp_layer as strap_pulp_layer
 E, NU, DEPTH, P = 0.06, 0.49, 3.0, 0.01          # MPa, -, mm, MPa
 
 
@@ -23,14 +24,14 @@ def _layer(order: int, n: int = 4, layers: int = 3) -> TetMesh:
     i, j = (a.ravel() for a in np.meshgrid(np.arange(n), np.arange(n), indexing="ij"))
     tri = np.vstack([np.column_stack([nid[i, j], nid[i + 1, j], nid[i + 1, j + 1]]),
                      np.column_stack([nid[i, j], nid[i + 1, j + 1], nid[i, j + 1]])])
-    new, cells, far = sp.extrude(pts, tri, DEPTH, layers)
+    new, cells, far = strap_pulp_layer.extrude(pts, tri, DEPTH, layers)
     mesh = TetMesh(np.vstack([pts, new]), cells, np.zeros(len(cells), np.int64), {0: "pulp"},
                    {"pulp": "pulp"}, {"top": tri, "bone": far})
     return mesh.quadratic() if order == 2 else mesh
 
 
 def _compress(mesh: TetMesh, confined: bool) -> float:
-    m = Model(mesh, {"pulp": sp.pulp_material(E, NU)})
+    m = Model(mesh, {"pulp": strap_pulp_layer.pulp_material(E, NU)})
     x = mesh.points
     m.fix("bone", "z")
     if confined:                   # no lateral strain anywhere
@@ -49,7 +50,7 @@ def test_layer_compression_matches_closed_form(order):
     """Uniform pressure on the extruded layer: confined p d / M (M = 17.1 E at nu 0.49) and
     frictionless unconfined p d / E, to 1e-6 (uniform states are in every element's space:
     this checks the extrusion, the orientation and the material, not locking)."""
-    ref = sp.layer_closed_form(E, NU, DEPTH, P)
+    ref = strap_pulp_layer.layer_closed_form(E, NU, DEPTH, P)
     mesh = _layer(order)
     assert np.all(mesh.corner_volumes > 0)
     assert _compress(mesh, True) == pytest.approx(ref["confined_mm"], rel=1e-6)
@@ -65,7 +66,7 @@ def test_tet10_does_not_lock_at_nu_049_on_a_bonded_layer():
     8 layers (measured 0.6 %), while TET4 on the coarse mesh is > 20 % too stiff (measured
     35 %): the check sees locking, and TET10 has none to speak of."""
     def bonded(mesh):
-        m = Model(mesh, {"pulp": sp.pulp_material(E, NU)})
+        m = Model(mesh, {"pulp": strap_pulp_layer.pulp_material(E, NU)})
         m.fix("bone")
         m.traction("top", (0.0, 0.0, -P))
         u = solve_static(m).displacement()
@@ -82,12 +83,12 @@ def test_add_pulp_is_conforming_on_a_tet10_body():
     same lateral strain: a bonded stiff block would restrain the pulp), the 5 mm column
     compresses as one, p (h + d) / E (frictionless, uniaxial stress), to 1e-6."""
     block = box_tet_mesh(4.0, 4.0, 2.0, 3, 3, 2, body="block", material="ABS").quadratic()
-    mesh = sp.add_pulp(block, block.facet_sets["zmin"][:, :3], DEPTH, 2)
+    mesh = strap_pulp_layer.add_pulp(block, block.facet_sets["zmin"][:, :3], DEPTH, 2)
     assert mesh.order == 2 and np.all(mesh.corner_volumes > 0)
     key = np.round(mesh.points, 9)
     assert len(np.unique(key, axis=0)) == mesh.n_points
     assert len(np.unique(mesh.cells)) == mesh.n_points          # every node used
-    m = Model(mesh, {"pulp": sp.pulp_material(E, NU), "block": sp.pulp_material(E, NU)})
+    m = Model(mesh, {"pulp": strap_pulp_layer.pulp_material(E, NU), "block": strap_pulp_layer.pulp_material(E, NU)})
     x = mesh.points
     m.fix(sp.BONE, "z")
     m.fix(np.nonzero(np.isclose(x[:, 0], 0))[0], "x")
@@ -116,6 +117,7 @@ def test_solid_pulp_changes_the_strap_prediction():
     pulp (0.001 MPa) reads like the unsupported strap (tissue_stiffness 0) within 5 %."""
     from designlab.geometry.strap import ArchStrap
     from designlab.sensors.strap import virtual as st
+    from designlab.sensors.strap import model as strap_model
     from designlab.sensors.strap.model import elastic_materials
     from designlab.sensors.protocols import StrapLoadTest
 
@@ -146,17 +148,18 @@ def test_fem_key_holds_the_finger_model_it_uses():
 
     from designlab.geometry.strap import ArchStrap
     from designlab.sensors.strap import virtual as st
+    from designlab.sensors.strap import model as strap_model
     from designlab.sensors.protocols import StrapLoadTest
 
     part, proto = ArchStrap(), StrapLoadTest()
     w = st.StrapModelSettings()
-    key = st.fem_key(part, proto, w)
-    assert st.fem_key(part, proto, dataclasses.replace(w, pulp_modulus=0.3)) == key
+    key = strap_model.fem_key(part, proto, w)
+    assert strap_model.fem_key(part, proto, dataclasses.replace(w, pulp_modulus=0.3)) == key
     s = dataclasses.replace(w, finger_model="solid")
-    ks = st.fem_key(part, proto, s)
+    ks = strap_model.fem_key(part, proto, s)
     assert ks != key
-    assert st.fem_key(part, proto, dataclasses.replace(s, tissue_stiffness=0.05)) == ks
-    other = {st.fem_key(part, proto, dataclasses.replace(s, **kw)) for kw in (
+    assert strap_model.fem_key(part, proto, dataclasses.replace(s, tissue_stiffness=0.05)) == ks
+    other = {strap_model.fem_key(part, proto, dataclasses.replace(s, **kw)) for kw in (
         {"pulp_depth": 4.0}, {"pulp_modulus": 0.1}, {"pulp_poisson": 0.45}, {"pulp_layers": 3})}
     assert len(other) == 4 and ks not in other
 
@@ -225,6 +228,7 @@ def test_wrap_equilibrium_relaxes_the_map_and_responds_like_the_worn_model_at_sm
     signal per newton on the wrapped, prestressed strap is within 10 % of the linear worn
     model's (measured 3.1 % above)."""
     from designlab.sensors.strap import virtual as st
+    from designlab.sensors.strap import model as strap_model
     from designlab.sensors.protocols import StrapLoadTest
 
     w = sp.wrap_equilibrium(steps=1, protocol=StrapLoadTest(normal_N=0.05), edge_length=3.0)
@@ -237,7 +241,7 @@ def test_wrap_equilibrium_relaxes_the_map_and_responds_like_the_worn_model_at_sm
     from designlab.sensors.strap.model import elastic_materials
 
     part = ArchStrap()
-    model, gauges, _ = st.build_model(part, st.mesh_strap(part, s), s, elastic_materials(part))
+    model, gauges, _ = strap_model.build_model(part, strap_model.mesh_strap(part, s), s, elastic_materials(part))
     res = solve_static(model)
     u = res.U[:, res.system.case_index("F_n")]
     lin = sum(float(gauges[c].strain(u)) for c in st.CHANNELS)

@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 
 from designlab.sensors.strap import virtual as st
+
+from designlab.sensors.strap import model as strap_model
 from designlab.sensors.protocols import StrapLoadTest
 from designlab.errors import ParameterError
 from designlab.geometry.strap import ArchStrap
@@ -23,17 +25,17 @@ def test_wrap_is_an_isometry_of_the_inner_face():
     R, (cx, cy) = PART.radius, PART.center
     phi = np.linspace(-PART.half_angle, PART.half_angle, 401)
     line = np.column_stack([cx + R * np.sin(phi), cy + R * np.cos(phi), np.zeros_like(phi)])
-    w = st.wrap_points(PART, line, 9.0)
+    w = strap_model.wrap_points(PART, line, 9.0)
     length = np.linalg.norm(np.diff(w, axis=0), axis=1).sum()
     assert length == pytest.approx(2 * PART.half_angle * R, rel=1e-4)
     assert np.hypot(w[:, 0], w[:, 2]) == pytest.approx(np.full(len(w), 9.0))
     assert np.ptp(w[:, 1]) < 1e-9
     across = np.array([[cx, cy + R - 5, 0.0], [cx, cy + R + 5, 0.0]])
-    a = st.wrap_points(PART, across, 9.0)
+    a = strap_model.wrap_points(PART, across, 9.0)
     assert np.linalg.norm(a[1] - a[0]) == pytest.approx(10.0, rel=1e-9)
     # thickness maps to the outward normal: 0.6 mm above the apex is 0.6 mm away
     apex = np.array([[0.0, PART.arch_height, 0.0], [0.0, PART.arch_height, 0.6]])
-    b = st.wrap_points(PART, apex, 9.0)
+    b = strap_model.wrap_points(PART, apex, 9.0)
     assert np.linalg.norm(b[1] - b[0]) == pytest.approx(0.6)
     fr = st.pad_frame(PART, st.StrapModelSettings())
     assert (b[1] - b[0]) / 0.6 == pytest.approx(fr["n"])
@@ -41,13 +43,13 @@ def test_wrap_is_an_isometry_of_the_inner_face():
 
 def test_wrap_rejects_a_finger_wider_than_the_arch():
     with pytest.raises(ParameterError, match="finger_radius"):
-        st.wrap_points(PART, np.zeros((1, 3)), PART.radius + 1)
+        strap_model.wrap_points(PART, np.zeros((1, 3)), PART.radius + 1)
 
 
 def test_staircase_reads_pick_the_end_of_each_hold():
     prot = StrapLoadTest(n_steps=2, step_hold_s=1.0, dt_s=0.1, cycles=1)
     t, fn, fx = prot.time_history()
-    reads = st.staircase_reads(prot, st.StrapModelSettings(read_fraction=0.2), len(t))
+    reads = strap_model.staircase_reads(prot, st.StrapModelSettings(read_fraction=0.2), len(t))
     assert len(reads) == 5
     assert [list(r) for r in reads[:2]] == [[8, 9], [18, 19]]
     assert [fn[r].mean() for r in reads] == pytest.approx([0, 2.5, 5, 2.5, 0])
@@ -97,7 +99,7 @@ def test_evaluate_needs_decorrelated_loads():
 
 @pytest.fixture(scope="module")
 def flat_mesh():
-    return st.mesh_strap(PART, COARSE)
+    return strap_model.mesh_strap(PART, COARSE)
 
 
 def _elastic():
@@ -225,7 +227,7 @@ def test_load_only_parameters_leave_the_meshed_bodies_unchanged():
     not change with them, else two designs would share a FEM they do not have."""
     a = ArchStrap()
     b = ArchStrap(nail_plate_length=20.0, nail_plate_width=14.0, nail_plate_thickness=2.0)
-    assert set(st.LOAD_ONLY_PARAMS) <= set(vars(a))
+    assert set(strap_model.LOAD_ONLY_PARAMS) <= set(vars(a))
 
     def signature(shape):
         v = np.array(sorted(tuple(round(c, 9) for c in tuple(x)) for x in shape.vertices()))
@@ -241,23 +243,23 @@ def test_load_only_parameters_leave_the_meshed_bodies_unchanged():
 def test_fem_key_holds_what_the_fem_depends_on():
     """Readout settings, the wrap's slot and the nail plate leave the key; the mesh, the model,
     the materials and (a relaxing material) the protocol change it."""
-    key = st.fem_key(PART, SHORT, CHEAP)
-    same = [st.fem_key(PART, SHORT, dataclasses.replace(CHEAP, **kw)) for kw in (
+    key = strap_model.fem_key(PART, SHORT, CHEAP)
+    same = [strap_model.fem_key(PART, SHORT, dataclasses.replace(CHEAP, **kw)) for kw in (
         {"divider_ohm": 4700.0}, {"supply_V": 3.3}, {"adc_bits": 12}, {"bandwidth_hz": 50.0},
         {"contact_ohm": 20.0}, {"read_fraction": 0.5}, {"slot": 2}, {"wrap_length": 60.0},
         {"mesh_convergence": False})]
-    same.append(st.fem_key(ArchStrap(nail_plate_width=14.0), SHORT, CHEAP))
+    same.append(strap_model.fem_key(ArchStrap(nail_plate_width=14.0), SHORT, CHEAP))
     assert set(same) == {key}
-    other = [st.fem_key(PART, SHORT, dataclasses.replace(CHEAP, **kw)) for kw in (
+    other = [strap_model.fem_key(PART, SHORT, dataclasses.replace(CHEAP, **kw)) for kw in (
         {"edge_length": 2.5}, {"order": 2}, {"tissue_stiffness": 0.05}, {"finger_radius": 8.0},
         {"load": "traction"}, {"solver": "amg"}, {"mesher": "tetwild"})]
-    other.append(st.fem_key(ArchStrap(thickness=0.8), SHORT, CHEAP))
-    other.append(st.fem_key(PART, dataclasses.replace(SHORT, normal_N=4.0), CHEAP))
+    other.append(strap_model.fem_key(ArchStrap(thickness=0.8), SHORT, CHEAP))
+    other.append(strap_model.fem_key(PART, dataclasses.replace(SHORT, normal_N=4.0), CHEAP))
     assert len(set(other)) == len(other) and key not in other
     # elastic materials: one static solve of the unit loads, whatever the protocol
     el = _elastic()
-    assert st.fem_key(PART, SHORT, CHEAP, el) != key
-    assert st.fem_key(PART, SHORT, CHEAP, el) == st.fem_key(
+    assert strap_model.fem_key(PART, SHORT, CHEAP, el) != key
+    assert strap_model.fem_key(PART, SHORT, CHEAP, el) == strap_model.fem_key(
         PART, dataclasses.replace(SHORT, normal_N=4.0, cycles=2), CHEAP, el)
 
 
@@ -319,7 +321,7 @@ def test_a_mesher_fallback_is_recorded(monkeypatch):
     assert r["mesher"] == "tetwild" and "simulated failure" in r["attempts"][0]
     assert r["solver"] == "direct"
     given = st.run(PART, SHORT, CHEAP, materials=el,
-                   mesh=st.mesh_strap(PART, CHEAP)).report["mesh"]
+                   mesh=strap_model.mesh_strap(PART, CHEAP)).report["mesh"]
     assert given["mesher"] == "given" and given["attempts"] == []
 
 
@@ -330,7 +332,7 @@ def test_a_wrap_that_inverts_a_cell_remeshes_finer(monkeypatch):
     from designlab.errors import ModelError
     from designlab.fem.cache import FEMCache, clear_memory
 
-    real, calls = st.build_model, []
+    real, calls = strap_model.build_model, []
 
     def inverts_first(part, flat, settings, materials=None):
         calls.append(flat.n_cells)
@@ -344,11 +346,11 @@ def test_a_wrap_that_inverts_a_cell_remeshes_finer(monkeypatch):
     r = st.run(PART, SHORT, CHEAP, materials=_elastic(), cache=FEMCache()).report["mesh"]
     assert len(calls) >= 2 and calls[1] > calls[0]          # finer
     assert r["edge_length_mm"] == pytest.approx(CHEAP.edge_length
-                                                * st.WRAP_REFINE ** (len(calls) - 1))
+                                                * strap_model.WRAP_REFINE ** (len(calls) - 1))
     assert any("wrapped onto the finger: 1 inverted" in a for a in r["attempts"])
     calls.clear()
     with pytest.raises(ModelError, match="inverted"):
-        st.run(PART, SHORT, CHEAP, materials=_elastic(), mesh=st.mesh_strap(PART, CHEAP))
+        st.run(PART, SHORT, CHEAP, materials=_elastic(), mesh=strap_model.mesh_strap(PART, CHEAP))
 
 
 def test_prediction_carries_the_force_error_test_at_the_protocols_loads():
