@@ -45,121 +45,12 @@ from typing import Any, Mapping
 import numpy as np
 
 from designlab.errors import DataError
+from designlab.measured.card import CANONICAL, Card, check_card, data_path, parse_card, quantity_of
 from designlab.params import load_toml
 
 #: largest magnitude of a data value (no sensor reads 1e20 in any unit of UNITS): at 1e99,
 #: the product of two sums of squares (a correlation) already overflows float64
 MAX_ABS_VALUE = 1e20
-
-# canonical unit first; factor to canonical (temperature: (scale, offset))
-UNITS: dict[str, dict[str, float | tuple[float, float]]] = {
-    "length": {"mm": 1.0, "m": 1e3, "cm": 10.0, "um": 1e-3, "in": 25.4},
-    "force": {"N": 1.0, "kN": 1e3, "mN": 1e-3},
-    "resistance": {"ohm": 1.0, "kohm": 1e3, "Mohm": 1e6, "mohm": 1e-3},
-    "voltage": {"V": 1.0, "mV": 1e-3, "uV": 1e-6},
-    "current": {"A": 1.0, "mA": 1e-3, "uA": 1e-6},
-    "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "min": 60.0},
-    "temperature": {"C": (1.0, 0.0), "K": (1.0, -273.15)},
-    "mass": {"g": 1.0, "kg": 1e3, "mg": 1e-3},
-    "angle": {"deg": 1.0, "rad": 180.0 / math.pi},
-    "pressure": {"MPa": 1.0, "kPa": 1e-3, "Pa": 1e-6},
-    "strain": {"1": 1.0, "%": 1e-2},
-    "torque": {"Nmm": 1.0, "Nm": 1e3},
-}
-CANONICAL = {q: next(iter(u)) for q, u in UNITS.items()}
-ELECTRICAL = ("resistance", "voltage", "current")
-
-# channel-name stem -> (quantity, kind); kind says what an input does physically
-NAME_QUANTITY: dict[str, tuple[str, str]] = {
-    "displacement": ("length", "drive"), "elongation": ("length", "drive"),
-    "extension": ("length", "drive"), "deflection": ("length", "drive"),
-    "position": ("length", "drive"), "indentation": ("length", "drive"),
-    "location": ("length", "location"), "arm": ("length", "location"),
-    "force": ("force", "drive"), "load": ("force", "drive"),
-    "resistance": ("resistance", "drive"), "voltage": ("voltage", "drive"),
-    "current": ("current", "drive"), "temperature": ("temperature", "temperature"),
-    "weight": ("mass", "drive"), "mass": ("mass", "drive"), "angle": ("angle", "drive"),
-    "pressure": ("pressure", "drive"), "strain": ("strain", "drive"),
-    "torque": ("torque", "drive"), "time": ("time", "drive"),
-}
-KINDS = ("drive", "location", "temperature")
-
-
-@dataclass(frozen=True)
-class Channel:
-    """One declared channel of the card (an input or an output)."""
-
-    name: str
-    column: str
-    unit: str
-    quantity: str
-    kind: str = "drive"
-    sign: float | str = 1.0
-    time_column: str | None = None
-    scale: float = 1.0
-    offset: float = 0.0
-
-    @property
-    def canonical_unit(self) -> str:
-        return CANONICAL[self.quantity]
-
-
-def _quantity_of(name: str, spec: Mapping[str, Any], where: str) -> tuple[str, str]:
-    unit = spec.get("unit")
-    q = spec.get("quantity")
-    kind = spec.get("kind")
-    stem = name.lower().split("_")[0].rstrip("0123456789")
-    by_name = NAME_QUANTITY.get(stem)
-    if q is None and by_name is not None:
-        q = by_name[0]
-    if q is None:  # unknown name: the unit decides
-        owners = [qq for qq, table in UNITS.items() if unit in table]
-        if len(owners) != 1:
-            raise DataError(f"{where}: cannot tell the quantity of channel '{name}' from unit "
-                            f"{unit!r}; set quantity = one of {', '.join(UNITS)}")
-        q = owners[0]
-    if q not in UNITS:
-        raise DataError(f"{where}: channel '{name}' quantity={q!r} is not allowed: one of "
-                        f"{', '.join(UNITS)}")
-    if kind is None:
-        kind = by_name[1] if by_name is not None and by_name[0] == q else (
-            "temperature" if q == "temperature" else "drive")
-    if kind not in KINDS:
-        raise DataError(f"{where}: channel '{name}' kind={kind!r} is not allowed: one of "
-                        f"{', '.join(KINDS)}")
-    return q, kind
-
-
-def make_channel(name: str, spec: Any, where: str, time_spec: Any) -> Channel:
-    """A :class:`Channel` from its card entry; bad units raise a one-line DataError."""
-    if isinstance(spec, str):
-        spec = {"column": spec}
-    if not isinstance(spec, Mapping) or "column" not in spec:
-        raise DataError(f"{where}: channel '{name}' needs a column, e.g. "
-                        f"{name} = {{ column = \"C\", unit = \"...\" }}")
-    q, kind = _quantity_of(name, spec, where)
-    unit = spec.get("unit", CANONICAL[q])
-    table = UNITS[q]
-    if unit not in table:
-        raise DataError(f"{where}: column '{spec['column']}' ({name}) has unit {unit!r}, "
-                        f"not a {q} unit; allowed: {', '.join(table)}")
-    factor = table[unit]
-    scale, offset = factor if isinstance(factor, tuple) else (factor, 0.0)
-    sign = spec.get("sign", 1)
-    if not (sign == "auto" or sign in (1, -1)):
-        raise DataError(f"{where}: channel '{name}' sign={sign!r} is not allowed: 1, -1 or \"auto\"")
-    tcol = None
-    if isinstance(time_spec, str):
-        tcol = time_spec
-    elif isinstance(time_spec, Mapping):
-        tcol = time_spec.get(spec["column"], time_spec.get(name))
-        if tcol is None:
-            raise DataError(f"{where}: [time] column gives no clock for column "
-                            f"'{spec['column']}' ({name}); add {spec['column']} = \"t...\"")
-    return Channel(name=name, column=str(spec["column"]), unit=unit, quantity=q, kind=kind,
-                   sign=sign if sign == "auto" else float(sign), time_column=tcol,
-                   scale=float(scale), offset=float(offset))
-
 
 MAX_FILE_BYTES = 2 * 1024 ** 3     # one data file
 MAX_SAMPLES = 20_000_000           # samples of one run on the common clock (rate x duration)
@@ -167,121 +58,6 @@ MAX_SAMPLES = 20_000_000           # samples of one run on the common clock (rat
 #: fits are decimated to 50 000 samples, but the record is held whole; 2 000 000 samples of a
 #: two-channel card peak at 885 MB: benchmarks/bench_loop_memory.py)
 MAX_CARD_SAMPLES = 2_000_000
-MAX_RATE_HZ = 100_000.0
-
-_CARD_KEYS = ("files", "columns", "time", "inputs", "outputs", "split", "repair", "preprocess",
-              "allow_outside_paths")
-_FILE_KEYS = ("path", "role", "columns", "header", "sign")
-_CHANNEL_KEYS = ("column", "unit", "quantity", "kind", "sign")
-# key -> (type, lo, hi, lo_open): the numbers a card may hold, and where
-_REPAIR = {"dropouts": (bool,), "spikes": (bool,), "spike_k": (float, 0.0, 1e6, True),
-           "spike_floor": (float, 0.0, 1.0, False), "window": (int, 3, 100_001, False),
-           "max_run": (int, 1, 100_000, False)}
-_PREPROCESS = {"rate": (float, 0.0, MAX_RATE_HZ, True), "skip_s": (float, 0.0, 1e9, False),
-               "bias_seconds": (float, 0.0, 1e9, True), "bias_channels": (list,),
-               "lowpass_hz": (float, 0.0, MAX_RATE_HZ, True), "filter_order": (int, 1, 10, False)}
-_SPLIT = {"train": (float, 0.0, 1.0, True)}
-
-
-def _card_error(where: str, name: str, value: Any, allowed: str) -> DataError:
-    from designlab.params import _short
-
-    return DataError(f"{where}: {name}={_short(value)!r} is not allowed: {allowed}")
-
-
-def _check_keys(where: str, table: Any, known: tuple, section: str) -> None:
-    from designlab.params import did_you_mean
-
-    if not isinstance(table, Mapping):
-        raise _card_error(where, section, table, "a table")
-    for k in table:
-        if k not in known:
-            raise DataError(f"{where}: unknown key {section + '.' if section else ''}{k} "
-                            f"(allowed: {', '.join(known)}){did_you_mean(k, known)}")
-
-
-def _check_numbers(where: str, section: str, table: Mapping, spec: dict) -> None:
-    _check_keys(where, table, tuple(spec), section)
-    for k, v in table.items():
-        kind, *rng = spec[k]
-        name = f"{section}.{k}"
-        if kind is bool:
-            if not isinstance(v, bool):
-                raise _card_error(where, name, v, "true or false")
-        elif kind is list:
-            if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
-                raise _card_error(where, name, v, "a list of channel names")
-        else:
-            lo, hi, lo_open = rng
-            ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-            if kind is int:
-                ok = ok and isinstance(v, int)
-            ok = ok and (v > lo if lo_open else v >= lo) and v <= hi
-            if not ok:
-                what = "an integer" if kind is int else "a number"
-                raise _card_error(where, name, v, f"{what}, {lo:g} {'<' if lo_open else '<='} "
-                                  f"value <= {hi:g}")
-
-
-def check_card(card: Mapping[str, Any], where: str) -> None:
-    """Every key and value of a dataset card before any file is read: unknown keys (with a
-    did-you-mean: ``unti`` is never read as millimetres), types, ranges, finite numbers."""
-    _check_keys(where, card, _CARD_KEYS, "")
-    if not isinstance(card.get("allow_outside_paths", False), bool):
-        raise _card_error(where, "allow_outside_paths", card["allow_outside_paths"],
-                          "true or false")
-    files = card.get("files")
-    if not isinstance(files, list) or not files:
-        raise DataError(f"{where}: needs at least one [[files]] entry with a path")
-    for i, f in enumerate(files):
-        sec = f"files[{i + 1}]"
-        _check_keys(where, f, _FILE_KEYS, sec)
-        if not isinstance(f.get("path"), str) or not f["path"]:
-            raise _card_error(where, f"{sec}.path", f.get("path"), "a file name (text)")
-        if "header" in f and not isinstance(f["header"], bool):
-            raise _card_error(where, f"{sec}.header", f["header"], "true or false")
-        if "sign" in f and not isinstance(f["sign"], Mapping):
-            raise _card_error(where, f"{sec}.sign", f["sign"], "a table channel = 1 | -1")
-    for sec, cols in [("columns", card.get("columns"))] + [
-            (f"files[{i + 1}].columns", f.get("columns")) for i, f in enumerate(files)]:
-        if cols is not None:
-            if not isinstance(cols, list) or not cols or not all(isinstance(c, str) for c in cols):
-                raise _card_error(where, sec, cols, "a list of column names")
-            if len(set(cols)) != len(cols):
-                raise _card_error(where, sec, cols, "distinct column names")
-    time = card.get("time", {})
-    _check_keys(where, time, ("column", "unit"), "time")
-    col = time.get("column")
-    if col is not None and not (isinstance(col, str) or (
-            isinstance(col, Mapping) and all(isinstance(v, str) for v in col.values()))):
-        raise _card_error(where, "time.column", col, 'a column name, or {CHANNEL = "COLUMN"}')
-    if "unit" in time and not isinstance(time["unit"], str):
-        raise _card_error(where, "time.unit", time["unit"], ", ".join(UNITS["time"]))
-    for group in ("inputs", "outputs"):
-        chans = card.get(group, {})
-        if not isinstance(chans, Mapping):
-            raise _card_error(where, group, chans, "a table of channels")
-        for name, spec in chans.items():
-            if isinstance(spec, str):
-                continue
-            _check_keys(where, spec, _CHANNEL_KEYS, f"{group}.{name}")
-            for k in ("column", "unit", "quantity", "kind"):
-                if k in spec and not isinstance(spec[k], str):
-                    raise _card_error(where, f"{group}.{name}.{k}", spec[k], "text")
-    _check_numbers(where, "repair", card.get("repair", {}), _REPAIR)
-    _check_numbers(where, "preprocess", card.get("preprocess", {}), _PREPROCESS)
-    _check_numbers(where, "split", card.get("split", {}), _SPLIT)
-
-
-def data_path(card_path: Path, name: str, allow_outside: bool) -> Path:
-    """A data file named in a card, confined to the card's folder (symbolic links resolved)
-    unless outside paths are allowed (``allow_outside_paths = true`` or the caller's flag)."""
-    base = card_path.parent.resolve()
-    p = (base / name).resolve()
-    if not allow_outside and not p.is_relative_to(base):
-        raise DataError(f"{card_path}: file {name!r} is outside the card's folder {base}; "
-                        "set allow_outside_paths = true in the card to read it")
-    return p
 
 
 # --------------------------------------------------------------------------- reading
@@ -547,82 +323,58 @@ def _resample(tt: np.ndarray, x: np.ndarray, grid: np.ndarray, rate_in: float,
 
 
 def load_card(path: str | Path, allow_outside: bool = False) -> Dataset:
-    """Read a dataset card and every file it names into one :class:`Dataset`. The card is
-    checked whole first (:func:`check_card`); its files must lie in its folder unless it says
-    ``allow_outside_paths = true`` (or ``allow_outside``)."""
+    """Read a dataset card and every file it names into one :class:`Dataset`.
+
+    The card is checked whole first (:func:`~designlab.measured.card.check_card`); its files
+    must lie in its folder unless it says ``allow_outside_paths = true`` (or ``allow_outside``).
+
+    Args:
+        path: the card (TOML).
+        allow_outside: read files outside the card's folder too.
+
+    Returns:
+        The runs on one common clock, in canonical units, with :attr:`Dataset.report`. Bad
+        input is a one-line :class:`DataError`.
+    """
     path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: dataset card not found")
     card = load_toml(path, "--data")
     check_card(card, str(path))
-    allow_outside = allow_outside or bool(card.get("allow_outside_paths", False))
-    files = card.get("files")
-    if not files or not isinstance(files, list):
-        raise DataError(f"{path}: needs at least one [[files]] entry with a path")
-    time_sec = card.get("time", {})
-    if "column" not in time_sec:
-        raise DataError(f"{path}: [time] needs column = \"t\" (or one per channel)")
-    tspec = time_sec["column"]
-    t_unit = time_sec.get("unit", "s")
-    if t_unit not in UNITS["time"]:
-        raise DataError(f"{path}: [time] unit {t_unit!r} is not a time unit; allowed: "
-                        f"{', '.join(UNITS['time'])}")
-    t_scale = float(UNITS["time"][t_unit])
-    where = str(path)
-    channels: dict[str, tuple[str, Channel]] = {}
-    for group in ("inputs", "outputs"):
-        for name, spec in (card.get(group) or {}).items():
-            if name in channels:
-                raise DataError(f"{where}: channel '{name}' is declared twice")
-            if not name or name in (".", "..") or any(c in name for c in "/\\") or any(
-                    ord(c) < 32 or ord(c) == 127 for c in name):
-                # the name becomes part of output file names (plots): never a path
-                raise DataError(f"{where}: channel name {name!r} is not allowed: a name "
-                                "without '/', '\\' or control characters (it names output "
-                                "files)")
-            channels[name] = (group, make_channel(name, spec, where, tspec))
-    if not any(g == "outputs" for g, _ in channels.values()):
-        raise DataError(f"{where}: [outputs] declares no channel")
-    rep = {**{"dropouts": True, "spikes": True, "spike_k": 8.0, "spike_floor": 0.15,
-              "window": 7, "max_run": 3},
-           **card.get("repair", {})}
-    pre = card.get("preprocess", {})
-    split = card.get("split", {})
-    top_columns = card.get("columns")
-
-    raw = []
-    for i, f in enumerate(files):
-        if "path" not in f:
-            raise DataError(f"{where}: [[files]] entry {i + 1} has no path")
-        fpath = data_path(path, f["path"], allow_outside)
-        role = f.get("role")
-        if role not in (None, "train", "validate"):
-            raise DataError(f"{where}: file {f['path']} role={role!r} is not allowed: "
-                            "\"train\" or \"validate\"")
-        data = read_table(fpath, f.get("columns", top_columns), f.get("header"))
-        raw.append(_prepare_file(fpath, data, channels, t_scale, rep, f.get("sign", {})))
-        raw[-1]["role"] = role
-
-    rates = [r["rate"] for r in raw]
-    rate = float(pre.get("rate", float(np.median(rates))))
+    spec = parse_card(card, path, allow_outside)
+    raw = [_read_file(path, spec, i, f) for i, f in enumerate(spec.files)]
+    rate = float(spec.preprocess.get("rate", float(np.median([r["rate"] for r in raw]))))
     if not rate > 0:
-        raise DataError(f"{where}: [preprocess] rate={rate!r} is not allowed: > 0 Hz")
+        raise DataError(f"{path}: [preprocess] rate={rate!r} is not allowed: > 0 Hz")
     roles_given = any(r["role"] for r in raw)
-    frac = split.get("train", None if roles_given else 0.6)
+    frac = spec.split.get("train", None if roles_given else 0.6)
     if frac is not None and not 0 < float(frac) < 1:
-        raise DataError(f"{where}: [split] train={frac!r} is not allowed: 0 < train < 1")
+        raise DataError(f"{path}: [split] train={frac!r} is not allowed: 0 < train < 1")
+    runs = _resample_runs(raw, spec, rate, roles_given, frac)
+    return _assemble(path, spec, runs, rate, roles_given, frac)
 
-    ts, segs, roles, chans = [], [], [], {n: [] for n in channels}
-    seg_info, file_reports = [], []
-    total = 0
+
+def _read_file(path: Path, spec: Card, i: int, f: Mapping) -> dict:
+    """One [[files]] entry read, converted and repaired on its own clocks, with its role."""
+    if "path" not in f:
+        raise DataError(f"{path}: [[files]] entry {i + 1} has no path")
+    fpath = data_path(path, f["path"], spec.allow_outside)
+    role = f.get("role")
+    if role not in (None, "train", "validate"):
+        raise DataError(f"{path}: file {f['path']} role={role!r} is not allowed: "
+                        "\"train\" or \"validate\"")
+    data = read_table(fpath, f.get("columns", spec.columns), f.get("header"))
+    out = _prepare_file(fpath, data, spec.channels, spec.t_scale, spec.repair, f.get("sign", {}))
+    out["role"] = role
+    return out
+
+
+def _resample_runs(raw: list[dict], spec: Card, rate: float, roles_given: bool,
+                   frac: float | None) -> list[dict]:
+    """Every run on the common clock (``rate`` Hz), within the per-run and per-card budgets."""
+    runs, total = [], 0
     for k, r in enumerate(raw):
-        t0, t1 = r["t_start"], r["t_end"]
-        skip = float(pre.get("skip_s", 0.0))
-        if skip:
-            for name, (tt, _) in r["series"].items():
-                r["report"]["trimmed"][name]["skipped_start"] = int(np.sum(
-                    (tt >= t0) & (tt < t0 + skip)))
-            t0 = t0 + skip
+        t0, t1 = _skip_start(r, float(spec.preprocess.get("skip_s", 0.0)))
         n_f = math.floor((t1 - t0) * rate + 1e-9) + 1
         if n_f > MAX_SAMPLES:
             raise DataError(f"{r['path']}: {n_f:.3g} samples at {rate:g} Hz over "
@@ -637,49 +389,76 @@ def load_card(path: str | Path, allow_outside: bool = False) -> Dataset:
         if n < 4:
             raise DataError(f"{r['path']}: the channels' clocks overlap for only "
                             f"{max(t1 - t0, 0):.3g} s; nothing to resample")
-        grid = t0 + np.arange(n) / rate
-        values = {}
-        for name, (tt, x) in r["series"].items():
-            values[name] = _resample(tt, x, grid, r["rate"], rate)
-        filt = _preprocess(values, channels, grid, rate, pre, r)
-        role = r["role"] or ("train" if roles_given else None)
-        if role is None:
-            rr = np.where(grid - grid[0] <= float(frac) * (grid[-1] - grid[0]), "train",
-                          "validate")
-        else:
-            rr = np.full(n, role)
-        ts.append(grid)
-        segs.append(np.full(n, k))
-        roles.append(rr)
-        for name in channels:
-            chans[name].append(filt[name])
-        seg_info.append({"path": str(r["path"]), "role": role or f"split {frac}",
-                         "t_start": float(grid[0])})
-        r["report"]["resampled"] = {"rate_hz": rate, "samples": n, "t_start": float(t0),
-                                    "t_end": float(grid[-1])}
-        file_reports.append(r["report"])
+        runs.append(_run_on_clock(k, r, t0, n, rate, spec, roles_given, frac))
+    return runs
 
-    cat = {n: np.concatenate(v) for n, v in chans.items()}
-    report = {
+
+def _skip_start(r: dict, skip: float) -> tuple[float, float]:
+    """The run's overlap of all clocks, its first ``skip`` s dropped (counted per channel)."""
+    t0, t1 = r["t_start"], r["t_end"]
+    if skip:
+        for name, (tt, _) in r["series"].items():
+            r["report"]["trimmed"][name]["skipped_start"] = int(np.sum(
+                (tt >= t0) & (tt < t0 + skip)))
+        t0 = t0 + skip
+    return t0, t1
+
+
+def _run_on_clock(k: int, r: dict, t0: float, n: int, rate: float, spec: Card,
+                  roles_given: bool, frac: float | None) -> dict:
+    """Run ``k`` resampled to ``n`` samples from ``t0``, filtered, with each sample's role."""
+    grid = t0 + np.arange(n) / rate
+    values = {}
+    for name, (tt, x) in r["series"].items():
+        values[name] = _resample(tt, x, grid, r["rate"], rate)
+    filt = _preprocess(values, spec.channels, grid, rate, spec.preprocess, r)
+    role = r["role"] or ("train" if roles_given else None)
+    if role is None:
+        rr = np.where(grid - grid[0] <= float(frac) * (grid[-1] - grid[0]), "train",
+                      "validate")
+    else:
+        rr = np.full(n, role)
+    r["report"]["resampled"] = {"rate_hz": rate, "samples": n, "t_start": float(t0),
+                                "t_end": float(grid[-1])}
+    return {"t": grid, "segment": np.full(n, k), "role": rr,
+            "values": {name: filt[name] for name in spec.channels},
+            "info": {"path": str(r["path"]), "role": role or f"split {frac}",
+                     "t_start": float(grid[0])},
+            "report": r["report"]}
+
+
+def _assemble(path: Path, spec: Card, runs: list[dict], rate: float, roles_given: bool,
+              frac: float | None) -> Dataset:
+    """The runs concatenated into one :class:`Dataset` with its provenance report."""
+    channels = spec.channels
+    cat = {n: np.concatenate([run["values"][n] for run in runs]) for n in channels}
+    return Dataset(
+        t=np.concatenate([run["t"] for run in runs]),
+        segment=np.concatenate([run["segment"] for run in runs]),
+        role=np.concatenate([run["role"] for run in runs]),
+        inputs={n: cat[n] for n, (g, _) in channels.items() if g == "inputs"},
+        outputs={n: cat[n] for n, (g, _) in channels.items() if g == "outputs"},
+        segments=tuple(run["info"] for run in runs),
+        units={n: c.canonical_unit for n, (_, c) in channels.items()},
+        quantities={n: c.quantity for n, (_, c) in channels.items()},
+        kinds={n: c.kind for n, (_, c) in channels.items()},
+        report=_card_report(path, spec, [run["report"] for run in runs], rate, roles_given,
+                            frac))
+
+
+def _card_report(path: Path, spec: Card, file_reports: list[dict], rate: float,
+                 roles_given: bool, frac: float | None) -> dict:
+    """:attr:`Dataset.report` of a card: its files' reports, clock, split, filters, repairs."""
+    return {
         "card": str(path),
         "files": file_reports,
         "rate_hz": rate,
         "split": ("roles" if roles_given else {"train_fraction": float(frac)}),
-        "preprocess": {k: v for k, v in pre.items()},
-        "repair": rep,
+        "preprocess": {k: v for k, v in spec.preprocess.items()},
+        "repair": spec.repair,
         "repaired_total": {n: int(sum(fr["repaired"].get(n, {}).get("total", 0)
-                                      for fr in file_reports)) for n in channels},
+                                      for fr in file_reports)) for n in spec.channels},
     }
-    ds = Dataset(
-        t=np.concatenate(ts), segment=np.concatenate(segs), role=np.concatenate(roles),
-        inputs={n: cat[n] for n, (g, _) in channels.items() if g == "inputs"},
-        outputs={n: cat[n] for n, (g, _) in channels.items() if g == "outputs"},
-        segments=tuple(seg_info),
-        units={n: c.canonical_unit for n, (_, c) in channels.items()},
-        quantities={n: c.quantity for n, (_, c) in channels.items()},
-        kinds={n: c.kind for n, (_, c) in channels.items()},
-        report=report)
-    return ds
 
 
 def _prepare_file(fpath: Path, data: dict, channels: dict, t_scale: float, rep: dict,
@@ -789,7 +568,7 @@ def from_arrays(t: np.ndarray, inputs: Mapping[str, np.ndarray],
     q, k = dict(quantities or {}), dict(kinds or {})
     for name in [*inputs, *outputs]:
         if name not in q or name not in k:
-            qq, kk = _quantity_of(name, {"quantity": q.get(name), "kind": k.get(name),
+            qq, kk = quantity_of(name, {"quantity": q.get(name), "kind": k.get(name),
                                          "unit": (units or {}).get(name)}, "arrays")
             q.setdefault(name, qq)
             k.setdefault(name, kk)

@@ -6,7 +6,7 @@ import numpy as np
 
 from designlab.loop.effects.base import Context, Effect, Fitted, highpass
 from designlab.loop.effects.relaxation import prony_grid
-from designlab.measured.dataset import ELECTRICAL
+from designlab.measured.card import ELECTRICAL
 
 
 class PiezoRelaxation(Effect):

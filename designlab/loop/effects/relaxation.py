@@ -13,7 +13,7 @@ from designlab.loop.effects.base import (
     highpass,
     varying_drives,
 )
-from designlab.measured.dataset import ELECTRICAL
+from designlab.measured.card import ELECTRICAL
 
 
 def prony_grid(ctx: Context) -> list[dict]:
