@@ -42,6 +42,7 @@ def discretisation(paper) -> None:
     sensitivity to their spacing, the refinement mesh, the window rule and the penalty; the 18
     rows at 72 and 144 beams per turn."""
     from designlab.sensors.flexure import beam_chain as bc
+    from designlab.sensors.flexure import chain_geometry as cg
 
     def levels(label, **kw):
         out = {"loaded": [], "unloaded": []}
@@ -69,7 +70,7 @@ def discretisation(paper) -> None:
     def err(**kw):
         out = []
         for n in (36, 72, 144):
-            r = bc.chain_stiffness(VISIFLEX_CATALOG, bc.ChainSettings(elements_per_turn=n, **kw))
+            r = bc.chain_stiffness(VISIFLEX_CATALOG, cg.ChainSettings(elements_per_turn=n, **kw))
             Kc = fr.to_frame(r.K_loaded_centre_si, "camera", h)
             out.append(100 * np.mean([abs(Kc[i, i] / M[i, i] - 1) for i in range(6)]))
         return " / ".join(f"{x:.2f}" for x in out)
@@ -88,7 +89,7 @@ def discretisation(paper) -> None:
         bc.Chain._line_contacts = lambda self, a, b, s, f=f: line(self, f * a, f * b, s)
         print(f"    penalty x{f:g} (E* per unit length scaled): " + err())
     bc.Chain._line_contacts = line
-    ch = bc.Chain(bc.as_built(VISIFLEX_CATALOG), bc.ChainSettings())
+    ch = bc.Chain(cg.as_built(VISIFLEX_CATALOG), cg.ChainSettings())
     pre = ch.solve(f_master=np.r_[0.0, 0.0, -10.0, 0.0, 0.0, 0.0])
     cl = pre["closed"]
     us = np.array([c.u for c in ch.contacts])

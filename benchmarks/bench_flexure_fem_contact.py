@@ -54,7 +54,7 @@ import time
 import numpy as np
 
 from designlab.sensors.flexure import report as fr
-from designlab.sensors.flexure.beam_chain import ChainSettings
+from designlab.sensors.flexure.chain_geometry import ChainSettings
 from designlab.sensors.flexure.helix_fem import (CURVED_DEFAULT, contact_candidates,
                                                  fem_contact_stiffness, flexure_from_spring,
                                                  helix_mesh)

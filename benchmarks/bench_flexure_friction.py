@@ -20,6 +20,8 @@ import time
 import numpy as np
 
 from designlab.sensors.flexure import beam_chain as bc
+from designlab.sensors.flexure import chain_friction as cf
+from designlab.sensors.flexure import chain_geometry as cg
 from designlab.sensors.flexure import report as fr
 from designlab.sensors.flexure.spring import VISIFLEX_CATALOG, to_si
 from designlab.frames import transform, transform_stiffness
@@ -44,7 +46,7 @@ def end_conditions(paper) -> None:
     M = paper["K_c_measured"]
     print("| model | k_vx N/m | ratios at 11.09 mm | diag. | offset for ratio 1 (x / y) | diag. there |")
     for seat in ("bonded", "contact", "potted"):
-        r = bc.chain_stiffness(VISIFLEX_CATALOG, bc.ChainSettings(seat=seat))
+        r = bc.chain_stiffness(VISIFLEX_CATALOG, cg.ChainSettings(seat=seat))
         for name, K in ((f"chain {seat}", r.K_centre_si), (f"chain {seat} @10 N", r.K_loaded_centre_si)):
             rep = fr.flexure_report(VISIFLEX_CATALOG, "camera", paper=paper, K_chain_spring_si=K)
             g = rep["goals"]["chain"]
@@ -61,24 +63,24 @@ def main(quick: bool = False, line: bool = False) -> None:
     paper = fr.load_paper()
     t0, c0 = time.perf_counter(), time.process_time()
     mus = (0.0, 0.3) if quick else (0.0, 0.05, 0.1, 0.3, 0.6, 0.74) + (() if line else (1e4,))
-    S = bc.ChainSettings(contact_spacing_mm=bc.ChainSettings().contact_spacing_mm if line else 0.0)
+    S = cg.ChainSettings(contact_spacing_mm=cg.ChainSettings().contact_spacing_mm if line else 0.0)
     print(f"contacts: {'line (default)' if line else 'node (contact_spacing_mm=0)'}")
     print("secant 6x6, perturbations 0.02 mm / 2 mrad (friction_stiffness)")
     for mu in mus:
-        r = bc.friction_stiffness(VISIFLEX_CATALOG, S, mu=mu)
+        r = cf.friction_stiffness(VISIFLEX_CATALOG, S, mu=mu)
         wl = r.info["working_load"]
         print(f"mu {mu:g}: unloaded  {goals(r.K_centre_si, paper)}")
         print(f"mu {mu:g}: @10 N     {goals(r.K_loaded_centre_si, paper)}  "
               f"[{wl['closed_contacts']} closed, {wl['stuck_contacts']} stuck after the preload, "
               f"asymmetry {wl['asymmetry']:.1e}, {r.info['seconds']:.1f} s]")
-    mu = bc.MU_STEEL
+    mu = cg.MU_STEEL
     print(f"amplitude dependence at mu {mu} (@10 N)")
     for a in ((1.0, 10.0) if quick else (1.0, 10.0, 50.0)):
-        r = bc.friction_stiffness(VISIFLEX_CATALOG, S, mu=mu, amplitude=a)
+        r = cf.friction_stiffness(VISIFLEX_CATALOG, S, mu=mu, amplitude=a)
         print(f"  x{a:g} ({0.02 * a:g} mm, {2 * a:g} mrad): {goals(r.K_loaded_centre_si, paper)}")
     print("the paper's fit: loops about the relaxed spring +-1 mm / +-0.05 rad, F = K X (loop_stiffness)")
     for mu, pre in ((0.0, 0.0), (0.3, 0.0), (0.74, 0.0)) if not quick else ((0.3, 0.0),):
-        L = bc.loop_stiffness(VISIFLEX_CATALOG, S, mu=mu, points=4, preload_N=pre)
+        L = cf.loop_stiffness(VISIFLEX_CATALOG, S, mu=mu, points=4, preload_N=pre)
         K = to_si(transform_stiffness(L["K"], transform(translation=L["master"] - L["centre"])))
         hw = L["half_width"]
         print(f"mu {mu:g}, preload {pre:g} N: {goals(K, paper)}")

@@ -354,7 +354,8 @@ def flexure(preset: str = typer.Option("visiflex-catalog", "--preset",
                                                            "shared/data/papers/, which is read first when present).")):
     """Seed 002 spring flexure 6x6 stiffness: closed form, beam chain, solid FEM (--fem), paper theory and measurement (SI)."""
     from designlab.sensors.flexure import report as fr
-    from designlab.sensors.flexure.beam_chain import ChainSettings, chain_stiffness
+    from designlab.sensors.flexure.beam_chain import chain_stiffness
+    from designlab.sensors.flexure.chain_geometry import ChainSettings
     from designlab.sensors.flexure.spring import preset as spring_preset
     from designlab.params import did_you_mean, parse_sets, with_overrides
 
@@ -372,7 +373,7 @@ def flexure(preset: str = typer.Option("visiflex-catalog", "--preset",
         raise ParameterError("--curved" if curved else "--straight", True,
                              "only with --fem (the solid FEM's mesh)")
     if mu > 0:
-        from designlab.sensors.flexure.beam_chain import friction_stiffness
+        from designlab.sensors.flexure.chain_friction import friction_stiffness
 
         chain = friction_stiffness(spring, ChainSettings(seat=seat, working_load_N=working_load),
                                    mu=mu)

@@ -1,220 +1,27 @@
-"""Fast helix model: the spring wire as a chain of Timoshenko beams, its ends seated and in contact.
+"""Fast helix model: the spring wire as a chain of Timoshenko beams, its ends seated and in
+contact with the next turn and the seats (line contacts), solved by an active set.
 
-The wire centreline (mean radius ``R``, wire radius ``r``, ``d = 2 r``) is cut into straight
-12-dof Timoshenko beams (:func:`designlab.fem.beam.beam_stiffness`, round section, shear
-coefficient 0.9), ``elements_per_turn`` per turn. Frame: the base seat (the top face of the base
-disc) is ``z = 0``, the tip seat (bottom face of the fingertip disc) ``z = L``; the tip disc is a
-rigid 6-dof master at ``(0, 0, L)``; the spring centre, the closed form's frame {f}, is
-``(0, 0, L / 2)``.
-
-Ends (``closed_ground``, one dead turn at each end):
-
-* **as built** (:func:`as_built`): the dead turn has pitch ``d`` (its gap to the next turn closes
-  to zero: the wire end touches the first active turn), the pitch ramps linearly to the active
-  pitch over ``RAMP`` turn after it, and the end is ground flat ``GRIND x d`` above the end's
-  centreline (the solid part's convention, :mod:`designlab.geometry.flexure`). The active pitch is
-  set so the seat-to-seat length is the handbook free length ``n_a p + 2 d`` (seed 002: 19.80 mm,
-  its measured rest length).
-* **the solid's geometry** (:func:`from_part`): the centreline and cut planes of the meshed
-  ``SpringFlexure`` (dead turns 0.1 d clear of their neighbours), for the check against the
-  solid FEM.
-
-Seats. ``seat="bonded"``: every node whose wire section reaches the ground plane (the ground
-face, ``c < r`` with ``c`` the centreline's height above the seat) is clamped to its disc
-(seed 002: "epoxy interfaces between the housings and the flexure"); this is what the solid FEM
-does with the ground faces. ``seat="contact"``: only the wire's end node is bonded (the epoxy
-spot that locates the spring); the rest of the ground face sits on the seat with unilateral
-contact at zero gap. ``seat="potted"``: the whole dead turn clamped. ``seat_base`` /
-``seat_tip`` set one end's condition only (an asymmetric assembly; ``ChainResult.zero_coupling``
-shows the elastic centre moving towards the more compliant end).
-
-Contact (``contact=True``): the wire against the wire one turn above over the dead turn and the
-ramp at each end (the dead turn against the first active turn, gap ``z(u + 1) - z(u) - d``), and
-the dead turn against its seat (gap ``c - r``). **Line contacts** (default,
-``contact_spacing_mm`` 0.1 mm): contact points at a fixed spacing along the wire, independent of
-the beam nodes, each moving with the Timoshenko beams' own shape functions; the beams are
-refined to ``contact_mesh_mm`` (0.25 mm) wherever a contact is within 0.1 mm of closing at
-rest (plus 3 mm either side, both wires of a coil pair) and around any contact the working
-load closes outside those windows (:func:`resolved_chain`). At the working load the dead turn
-meets the next turn along a grazing line (its gap grows as the square of the distance from the
-wire end): the closed zone is ~0.5 mm long, shorter than a default beam, so contacts at the
-nodes (``contact_spacing_mm=0``, the scheme before 2026-11-25) closed 2 or 4 nodes depending on
-where they fell and the 10 N 6x6 jumped with ``elements_per_turn``; the line contacts converge
-(docs/flexure.md, "Beam chain"). A closed contact is a stiff normal penalty spring,
-frictionless in :func:`chain_stiffness`, solved by an active-set iteration.
-Coulomb friction: :func:`friction_stiffness` and :func:`loop_stiffness` solve it inside the
-contact problem, incrementally (:meth:`ActiveSet.solve_friction`: return map with a tangential
-penalty ``k_t = k_n 2 (1 - nu) / (2 - nu)``, ``ChainSettings.mu``); :func:`friction_bounds`
-gives its two limits at the working-load state: gross slip (the frictionless tangent, plus a
-force band ``mu sum f_n``) and full stick. Penalty stiffness per contact point: a line contact
-of length ``h`` (the point spacing along the wire, mm; the node spacing for node contacts)
-between an elastic cylinder and a flat or a cylinder has a stiffness per unit length of the
-order of the contact modulus ``E*`` (Johnson, *Contact Mechanics*, 1985, sec. 5.6: the approach
-grows only logarithmically with the load), so ``k_n = E* h`` (x0.1 or x10 moves the 10 N
-diagonal error by +0.0 / -0.3 points).
-
-The 6x6 comes from small symmetric perturbations of the tip disc around a reference state (the
-unloaded spring, or the spring under an axial working load): ``K[:, j] = (W(+d e_j) - W(-d e_j)) /
-(2 d)``, each perturbation solved with its own active set. Geometrically linear: no stress
-stiffening (the axial working load stiffens only through contact).
+The 6x6 comes from symmetric perturbations of the tip disc about the unloaded spring and the
+spring under the axial working load. Derivations and checks: docs/notes/flexure_beam_chain.md.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, replace
-from typing import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from threadpoolctl import ThreadpoolController
 
 from designlab.errors import ModelError, ParameterError
 from designlab.fem.beam import beam_stiffness, circular_section
 from designlab.frames import transform, transform_stiffness
-from designlab.params import rng, validate
+from designlab.sensors.flexure.active_set import PERM, ActiveSet
+from designlab.sensors.flexure.chain_geometry import (RAMP, ChainSettings, Coil, as_built,
+                                                      from_part, wire_contact_points)
 from designlab.sensors.flexure.spring import HelicalSpring, check_working_load, to_si
-
-#: turns over which the pitch ramps from the dead pitch d to the active pitch (the solid part's
-#: RAMP, designlab.geometry.flexure)
-RAMP = 0.25
-#: grinding plane above the wire end's centreline, in wire diameters (the solid part's
-#: DEAD_GAP-sized grind, designlab.geometry.flexure._cut_planes)
-GRIND = 0.1
-#: printed seat discs (seed 002: PLA housings): the default ``ChainSettings.seat_material``,
-#: E and nu from designlab.fem.materials
-SEAT_MATERIAL = "PLA"
-#: Coulomb coefficient of the wire's coil contacts (steel on steel, dry, kinetic: the contacts
-#: slide under the perturbations): 0.3 in S. A. Hill's table "Coefficients of Friction"
-#: (howwhy.nfshost.com/new/book1/motion/coefficients.html, 2023), which gives dry steel on
-#: steel static 0.6 / kinetic 0.3 and oiled 0.05 / 0.03. No value is published for the spring.
-MU_STEEL = 0.3
-
-
-def mindlin_ratio(nu: float) -> float:
-    """Mindlin's tangential / normal contact stiffness of two like elastic bodies,
-    ``2 (1 - nu) / (2 - nu)`` (Johnson, *Contact Mechanics*, 1985, sec. 7.2)."""
-    return 2 * (1 - nu) / (2 - nu)
-
-
-#: master order (u_x, u_y, u_z, th_x, th_y, th_z) -> twist/wrench order (w, v) / (m, f)
-_PERM = np.array([3, 4, 5, 0, 1, 2])
-
-
-@dataclass(frozen=True)
-class ChainSettings:
-    """Settings of the beam-chain model (mm, N, rad)."""
-
-    elements_per_turn: int = field(default=36, metadata=rng(8, 400,
-                                   doc="straight beams per turn of wire"))
-    contact: bool = True
-    seat: str = field(default="bonded", metadata=rng(choices=("bonded", "contact", "potted"),
-                      doc="ground faces bonded (epoxy), only seated, or the whole dead turn "
-                          "set in epoxy"))
-    seat_base: str = field(default="", metadata=rng(choices=("", "bonded", "contact", "potted"),
-                           doc="end condition of the base end only ('' = seat)"))
-    seat_tip: str = field(default="", metadata=rng(choices=("", "bonded", "contact", "potted"),
-                          doc="end condition of the tip end only ('' = seat)"))
-    working_load_N: float = field(default=10.0, metadata=rng(0, 1000, unit="N", doc=(
-        "axial compression of the second reference state (seed 002: maximum fingertip force "
-        "10 N)")))
-    seat_material: str = field(default=SEAT_MATERIAL, metadata=rng(
-        choices=("PLA", "ABS"), doc="material of the printed discs (contact modulus of the seats)"))
-    mu: float = field(default=MU_STEEL, metadata=rng(0, 1e6, doc=(
-        "Coulomb friction coefficient at the coil and seat contacts (friction_stiffness, "
-        "loop_stiffness; chain_stiffness is frictionless). Default 0.3: dry steel on steel, "
-        "kinetic (S. A. Hill, 'Coefficients of Friction', howwhy.nfshost.com, 2023: static 0.6, "
-        "kinetic 0.3; oiled 0.05 / 0.03)")))
-    contact_spacing_mm: float = field(default=0.1, metadata=rng(0, 10, unit="mm", doc=(
-        "spacing of the contact points along the wire: a line contact (penalty E* per unit "
-        "length, each point E* x its length), the points placed independently of the beam "
-        "nodes and moving with the beams' shape functions; 0: one contact per beam node (the "
-        "scheme before 2026-11-25, whose 10 N state depends on elements_per_turn)")))
-    contact_mesh_mm: float = field(default=0.25, metadata=rng(0, 10, unit="mm", doc=(
-        "beam length (mm of wire) where a contact can close (within 0.1 mm of closing at rest, "
-        "plus 3 mm either side; line contacts only): a contact zone shorter than a beam is not "
-        "resolved by the beam's shape functions. 0: elements_per_turn everywhere")))
-    perturbation_rad: float = field(default=2e-3, metadata=rng(0, 0.1, lo_open=True, unit="rad"))
-    perturbation_mm: float = field(default=0.02, metadata=rng(0, 1, lo_open=True, unit="mm"))
-    max_iterations: int = field(default=60, metadata=rng(2, 1000))
-
-    def __post_init__(self):
-        validate(self)
-
-    @property
-    def end_seats(self) -> tuple[str, str]:
-        """(base, tip) end conditions: ``seat_base`` / ``seat_tip`` where set, else ``seat``."""
-        return self.seat_base or self.seat, self.seat_tip or self.seat
-
-
-@dataclass(frozen=True)
-class Coil:
-    """What the chain needs of a spring (mm, MPa): centreline ``z(u)`` at turn count ``u``
-    (``0 <= u <= turns``), seat heights in the same frame, ends, wire and moduli."""
-
-    R: float
-    r: float
-    turns: float
-    z_of_u: Callable[[np.ndarray], np.ndarray]
-    seat_lo: float
-    seat_hi: float
-    ends: str
-    E: float
-    G: float
-    label: str
-
-    @property
-    def length(self) -> float:
-        return self.seat_hi - self.seat_lo
-
-
-def _ramp_profile(u, turns, p_dead, p_act, start, ramp):
-    """Pitch per turn: ``p_dead`` up to ``start``, linear to ``p_act`` over ``ramp``, mirrored."""
-    up = np.clip((u - start) / ramp, 0.0, 1.0)
-    down = np.clip((u - (turns - start - ramp)) / ramp, 0.0, 1.0)
-    return p_dead + (p_act - p_dead) * (up - down)
-
-
-def _integrate(profile, turns):
-    fine = np.linspace(0.0, turns, 20001)
-    P = profile(fine)
-    z = np.concatenate([[0.0], np.cumsum((P[1:] + P[:-1]) / 2 * np.diff(fine))])
-    return lambda u: np.interp(np.asarray(u, float), fine, z)
-
-
-def as_built(spring: HelicalSpring) -> Coil:
-    """The spring as built: ``inactive_coils`` 2 -> closed-and-ground ends (one dead turn each,
-    gap closing to zero, ground); 0 -> plain ends clamped at the wire's end points."""
-    R, r, d = spring.mean_radius, spring.wire_radius, 2 * spring.wire_radius
-    n_a = spring.active_coils
-    if spring.inactive_coils == 0:
-        p = spring.pitch
-        return Coil(R, r, n_a, lambda u: p * np.asarray(u, float), 0.0, p * n_a, "plain",
-                    spring.E, spring.G, "plain ends, clamped wire ends")
-    if spring.inactive_coils != 2:
-        raise ParameterError("inactive_coils", spring.inactive_coils,
-                             "0 (plain ends) or 2 (closed and ground ends: one dead turn each)")
-    turns = spring.coils                            # >= 2.5 (HelicalSpring checks it)
-    L0 = n_a * spring.pitch + 2 * d                 # handbook free length (seed 002: 19.80 mm)
-    e = GRIND * d
-    # rise: 2 dead turns of d + n_a p_a - RAMP (p_a - d)  =  L0 + 2 e
-    p_a = (L0 + 2 * e - 2 * d - RAMP * d) / (n_a - RAMP)
-    z = _integrate(lambda u: _ramp_profile(u, turns, d, p_a, 1.0, RAMP), turns)
-    return Coil(R, r, turns, z, e, float(z(turns)) - e, "closed_ground", spring.E, spring.G,
-                f"as built: closed (gap 0) and ground ends, active pitch {p_a:.3g} mm")
-
-
-def from_part(part, E: float | None = None, G: float | None = None) -> Coil:
-    """The meshed ``SpringFlexure``'s centreline and cut planes (its E, G from its material)."""
-    from designlab.fem.materials import get_material
-
-    m = get_material(part.material)
-    lo, hi = part._cut_planes()
-    return Coil(part.mean_diameter / 2, part.wire_radius, part.total_coils, part.centerline_z,
-                lo, hi, part.ends, m.E if E is None else E, m.G if G is None else G,
-                f"solid part geometry ({part.ends})")
 
 
 @dataclass
@@ -267,354 +74,6 @@ class ChainResult:
         return None if self.K_loaded is None else to_si(self.at(self.centre, loaded=True))
 
 
-def _block_diag(blocks: np.ndarray) -> np.ndarray:
-    """Dense block-diagonal matrix of ``blocks`` (k, a, b) -> (k a, k b)."""
-    k, a, b = blocks.shape
-    out = np.zeros((k * a, k * b))
-    for i in range(k):
-        out[i * a:(i + 1) * a, i * b:(i + 1) * b] = blocks[i]
-    return out
-
-
-def _next_closed(g: np.ndarray, closed: np.ndarray, tol: float, seen: set, runs=None):
-    """The next normal active set from the gaps ``g`` (mm): closed where ``g < -tol``, open
-    where ``g > tol``, kept in between. A set met before (a cycle) flips only the contact with
-    the largest gap instead. ``runs`` (line contacts: an id per contact, equal for neighbours
-    along one contact line): from an all-open set only the deepest contact of each run of
-    penetrated neighbours closes (a line contact zone then grows from its centre instead of
-    shrinking from all the penetrated points, one edge point per solve). Returns (set, whether
-    it is unchanged)."""
-    new = np.where(g < -tol, True, np.where(g > tol, False, closed))
-    if runs is not None and not closed.any() and np.count_nonzero(new) > 1:
-        pen = np.nonzero(new)[0]
-        brk = np.nonzero((np.diff(pen) > 1) | (np.diff(runs[pen]) != 0))[0] + 1
-        new = np.zeros_like(closed)
-        for seg in np.split(pen, brk):
-            new[seg[np.argmin(g[seg])]] = True
-    if np.array_equal(new, closed):
-        return closed, True
-    key = new.tobytes()
-    if key in seen:
-        bad = np.nonzero(new != closed)[0]
-        new = closed.copy()
-        k = bad[np.argmax(np.abs(g[bad]))]
-        new[k] = not closed[k]
-    seen.add(key)
-    return new, False
-
-
-_CONTROLLER: list = []
-
-
-def _blas_controller() -> ThreadpoolController:
-    """One threadpool controller for the process (building one scans the loaded libraries:
-    ~6 ms a time)."""
-    if not _CONTROLLER:
-        _CONTROLLER.append(ThreadpoolController())
-    return _CONTROLLER[0]
-
-
-class ActiveSet:
-    """Unilateral penalty contacts on a linear structure with a 6-dof master (u, th), solved by
-    an active-set iteration. A subclass sets ``Kq`` (sparse, n_q square: the structure),
-    ``N`` (n_c, n_q: the gap opening per dof), ``kn``, ``g0`` (penalty N/mm and initial gap mm
-    per contact), ``m`` (the master's 6 indices into q), ``nq`` and ``s`` (a
-    :class:`ChainSettings`: perturbations, iteration limit). Shared by the beam chain and the
-    condensed solid FEM (:mod:`designlab.sensors.flexure.helix_fem`)."""
-
-    # ------------------------------------------------------------------ solves
-    def _settle(self, closed: np.ndarray, step) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-        """The active-set iteration: ``step(closed) -> (q, g)`` solves the structure with the
-        contacts ``closed``; repeat until the set keeps its state (a band of +-tol around zero
-        gap: no chatter at g ~ 0); on a cycle change only the contact that violates its state
-        most. Returns (q, g, closed, iterations)."""
-        tol = 1e-6 * self.s.perturbation_mm
-        seen = set()
-        runs = getattr(self, "runs", None)
-        # the solves' dense products are small: BLAS threads only cost (2x the wall time of
-        # `designlab flexure` on the shared 2-core machine)
-        with _blas_controller().limit(limits=1, user_api="blas"):
-            for it in range(self.s.max_iterations):
-                q, g = step(closed)
-                closed, settled = _next_closed(g, closed, tol, seen, runs)
-                if settled:
-                    return q, g, closed, it + 1
-        raise ModelError(f"beam chain: contact active set did not settle in "
-                         f"{self.s.max_iterations} iterations")
-
-    def solve(self, q_master=None, f_master=None, ref: dict | None = None) -> dict:
-        """Active-set solve with the master displaced to ``q_master`` (u, th) or loaded by
-        ``f_master`` (f, m; the master free), starting from the active set of ``ref``."""
-        nq, m = self.nq, self.m
-        nc = len(self.kn)
-        closed = np.zeros(nc, bool) if ref is None else ref["closed"].copy()
-        q = np.zeros(nq) if ref is None else ref["q"].copy()
-        fext = np.zeros(nq)
-        if f_master is not None:
-            fext[m] = f_master
-        free = np.arange(nq) if q_master is None else np.setdiff1d(np.arange(nq), m)
-        if q_master is not None:
-            q[m] = q_master
-        N, kn, g0 = self.N, self.kn, self.g0
-        system = {}
-
-        line = getattr(self, "runs", None) is not None
-
-        def step(closed):
-            w = kn * closed
-            if line:                 # many contacts, few closed: assemble the closed ones only
-                i = np.nonzero(closed)[0]
-                A = (self.Kq + N[i].T @ sp.diags(w[i]) @ N[i]).tocsc()
-            else:
-                A = (self.Kq + N.T @ sp.diags(w) @ N).tocsc()
-            b = fext - N.T @ (w * g0)
-            rhs = b[free] - (A[free][:, m] @ q[m] if q_master is not None else 0.0)
-            Aff = A[free][:, free]
-            try:
-                lu = spla.splu(Aff)
-            except RuntimeError:
-                raise ModelError("beam chain: singular stiffness (a spring end is not held)") from None
-            x = lu.solve(rhs)
-            q[free] = x + lu.solve(rhs - Aff @ x)     # one refinement step (stiff penalties)
-            system.update(A=A, b=b)
-            return q, g0 + N @ q
-
-        q, g, closed, its = self._settle(closed, step)
-        reaction = (system["A"] @ q - system["b"])[m] + (fext[m] if q_master is None else 0.0)
-        return {"q": q.copy(), "closed": closed, "f_n": np.where(closed, -kn * np.minimum(g, 0), 0.0),
-                "reaction": reaction, "iterations": its}
-
-    def solve_force(self, f_master) -> dict:
-        """The master loaded by ``f_master`` (f, m; free) from the open state, as :meth:`solve`
-        but with one factorisation of the structure for every call: each active set's
-        contacts enter as a low-rank update (Woodbury), so many load cases cost little."""
-        lu = getattr(self, "_lu_free", None)
-        if lu is None:
-            lu = self._lu_free = spla.splu(sp.csc_matrix(self.Kq))
-        fext = np.zeros(self.nq)
-        fext[self.m] = f_master
-        N = self.N.tocsr()
-        kn, g0 = self.kn, self.g0
-        x0 = lu.solve(fext)
-        line = getattr(self, "runs", None) is not None
-
-        def step(closed):
-            idx = np.nonzero(closed)[0]
-            if not len(idx):
-                return x0, g0 + N @ x0
-            if len(idx) > 40:                               # many contacts: factor directly
-                Ni = N[idx]
-                A = (self.Kq + Ni.T @ sp.diags(kn[idx]) @ Ni).tocsc()
-                b = fext - Ni.T @ (kn[idx] * g0[idx])
-                lu_a = spla.splu(A)
-                q = lu_a.solve(b)
-                q += lu_a.solve(b - A @ q)                  # one refinement step
-                return q, g0 + N @ q
-            U = N[idx].T.toarray()                          # (nq, k)
-            KU = lu.solve(U)
-            w = kn[idx]
-            S = np.diag(1.0 / w) + U.T @ KU
-
-            def wsolve(rhs):
-                xb = lu.solve(rhs)
-                return xb - KU @ np.linalg.solve(S, U.T @ xb)
-
-            b = fext - U @ (w * g0[idx])
-            q = wsolve(b)
-            if line:                                        # one refinement step (stiff
-                q += wsolve(b - self.Kq @ q - U @ (w * (U.T @ q)))   # short beams, penalties)
-            return q, g0 + N @ q
-
-        q, g, closed, its = self._settle(np.zeros(len(kn), bool), step)
-        return {"q": q.copy(), "closed": closed, "f_n": np.where(closed, -kn * np.minimum(g, 0), 0.0),
-                "iterations": its}
-
-    def stiffness(self, ref: dict | None = None) -> tuple[np.ndarray, list]:
-        """6x6 (twist -> wrench order) by symmetric master perturbations around ``ref``."""
-        amp = np.r_[[self.s.perturbation_mm] * 3, [self.s.perturbation_rad] * 3]
-        q0 = np.zeros(6) if ref is None else ref["q"][self.m]
-        Kq = np.zeros((6, 6))
-        closed = []
-        for j in range(6):
-            res = []
-            for sgn in (1.0, -1.0):
-                r = self.solve(q_master=q0 + sgn * amp[j] * np.eye(6)[j], ref=ref)
-                res.append(r)
-                closed.append(int(np.count_nonzero(r["closed"])))
-            Kq[:, j] = (res[0]["reaction"] - res[1]["reaction"]) / (2 * amp[j])
-        K = Kq[np.ix_(_PERM, _PERM)]
-        return (K + K.T) / 2, closed
-
-    # ------------------------------------------------------------------ Coulomb friction
-    def rest_state(self) -> dict:
-        """The unloaded, undeformed state: no contact force, no tangential traction."""
-        nc = len(self.kn)
-        return {"q": np.zeros(self.nq), "closed": np.zeros(nc, bool), "t": np.zeros((nc, 2)),
-                "fext": np.zeros(self.nq), "reaction": np.zeros(6), "stick": np.zeros(nc, bool)}
-
-    def solve_friction(self, mu: float, kt, q_master=None, f_master=None, ref: dict | None = None,
-                       steps: int = 1) -> dict:
-        """Frictional contact solved incrementally from the state ``ref`` (default: at rest) to
-        the master displaced to ``q_master`` (u, th; the other dofs free) or loaded by
-        ``f_master`` (f, m; the master free), in ``steps`` equal increments.
-
-        Each closed contact carries, besides its normal penalty force ``f_n``, a tangential
-        traction ``t`` (2 components, the contact's ``rt`` directions) by a penalty ``kt`` (N/mm
-        per contact) and Coulomb's law, integrated by the return map (Simo & Hughes,
-        *Computational Inelasticity*, 1998, sec. 1.2 and 2.7 for the 1-D/plasticity form; Wriggers,
-        *Computational Contact Mechanics*, 2006, sec. 5.2 for contact): the trial
-        ``t_tr = t_n + kt * (slip increment)``; stick if ``|t_tr| <= mu f_n``, else slip with
-        ``t = mu f_n t_tr / |t_tr|``. Each increment is a Newton iteration with the consistent
-        (unsymmetric) tangent, the normal active set updated as in :meth:`_settle`; an increment
-        that does not converge is halved (up to 12 times). A contact that opens loses its
-        traction. ``mu = 0`` is the frictionless :meth:`solve` (to round-off).
-        Returns ``q``, ``closed``, ``t`` (nc, 2), ``f_n``, ``stick``, ``reaction`` (the master's
-        load, master order f, m), ``fext`` and ``iterations``."""
-        st = self.rest_state() if ref is None else ref
-        kt = np.broadcast_to(np.asarray(kt, float), self.kn.shape)
-        if q_master is not None:
-            q1 = np.asarray(q_master, float)
-            q0 = st["q"][self.m]
-            target = lambda a: (q0 + a * (q1 - q0), np.zeros(self.nq))       # noqa: E731
-        else:
-            f1 = np.zeros(self.nq)
-            f1[self.m] = f_master
-            f0 = st["fext"] if "fext" in st else np.zeros(self.nq)
-            target = lambda a: (None, f0 + a * (f1 - f0))                     # noqa: E731
-        its = 0
-        todo = [(k / steps, (k + 1) / steps, 0) for k in range(steps)][::-1]
-        while todo:
-            a0, a1, depth = todo.pop()
-            qm, fext = target(a1)
-            new = self._friction_increment(st, qm, fext, mu, kt)
-            if new is None:
-                if depth >= 12:
-                    raise ModelError("beam chain: frictional contact did not converge (the "
-                                     "increment was halved 12 times)")
-                mid = (a0 + a1) / 2
-                todo += [(mid, a1, depth + 1), (a0, mid, depth + 1)]
-                continue
-            its += new["iterations"]
-            st = new
-        return dict(st, iterations=its)
-
-    def _free_parts(self, master_free: bool):
-        """Structure, gap and slip operators on the free dofs (the master free or prescribed),
-        cached."""
-        cache = self.__dict__.setdefault("_free_cache", {})
-        if master_free not in cache:
-            free = (np.arange(self.nq) if master_free
-                    else np.setdiff1d(np.arange(self.nq), self.m))
-            Kq = sp.csr_matrix(self.Kq)
-            cache[master_free] = (Kq[free][:, free].tocsc(), sp.csr_matrix(self.N)[:, free],
-                                  sp.csr_matrix(self.Rt)[:, free])
-        return cache[master_free]
-
-    def _friction_increment(self, st: dict, q_m, fext, mu: float, kt) -> dict | None:
-        """One increment from the converged state ``st``: Newton on the equilibrium with the
-        return-mapped tractions; None when it does not converge (the caller halves it)."""
-        nq, m = self.nq, self.m
-        N, kn, g0 = self.N, self.kn, self.g0
-        Rt = self.Rt
-        nc = len(kn)
-        free = np.arange(nq) if q_m is None else np.setdiff1d(np.arange(nq), m)
-        q = st["q"].copy()
-        if q_m is not None:
-            q[m] = q_m
-        qn, tn = st["q"], np.where(st["closed"][:, None], st["t"], 0.0)
-        closed = st["closed"].copy()
-        tol = 1e-6 * self.s.perturbation_mm
-        seen = set()
-
-        def state(q, closed):
-            g = g0 + N @ q
-            w = kn * closed
-            fn = np.maximum(-w * g, 0.0)
-            ttr = np.where(closed[:, None], tn + kt[:, None] * (Rt @ (q - qn)).reshape(nc, 2), 0.0)
-            nt = np.linalg.norm(ttr, axis=1)
-            lim = mu * fn
-            stick = closed & (nt <= lim) & (lim > 0)
-            scale = np.where(stick, 1.0, np.where(nt > 0, lim / np.where(nt > 0, nt, 1.0), 0.0))
-            t = ttr * scale[:, None]
-            fi = self.Kq @ q + N.T @ (w * g) + Rt.T @ t.ravel()
-            return g, w, fn, ttr, nt, stick, t, fi
-
-        for it in range(self.s.max_iterations):
-            g, w, fn, ttr, nt, stick, t, fi = state(q, closed)
-            # consistent tangent of the tractions: stick kt I; slip kt (mu f_n / |t_tr|)
-            # (I - n n^T) on the slip and -mu k_n n on the normal gap
-            D = np.zeros((nc, 2, 2))
-            Cn = np.zeros((nc, 2))
-            slip = closed & ~stick & (nt > 0)
-            D[stick] = kt[stick, None, None] * np.eye(2)
-            if slip.any():
-                n = ttr[slip] / nt[slip, None]
-                sc = kt[slip] * mu * fn[slip] / nt[slip]
-                D[slip] = sc[:, None, None] * (np.eye(2) - n[:, :, None] * n[:, None, :])
-                Cn[slip] = np.where((fn[slip] > 0)[:, None], -mu * kn[slip, None] * n, 0.0)
-            # the tangent on the free dofs: the structure plus the closed contacts' terms
-            idx = np.nonzero(closed)[0]
-            Kff, Nf, Rf = self._free_parts(q_m is None)
-            A = Kff
-            if len(idx):
-                Nc = Nf[idx]
-                Rc = Rf[np.ravel(np.column_stack([2 * idx, 2 * idx + 1]))]
-                Db = sp.csr_matrix(_block_diag(D[idx]))
-                Cb = sp.csr_matrix(_block_diag(Cn[idx][:, :, None]))
-                A = A + Nc.T @ sp.diags(kn[idx]) @ Nc + Rc.T @ (Db @ Rc + Cb @ Nc)
-            r = fi - fext
-            try:
-                lu = spla.splu(sp.csc_matrix(A))
-                dq = lu.solve(-r[free])
-                dq += lu.solve(-r[free] - A @ dq)       # one refinement step (stiff penalties)
-            except RuntimeError:
-                raise ModelError("beam chain: singular stiffness (a spring end is not held)") from None
-            # backtracking on the residual (slip directions turn: a full Newton step can cycle)
-            r0, alpha = np.linalg.norm(r[free]), 1.0
-            for _ in range(30):
-                qt = q.copy()
-                qt[free] += alpha * dq
-                if np.linalg.norm((state(qt, closed)[-1] - fext)[free]) < r0:
-                    break
-                alpha /= 2
-            q = qt
-            g_new = g0 + N @ q
-            closed, settled = _next_closed(g_new, closed, tol, seen)
-            if not settled:
-                continue
-            # same normal set: converged when the residual is round-off and the stick/slip
-            # split of the new state is the one the step was taken with
-            g2, w2, fn2, ttr2, nt2, stick2, t2, fi2 = state(q, closed)
-            res = np.linalg.norm((fi2 - fext)[free])
-            ref_scale = max(np.linalg.norm(fi2), np.linalg.norm(fext), 1e-12)
-            if res <= 1e-9 * ref_scale:      # (the return map is continuous at |t_tr| = mu f_n)
-                return {"q": q.copy(), "closed": closed, "t": t2, "f_n": fn2, "stick": stick2,
-                        "fext": np.asarray(fext, float).copy(), "reaction": fi2[m].copy(),
-                        "iterations": it + 1}
-        return None
-
-    def friction_stiffness(self, mu: float, kt, ref: dict | None = None, steps: int = 1,
-                           amplitude: float = 1.0) -> tuple[np.ndarray, list]:
-        """6x6 (twist -> wrench order) by symmetric master perturbations around the frictional
-        state ``ref`` (each solved from ``ref`` with its tractions by :meth:`solve_friction`),
-        perturbations ``amplitude`` times the settings' (0.02 mm, 2 mrad). With friction this
-        is the secant of the two one-sided paths, which depends on the amplitude (a sliding
-        contact adds up to ``2 mu f_n`` across the two) and need not be symmetric (returned as
-        computed, with the (closed, stuck) contact counts of every path)."""
-        amp = amplitude * np.r_[[self.s.perturbation_mm] * 3, [self.s.perturbation_rad] * 3]
-        st = self.rest_state() if ref is None else ref
-        q0 = st["q"][self.m]
-        Kq = np.zeros((6, 6))
-        info = []
-        for j in range(6):
-            res = [self.solve_friction(mu, kt, q_master=q0 + sgn * amp[j] * np.eye(6)[j],
-                                       ref=st, steps=steps) for sgn in (1.0, -1.0)]
-            info += [(int(np.count_nonzero(r["closed"])), int(np.count_nonzero(r["stick"])))
-                     for r in res]
-            Kq[:, j] = (res[0]["reaction"] - res[1]["reaction"]) / (2 * amp[j])
-        return Kq[np.ix_(_PERM, _PERM)], info
-
-
 #: contact refinement: beams of at most ``contact_mesh_mm`` where a contact's initial gap is below
 #: this (mm), on every wire it involves, plus ``WINDOW_MARGIN_MM`` of wire on either side
 REFINE_GAP_MM = 0.1
@@ -664,30 +123,6 @@ def _contact_windows(coil: Coil, settings: ChainSettings) -> list[tuple[float, f
     return out
 
 
-def wire_contact_points(z_of_u: Callable, R: float, turns: float, spacing: float):
-    """Where line contacts sit along a helix of mean radius ``R`` (mm) and centreline height
-    ``z_of_u(u)`` over ``turns`` turns: ``(points, coil_spans)``. ``points(lo, hi)`` -> (turn
-    counts, lengths of wire in mm): the midpoints of equal steps in turn count over
-    [lo, hi], ~``spacing`` mm of wire each. ``coil_spans``: the turn-count ranges of the lower
-    wire of each coil-to-coil contact (the dead turn and its pitch ramp at both ends; one range
-    for a spring too short to have two). Shared by the beam chain and the solid FEM."""
-    fine = np.linspace(0.0, turns, int(turns * 2000) + 1)
-    dsdu = np.hypot(2 * np.pi * R, np.gradient(np.asarray(z_of_u(fine), float), fine))
-
-    def points(lo: float, hi: float):
-        mid = np.interp((lo + hi) / 2, fine, dsdu)
-        n = max(int(math.ceil((hi - lo) * mid / spacing - 1e-9)), 1)
-        du = (hi - lo) / n
-        us = lo + (np.arange(n) + 0.5) * du
-        return us, np.interp(us, fine, dsdu) * du
-
-    span = 1.0 + RAMP
-    spans = sorted([(0.0, min(span, turns - 1.0)), (max(turns - 1.0 - span, 0.0), turns - 1.0)])
-    if spans[1][0] <= spans[0][1]:                    # short springs: one span
-        spans = [(spans[0][0], max(spans[0][1], spans[1][1]))]
-    return points, spans
-
-
 def _merge(windows) -> list[tuple[float, float]]:
     out = []
     for a, b in sorted(windows):
@@ -708,6 +143,30 @@ def _refine(u: np.ndarray, windows, step: float) -> np.ndarray:
         parts.append(np.linspace(a, b, k + 1))
         keep &= ~((u > a - step / 2) & (u < b + step / 2))
     return np.unique(np.concatenate(parts + [u[keep]]))
+
+
+def _bonded_nodes(coil: Coil, settings: ChainSettings, u: np.ndarray, c_base: np.ndarray,
+                  c_tip: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(base, tip) node indices held by their end condition: plain ends at the wire's end
+    nodes; ``bonded`` the nodes whose wire section reaches the seat in the dead turn; ``potted``
+    the whole dead turn; ``contact`` the wire's end node only."""
+    r, N, n = coil.r, coil.turns, len(u)
+    if coil.ends == "plain":
+        return np.array([0]), np.array([n - 1])
+    base_seat, tip_seat = settings.end_seats
+    if base_seat == "bonded":
+        base_bond = np.nonzero((c_base < r) & (u < 1))[0]
+    elif base_seat == "potted":
+        base_bond = np.nonzero(u <= 1 + 1e-9)[0]
+    else:
+        base_bond = np.array([0])
+    if tip_seat == "bonded":
+        tip_bond = np.nonzero((c_tip < r) & (u > N - 1))[0]
+    elif tip_seat == "potted":
+        tip_bond = np.nonzero(u >= N - 1 - 1e-9)[0]
+    else:
+        tip_bond = np.array([n - 1])
+    return base_bond, tip_bond
 
 
 class Chain(ActiveSet):
@@ -744,22 +203,7 @@ class Chain(ActiveSet):
         K.eliminate_zeros()
         # ---- ends: bonded nodes (base fixed, tip rigid to the master)
         c_base, c_tip = z, L - z                 # centreline heights above the seats
-        if coil.ends == "plain":
-            base_bond, tip_bond = np.array([0]), np.array([n - 1])
-        else:
-            base_seat, tip_seat = settings.end_seats
-            if base_seat == "bonded":
-                base_bond = np.nonzero((c_base < r) & (u < 1))[0]
-            elif base_seat == "potted":
-                base_bond = np.nonzero(u <= 1 + 1e-9)[0]
-            else:
-                base_bond = np.array([0])
-            if tip_seat == "bonded":
-                tip_bond = np.nonzero((c_tip < r) & (u > N - 1))[0]
-            elif tip_seat == "potted":
-                tip_bond = np.nonzero(u >= N - 1 - 1e-9)[0]
-            else:
-                tip_bond = np.array([n - 1])
+        base_bond, tip_bond = _bonded_nodes(coil, settings, u, c_base, c_tip)
         self.base_bond, self.tip_bond = base_bond, tip_bond
         # T: reduced q = [free node dofs, master 6] -> full node dofs
         fixed = np.zeros(6 * n, bool)
@@ -1029,6 +473,7 @@ class Chain(ActiveSet):
                 self.contacts.append(_Contact(row, max(float(c_tip[i]) - r, 0.0), k_n, "seat",
                                               seat[:2] - self._ut(i, r)))
 
+
 def resolved_chain(coil: Coil, settings: ChainSettings) -> tuple["Chain", dict | None]:
     """The assembled chain and its frictionless working-load state (None without a working
     load or contact). With line contacts, a contact closed at the working load in a beam
@@ -1103,199 +548,5 @@ def condensed_6x6(chain: "Chain", closed: np.ndarray, kt: np.ndarray | None = No
     Aff = A[f][:, f].tocsc()
     Afm = A[f][:, m].toarray()
     S = A[m][:, m].toarray() - Afm.T @ spla.splu(Aff).solve(Afm)
-    K = S[np.ix_(_PERM, _PERM)]
+    K = S[np.ix_(PERM, PERM)]
     return (K + K.T) / 2
-
-
-def _tip_friction_band(chain: "Chain", closed: np.ndarray, fn: np.ndarray, mu: float) -> dict:
-    """Half-width of the friction band at the tip master, per master axis: the tip moved along
-    the axis (frictionless motion, normal forces of the reference state), every closed contact
-    sliding against its relative tangential motion with ``mu f_n``; the master's reaction to
-    those forces along the same axis (N for u_x, u_y, u_z; N mm for th_x, th_y, th_z). A loop
-    along that axis deviates from its median by this much."""
-    A = (chain.Kq + chain.N.T @ sp.diags(chain.kn * closed) @ chain.N).tocsc()
-    m = chain.m
-    f = np.setdiff1d(np.arange(chain.nq), m)
-    lu = spla.splu(A[f][:, f].tocsc())
-    Afm = A[f][:, m].toarray()
-    out = {}
-    for j, name in enumerate(("u_x", "u_y", "u_z", "th_x", "th_y", "th_z")):
-        q = np.zeros(chain.nq)
-        q[m[j]] = 1.0
-        q[f] = lu.solve(-Afm[:, j])
-        V = (chain.Rt @ q).reshape(-1, 2)
-        nv = np.linalg.norm(V, axis=1)
-        slide = closed & (nv > 0)
-        tr = np.zeros_like(V)
-        tr[slide] = -mu * fn[slide, None] * V[slide] / nv[slide, None]
-        g = chain.Rt.T @ tr.ravel()
-        reaction = Afm.T @ lu.solve(g[f]) - g[m]         # what holds the master against them
-        out[name] = float(reaction[j])
-    return out
-
-
-def friction_bounds(spring: HelicalSpring, settings: ChainSettings | None = None, *,
-                    mu: float = 0.3) -> dict:
-    """What Coulomb friction at the closed coil and seat contacts can do to the chain's 6x6 at
-    the working load, as two bounds (the closed contacts of the frictionless 10 N state held;
-    :func:`friction_stiffness` solves the frictional path between them):
-
-    * **slip** (gross sliding, any perturbation larger than ``mu f_n / k_t``): a sliding contact
-      carries a constant ``mu f_n`` whose tangent is zero, so the tangent 6x6 is the
-      frictionless one; friction shows as a force band (hysteresis), not as stiffness;
-    * **stick** (perturbations below that): every closed contact holds tangentially with the
-      Mindlin ratio ``k_t = k_n 2 (1 - nu) / (2 - nu)`` (Johnson 1985, sec. 7.2), a stiffness
-      independent of ``mu``.
-
-    Returns the two 6x6 at the spring centre (N mm/rad, N/mm; SI too), the normal forces, the
-    band ``mu sum f_n`` at the contacts, its half-width at the tip per master axis
-    (``tip_friction_band``: the hysteresis a loop along that axis shows) and the largest stick
-    displacement ``mu f_n / k_t``. ``mu``: see :data:`MU_STEEL` (no value is published for
-    the spring)."""
-    if not (isinstance(mu, (int, float)) and 0 <= mu <= 2):
-        raise ParameterError("mu", mu, "a friction coefficient 0 <= mu <= 2")
-    settings = settings or ChainSettings()
-    if settings.working_load_N <= 0 or not settings.contact:
-        raise ParameterError("working_load_N", settings.working_load_N,
-                             "> 0 with contact=True (friction needs a preloaded contact)")
-    check_working_load(spring, settings.working_load_N)
-    chain = Chain(as_built(spring), settings)
-    pre = chain.solve(f_master=np.r_[0.0, 0.0, -settings.working_load_N, 0.0, 0.0, 0.0])
-    closed, fn = pre["closed"], pre["f_n"]
-    nu = chain.coil.E / (2 * chain.coil.G) - 1
-    kt = np.where(closed, chain.kn * mindlin_ratio(nu), 0.0)
-    K_slip = condensed_6x6(chain, closed)
-    K_stick = condensed_6x6(chain, closed, kt)
-    K_pert, _ = chain.stiffness(ref=pre)
-    band = _tip_friction_band(chain, closed, fn, mu)
-    centre = np.array([0.0, 0.0, chain.coil.length / 2])
-    move = transform(translation=chain.master - centre)
-    at = {k: transform_stiffness(v, move) for k, v in
-          (("slip", K_slip), ("stick", K_stick), ("perturbation", K_pert))}
-    kinds = np.array([c.kind for c in chain.contacts])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        stick_disp = np.where(closed, mu * fn / np.where(kt > 0, kt, 1.0), 0.0)
-    return {"K_slip_centre": at["slip"], "K_stick_centre": at["stick"],
-            "K_perturbation_centre": at["perturbation"],
-            "K_slip_centre_si": to_si(at["slip"]), "K_stick_centre_si": to_si(at["stick"]),
-            "closed": {"coil": int(np.count_nonzero(closed & (kinds == "coil"))),
-                       "seat": int(np.count_nonzero(closed & (kinds == "seat")))},
-            "normal_force_N": {"coil": float(fn[kinds == "coil"].sum()),
-                               "seat": float(fn[kinds == "seat"].sum())},
-            "friction_band_N": float(mu * fn.sum()), "mu": float(mu),
-            "max_stick_displacement_mm": float(stick_disp.max()) if closed.any() else 0.0,
-            "tip_friction_band": band,
-            "k_t_over_k_n": float(2 * (1 - nu) / (2 - nu))}
-
-
-def _friction_setup(spring: HelicalSpring, settings: ChainSettings | None, mu: float | None):
-    settings = settings or ChainSettings()
-    mu = settings.mu if mu is None else mu
-    if not (isinstance(mu, (int, float)) and 0 <= mu <= 1e6):
-        raise ParameterError("mu", mu, "a friction coefficient 0 <= mu <= 1e6")
-    if not settings.contact:
-        raise ParameterError("contact", settings.contact, "True (friction acts at the contacts)")
-    if settings.working_load_N > 0:
-        check_working_load(spring, settings.working_load_N)
-    chain = Chain(as_built(spring), settings)
-    nu = chain.coil.E / (2 * chain.coil.G) - 1
-    return settings, float(mu), chain, chain.kn * mindlin_ratio(nu)
-
-
-def friction_stiffness(spring: HelicalSpring, settings: ChainSettings | None = None, *,
-                       mu: float | None = None, amplitude: float = 1.0,
-                       preload_steps: int = 10) -> ChainResult:
-    """The chain's 6x6 with Coulomb friction at the coil and seat contacts, unloaded and at the
-    axial working load: the working load applied in ``preload_steps`` force increments from rest
-    (each contact's traction follows its slip history), then symmetric perturbations of the tip
-    master (``amplitude`` x the settings' 0.02 mm / 2 mrad), each solved incrementally from that
-    state (:meth:`ActiveSet.solve_friction`: return map, tangential penalty
-    ``k_t = k_n 2 (1 - nu) / (2 - nu)``). ``mu``: default ``settings.mu`` (0.3, dry steel on
-    steel). ``mu = 0`` is :func:`chain_stiffness`; ``mu -> inf`` the stuck bound of
-    :func:`friction_bounds`. With ``0 < mu < inf`` the result is a secant: it depends on the
-    amplitude. ``K`` and ``K_loaded`` are symmetrised; the raw ones and their asymmetry are in
-    ``info``."""
-    t0 = time.perf_counter()
-    settings, mu, chain, kt = _friction_setup(spring, settings, mu)
-    K_raw, paths = chain.friction_stiffness(mu, kt, amplitude=amplitude)
-    K_loaded = K_l_raw = None
-    info_l = None
-    if settings.working_load_N > 0:
-        pre = chain.solve_friction(mu, kt, f_master=np.r_[0.0, 0.0, -settings.working_load_N,
-                                                          0.0, 0.0, 0.0], steps=preload_steps)
-        K_l_raw, paths_l = chain.friction_stiffness(mu, kt, ref=pre, amplitude=amplitude)
-        K_loaded = (K_l_raw + K_l_raw.T) / 2
-        c = pre["closed"]
-        info_l = {"axial_deflection_mm": float(-pre["q"][chain.m][2]),
-                  "closed_contacts": int(np.count_nonzero(c)),
-                  "stuck_contacts": int(np.count_nonzero(pre["stick"])),
-                  "normal_force_N": float(pre["f_n"].sum()),
-                  "traction_over_limit": [float(x) for x in
-                                          np.linalg.norm(pre["t"][c], axis=1)
-                                          / np.maximum(mu * pre["f_n"][c], 1e-300)],
-                  "paths_closed_stuck": paths_l,
-                  "asymmetry": float(np.abs(K_l_raw - K_l_raw.T).max() / np.abs(K_l_raw).max()),
-                  "K_raw": K_l_raw.tolist()}
-    info = {"mu": mu, "k_t_over_k_n": float(kt[0] / chain.kn[0]) if len(kt) else None,
-            "amplitude_mm_rad": [amplitude * settings.perturbation_mm,
-                                 amplitude * settings.perturbation_rad],
-            "paths_closed_stuck": paths,
-            "asymmetry": float(np.abs(K_raw - K_raw.T).max() / np.abs(K_raw).max()),
-            "K_raw": K_raw.tolist(), "working_load": info_l, "contacts": len(chain.contacts),
-            "seconds": time.perf_counter() - t0}
-    return ChainResult((K_raw + K_raw.T) / 2, K_loaded, chain.master,
-                       np.array([0, 0, chain.coil.length / 2]), chain.coil, settings, info, chain)
-
-
-def loop_stiffness(spring: HelicalSpring, settings: ChainSettings | None = None, *,
-                   mu: float | None = None, amplitude_mm: float = 1.0,
-                   amplitude_rad: float = 0.05, points: int = 8, preload_N: float = 0.0) -> dict:
-    """The 6x6 as seed 002 fitted it: hysteresis loops about the relaxed configuration (Sec.
-    V-B: each axis cycled between its largest positive and negative displacement), ``F = K X``
-    by least squares. Per master axis (at the tip seat, global axes): 0 -> +A -> -A -> +A in
-    ``points`` increments per quarter, each by :meth:`ActiveSet.solve_friction`; the last full
-    cycle (+A -> -A -> +A) gives the column ``K[:, j] = sum(F x) / sum(x^2)`` (no intercept, as
-    the paper's fit) and the loop's half-width along the axis (half the largest difference of
-    the two branches at the same displacement). The paper's 21-entry fit is symmetric: ``K`` is symmetrised, the
-    raw columns are ``K_raw``. ``A``: ``amplitude_mm`` for translations, ``amplitude_rad`` for
-    rotations (the paper does not print its loop amplitudes: its random poses span 1 mm in x, y
-    and 4 mm in z). ``preload_N``: an axial load held before the loops (0: relaxed).
-    Geometrically linear, the contacts' normal forces follow the motion."""
-    t0 = time.perf_counter()
-    settings, mu, chain, kt = _friction_setup(spring, settings, mu)
-    if not (amplitude_mm > 0 and amplitude_rad > 0 and isinstance(points, int) and points >= 2):
-        raise ParameterError("amplitude", (amplitude_mm, amplitude_rad, points),
-                             "amplitudes > 0 and points >= 2")
-    ref = chain.rest_state()
-    if preload_N > 0:
-        ref = chain.solve_friction(mu, kt, f_master=np.r_[0.0, 0.0, -preload_N, 0, 0, 0],
-                                   steps=10)
-    q0 = ref["q"][chain.m]
-    amp = np.r_[[amplitude_mm] * 3, [amplitude_rad] * 3]
-    path = np.concatenate([np.linspace(0, 1, points + 1)[1:], np.linspace(1, -1, 2 * points + 1)[1:],
-                           np.linspace(-1, 1, 2 * points + 1)[1:]])
-    Kq = np.zeros((6, 6))
-    half = np.zeros(6)
-    loops = []
-    for j in range(6):
-        st, xs, Fs = ref, [], []
-        for a in path:
-            st = chain.solve_friction(mu, kt, q_master=q0 + a * amp[j] * np.eye(6)[j], ref=st)
-            xs.append(a * amp[j])
-            Fs.append(st["reaction"] - ref["reaction"])
-        xs, Fs = np.array(xs[points:]), np.array(Fs[points:])          # the last full cycle
-        Kq[:, j] = Fs.T @ xs / (xs @ xs)
-        # the two branches at the same x: descending k <-> ascending 2 points - 2 - k
-        k = np.arange(2 * points - 1)
-        half[j] = float(np.abs(Fs[k, j] - Fs[4 * points - 2 - k, j]).max() / 2)
-        loops.append({"x": xs.tolist(), "F": Fs[:, j].tolist()})
-    K_raw = Kq[np.ix_(_PERM, _PERM)]
-    return {"K": (K_raw + K_raw.T) / 2, "K_raw": K_raw, "master": chain.master,
-            "centre": np.array([0.0, 0.0, chain.coil.length / 2]), "mu": mu,
-            "half_width": dict(zip(("u_x", "u_y", "u_z", "th_x", "th_y", "th_z"), half.tolist())),
-            "amplitude_mm_rad": [amplitude_mm, amplitude_rad], "preload_N": preload_N,
-            "loops": loops, "seconds": time.perf_counter() - t0}
-
-
-def with_settings(base: ChainSettings | None = None, **kw) -> ChainSettings:
-    return replace(base or ChainSettings(), **kw)

@@ -484,7 +484,7 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     (``stations_per_turn``) paired node to node; their 10 N state depends on the station
     count (docs/flexure.md, "Solid FEM: contact discretisation").
     ``gaps="as_built"`` (default): the initial gap of each contact is the spring's as built at
-    the same turn count (:func:`~designlab.sensors.flexure.beam_chain.as_built`: dead pitch d,
+    the same turn count (:func:`~designlab.sensors.flexure.chain_geometry.as_built`: dead pitch d,
     gap 0 at the wire end, the chain's geometry), the meshed clearance being what the mesher
     needs to keep the solid from touching itself; ``"meshed"``: the part's own gaps
     (dead turns ``DEAD_GAP d`` clear, pitch ramp from ``1 - RAMP / 2``: >= 0.4 mm for
@@ -494,7 +494,7 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
 
     The linear model is condensed exactly on the contact nodes' z displacements and the master
     (one factorisation, one back-substitution per kept dof); the active-set iteration of
-    :class:`~designlab.sensors.flexure.beam_chain.ActiveSet` then runs on that small system:
+    :class:`~designlab.sensors.flexure.active_set.ActiveSet` then runs on that small system:
     symmetric perturbations about the unloaded state and about ``settings.working_load_N``
     (force-controlled axial preload), like the chain. Geometrically linear. ``mesh``: a mesh
     of this part already made (the same call otherwise meshes it with :func:`helix_mesh`:
@@ -508,8 +508,8 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
 
     from designlab.fem.materials import get_material
     from designlab.fem.solvers import factorize
-    from designlab.sensors.flexure.beam_chain import (ActiveSet, ChainSettings, RAMP,
-                                                      wire_contact_points)
+    from designlab.sensors.flexure.active_set import ActiveSet
+    from designlab.sensors.flexure.chain_geometry import RAMP, ChainSettings, wire_contact_points
 
     cs = settings or ChainSettings()
     step = progress or (lambda text, done, total: None)
@@ -544,7 +544,7 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
     system = model.build()
     base_nodes, tip_nodes = set(model.nodes("flexure_base")), set(model.nodes("flexure_tip"))
     if gaps == "as_built":
-        from designlab.sensors.flexure.beam_chain import as_built
+        from designlab.sensors.flexure.chain_geometry import as_built
 
         coil = as_built(HelicalSpring(wire_radius=r, mean_diameter=flexure.mean_diameter,
                                       coils=N, inactive_coils=2.0,

@@ -41,7 +41,7 @@ def _unit_factor(learned_unit: str, ours: str) -> float:
 
 
 def _learned(model_path: str | Path):
-    from designlab.loop.loop import load_model
+    from designlab.loop.model import load_model
 
     learned = load_model(model_path, "--model")
     missing = [o for o in TWIST if o not in learned.outputs]

@@ -125,7 +125,8 @@ def spring_as_built(part):
 def chain_truth(part, settings: "FlexureModelSettings"):
     """The beam chain of ``part`` as built (:func:`spring_as_built`), seats of the part's disc
     material: a :class:`~designlab.sensors.flexure.beam_chain.ChainResult`."""
-    from designlab.sensors.flexure.beam_chain import ChainSettings, chain_stiffness
+    from designlab.sensors.flexure.beam_chain import chain_stiffness
+    from designlab.sensors.flexure.chain_geometry import ChainSettings
 
     cs = ChainSettings(seat=settings.seat, working_load_N=settings.working_load_N,
                        seat_material=getattr(part, "disc_material", "PLA"))
@@ -138,7 +139,7 @@ def _wire_stress(part, protocol: FlexureWrenchTest, settings: "FlexureModelSetti
     (:func:`designlab.sensors.flexure.stress.wire_stress`): the closed form, and the beam
     chain beside it (the truth's own ``chain``, a ChainResult, when it ran) unless the truth is
     the Timoshenko column (no chain in that model)."""
-    from designlab.sensors.flexure.beam_chain import ChainSettings
+    from designlab.sensors.flexure.chain_geometry import ChainSettings
     from designlab.sensors.flexure.stress import wire_stress
 
     cs = ChainSettings(seat=settings.seat, seat_material=getattr(part, "disc_material", "PLA"))

@@ -97,7 +97,7 @@ def fem_stage(part, settings: dict | None, protocol: dict | None, cache) -> dict
     import dataclasses
 
     from designlab.errors import ParameterError
-    from designlab.sensors.flexure.beam_chain import ChainSettings
+    from designlab.sensors.flexure.chain_geometry import ChainSettings
     from designlab.sensors.flexure.stress import case_sections
     from designlab.sensors.flexure.model import FlexureModelSettings, run, spring_as_built
     from designlab.sensors.protocols import FlexureWrenchTest, protocol_for

@@ -377,7 +377,7 @@ def report_tables(report: dict) -> list:
     return tables
 
 
-#: the end conditions of the beam chain (:class:`~designlab.sensors.flexure.beam_chain.ChainSettings`
+#: the end conditions of the beam chain (:class:`~designlab.sensors.flexure.chain_geometry.ChainSettings`
 #: ``seat_base`` / ``seat_tip``)
 END_SEATS = ("bonded", "contact", "potted")
 
@@ -487,9 +487,10 @@ def end_condition_table(spring: HelicalSpring, paper: dict | None = None,
     diagonal, coupling ratios model / measured), the zero-coupling point (mm above the spring
     centre: x, y, mean), the offset-independent rocking stiffness at the elastic centre and the
     lateral stiffness (SI), and the chain's camera-frame diagonal (SI). ``chain_settings``:
-    further :class:`~designlab.sensors.flexure.beam_chain.ChainSettings` fields (e.g.
+    further :class:`~designlab.sensors.flexure.chain_geometry.ChainSettings` fields (e.g.
     ``contact_spacing_mm=0``: one contact per beam node)."""
-    from designlab.sensors.flexure.beam_chain import ChainSettings, chain_stiffness
+    from designlab.sensors.flexure.beam_chain import chain_stiffness
+    from designlab.sensors.flexure.chain_geometry import ChainSettings
 
     extra = dict(chain_settings)
 

@@ -217,7 +217,8 @@ def case_sections(spring: HelicalSpring, protocol=None, chain_settings=None, *,
     cases.append((worst_name, "", np.r_[0.0, 0.0, 0.0, F * math.sin(th), 0.0, F * math.cos(th)]))
     ch = chain if not isinstance(chain, bool) else None
     if chain is True:
-        from designlab.sensors.flexure.beam_chain import Chain, ChainSettings, as_built
+        from designlab.sensors.flexure.beam_chain import Chain
+        from designlab.sensors.flexure.chain_geometry import ChainSettings, as_built
 
         ch = Chain(as_built(spring), chain_settings or ChainSettings())
     d, C = 2 * spring.wire_radius, spring.mean_diameter / (2 * spring.wire_radius)

@@ -7,11 +7,13 @@ import pytest
 
 from designlab.errors import ParameterError
 from designlab.sensors.flexure import beam_chain as bc
+from designlab.sensors.flexure import chain_friction as cf
+from designlab.sensors.flexure import chain_geometry as cg
 from designlab.sensors.flexure import report as fr
 from designlab.sensors.flexure.spring import (VISIFLEX_CATALOG, HelicalSpring, stiffness_timoshenko,
                                               stiffness_zero_pitch)
 
-NO_CONTACT = bc.ChainSettings(contact=False, working_load_N=0.0)
+NO_CONTACT = cg.ChainSettings(contact=False, working_load_N=0.0)
 
 
 @pytest.fixture(scope="module")
@@ -52,20 +54,20 @@ def test_contact_and_working_load_stiffen_the_as_built_spring(visiflex):
     """Free dead turns < dead turns in contact (unloaded) < at the 10 N working load, where
     contact spreads; the fully potted dead turn is the handbook's inactive coil (k_z within 5 %
     of the closed form with 1.75 active turns)."""
-    free = bc.chain_stiffness(VISIFLEX_CATALOG, bc.ChainSettings(contact=False))
+    free = bc.chain_stiffness(VISIFLEX_CATALOG, cg.ChainSettings(contact=False))
     d_free, d_c, d_l = (np.diag(K) for K in (free.K_centre, visiflex.K_centre,
                                               visiflex.at(visiflex.centre, loaded=True)))
     assert d_c[5] > 1.05 * d_free[5] and d_l[5] > 1.10 * d_c[5]
     assert np.all(d_l[[0, 1, 3, 4, 5]] > d_c[[0, 1, 3, 4, 5]])
     wl = visiflex.info["working_load"]
     assert wl["closed_contacts"] > 0 and 2.0 < wl["axial_deflection_mm"] < 4.0
-    potted = bc.chain_stiffness(VISIFLEX_CATALOG, bc.ChainSettings(seat="potted"))
+    potted = bc.chain_stiffness(VISIFLEX_CATALOG, cg.ChainSettings(seat="potted"))
     assert potted.K_centre[5, 5] == pytest.approx(stiffness_zero_pitch(VISIFLEX_CATALOG)[5, 5],
                                                   rel=0.05)
 
 
 def test_as_built_geometry_keeps_the_rest_length_and_closes_the_end_gap():
-    coil = bc.as_built(VISIFLEX_CATALOG)
+    coil = cg.as_built(VISIFLEX_CATALOG)
     assert coil.length == pytest.approx(19.80, abs=0.01)          # seed 002 rest length
     d = 2 * VISIFLEX_CATALOG.wire_radius
     assert coil.z_of_u(1.0) - coil.z_of_u(0.0) == pytest.approx(d, abs=1e-3)   # gap 0 at the end
@@ -108,11 +110,11 @@ def test_bad_input_one_line_errors():
     with pytest.raises(ParameterError, match="pitch_angle=0.03 .*working load") as exc:
         bc.chain_stiffness(tight)
     assert "\n" not in str(exc.value)
-    assert bc.chain_stiffness(tight, bc.ChainSettings(working_load_N=0.0)).K.shape == (6, 6)
+    assert bc.chain_stiffness(tight, cg.ChainSettings(working_load_N=0.0)).K.shape == (6, 6)
     with pytest.raises(ParameterError, match="inactive_coils"):
         bc.chain_stiffness(HelicalSpring(wire_radius=1.015, coils=4.0, inactive_coils=1.0))
     with pytest.raises(ParameterError, match="seat"):
-        bc.ChainSettings(seat="glued")
+        cg.ChainSettings(seat="glued")
 
 
 def test_coulomb_friction_bounds_at_the_working_load():
@@ -123,11 +125,11 @@ def test_coulomb_friction_bounds_at_the_working_load():
     measured 0.5 %), full stick only stiffens (K_stick - K_slip positive semidefinite), and the
     stick range mu f_n / k_t is far below the 0.02 mm perturbation: the paper's 4 mm poses
     slide."""
-    nodes = bc.friction_bounds(VISIFLEX_CATALOG, bc.ChainSettings(contact_spacing_mm=0.0),
+    nodes = cf.friction_bounds(VISIFLEX_CATALOG, cg.ChainSettings(contact_spacing_mm=0.0),
                                mu=0.3)
     Kp, Ks = nodes["K_perturbation_centre"], nodes["K_slip_centre"]
     np.testing.assert_allclose(Ks, Kp, rtol=1e-6, atol=1e-6 * np.abs(Kp).max())
-    r = bc.friction_bounds(VISIFLEX_CATALOG, mu=0.3)
+    r = cf.friction_bounds(VISIFLEX_CATALOG, mu=0.3)
     Kp, Ks, Kt = r["K_perturbation_centre"], r["K_slip_centre"], r["K_stick_centre"]
     np.testing.assert_allclose(np.diag(Ks), np.diag(Kp), rtol=0.01)
     ev = np.linalg.eigvalsh(fr.to_frame(r["K_stick_centre_si"], "spring", 0.0)
@@ -135,15 +137,15 @@ def test_coulomb_friction_bounds_at_the_working_load():
     assert ev.min() > -1e-9 * np.abs(ev).max() and ev.max() > 0
     assert np.diag(Kt)[3] > 1.1 * np.diag(Ks)[3]                 # lateral held by the contacts
     assert sum(r["closed"].values()) > 0 and r["normal_force_N"]["coil"] > 0
-    assert 0 < r["max_stick_displacement_mm"] < 0.1 * bc.ChainSettings().perturbation_mm
+    assert 0 < r["max_stick_displacement_mm"] < 0.1 * cg.ChainSettings().perturbation_mm
     assert r["friction_band_N"] == pytest.approx(0.3 * sum(r["normal_force_N"].values()))
     # sliding resists the motion (a positive band on every axis), linear in mu
     band = r["tip_friction_band"]
     assert all(v > 0 for v in band.values())
-    half = bc.friction_bounds(VISIFLEX_CATALOG, mu=0.15)["tip_friction_band"]
+    half = cf.friction_bounds(VISIFLEX_CATALOG, mu=0.15)["tip_friction_band"]
     assert half["u_x"] == pytest.approx(band["u_x"] / 2, rel=1e-9)
     with pytest.raises(ParameterError) as e:
-        bc.friction_bounds(VISIFLEX_CATALOG, mu=-0.1)
+        cf.friction_bounds(VISIFLEX_CATALOG, mu=-0.1)
     assert "mu" in str(e.value) and "\n" not in str(e.value)
     with pytest.raises(ParameterError):
-        bc.friction_bounds(VISIFLEX_CATALOG, bc.with_settings(working_load_N=0.0))
+        cf.friction_bounds(VISIFLEX_CATALOG, cg.with_settings(working_load_N=0.0))

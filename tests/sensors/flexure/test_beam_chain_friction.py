@@ -7,7 +7,10 @@ import pytest
 import scipy.sparse as sp
 
 from designlab.errors import ParameterError
+from designlab.sensors.flexure import active_set as act
 from designlab.sensors.flexure import beam_chain as bc
+from designlab.sensors.flexure import chain_friction as cf
+from designlab.sensors.flexure import chain_geometry as cg
 from designlab.sensors.flexure.spring import VISIFLEX_CATALOG
 
 
@@ -25,11 +28,11 @@ def test_zero_mu_is_the_frictionless_chain(frictionless):
     then the perturbations from that state) gives the frictionless 6x6, unloaded and loaded:
     to 1e-9 (relative Frobenius norm) with node contacts, to 1e-7 with the line contacts
     (measured 3e-8: beams of 0.25 mm and 2887 stiff penalties leave more round-off)."""
-    r = bc.friction_stiffness(VISIFLEX_CATALOG, mu=0.0)
+    r = cf.friction_stiffness(VISIFLEX_CATALOG, mu=0.0)
     assert _rel(r.K, frictionless.K) < 1e-9
     assert _rel(r.K_loaded, frictionless.K_loaded) < 1e-7
-    nodes = bc.ChainSettings(contact_spacing_mm=0.0)
-    a = bc.friction_stiffness(VISIFLEX_CATALOG, nodes, mu=0.0)
+    nodes = cg.ChainSettings(contact_spacing_mm=0.0)
+    a = cf.friction_stiffness(VISIFLEX_CATALOG, nodes, mu=0.0)
     assert _rel(a.K_loaded, bc.chain_stiffness(VISIFLEX_CATALOG, nodes).K_loaded) < 1e-9
     wl = r.info["working_load"]
     assert wl["axial_deflection_mm"] == pytest.approx(
@@ -42,9 +45,9 @@ def test_large_mu_is_the_stuck_bound():
     tangential penalty) to 1e-6. Node contacts (``contact_spacing_mm=0``): with line contacts
     the preload at mu = 1e4 does not converge (a zone's edge point closes with a vanishing
     normal force and slides with a traction slope mu k_n; the increment halving gives up)."""
-    nodes = bc.ChainSettings(contact_spacing_mm=0.0)
-    b = bc.friction_bounds(VISIFLEX_CATALOG, nodes, mu=0.3)
-    big = bc.friction_stiffness(VISIFLEX_CATALOG, nodes, mu=1e4)
+    nodes = cg.ChainSettings(contact_spacing_mm=0.0)
+    b = cf.friction_bounds(VISIFLEX_CATALOG, nodes, mu=0.3)
+    big = cf.friction_stiffness(VISIFLEX_CATALOG, nodes, mu=1e4)
     wl = big.info["working_load"]
     assert wl["stuck_contacts"] == wl["closed_contacts"] > 0
     assert _rel(big.at(big.centre, loaded=True), b["K_stick_centre"]) < 1e-6
@@ -55,11 +58,11 @@ def test_friction_lies_between_slip_and_stick():
     """At the working load the frictional secant (0.02 mm / 2 mrad) lies between the
     frictionless (slip) tangent and the stuck bound on the diagonal (within 1 %), its lateral
     and axial terms grow with mu, and mu = 0.3 is not stuck. 15-25 s on the shared machine."""
-    b = bc.friction_bounds(VISIFLEX_CATALOG, mu=0.3)
+    b = cf.friction_bounds(VISIFLEX_CATALOG, mu=0.3)
     slip, stick = np.diag(b["K_slip_centre"]), np.diag(b["K_stick_centre"])
     diag = {}
     for mu in (0.1, 0.3):
-        r = bc.friction_stiffness(VISIFLEX_CATALOG, mu=mu)
+        r = cf.friction_stiffness(VISIFLEX_CATALOG, mu=mu)
         diag[mu] = np.diag(r.at(r.centre, loaded=True))
         # a secant of two sliding paths, not a tangent: an entry may sit slightly below the
         # frictionless one (k_wy at mu 0.3: -0.15 %); the bounds hold the working load's
@@ -71,7 +74,7 @@ def test_friction_lies_between_slip_and_stick():
     assert diag[0.3][3] < 0.999 * stick[3]          # mu = 0.3 is not stuck
 
 
-class _Block(bc.ActiveSet):
+class _Block(act.ActiveSet):
     """One contact: a block (x, y, z) on the plane z = 0, tied to the master (u_x, u_y, u_z) by
     springs ``k_s``; the master's rotations carry nothing (always prescribed here)."""
 
@@ -79,7 +82,7 @@ class _Block(bc.ActiveSet):
         K = np.zeros((9, 9))
         for a in range(3):
             K[np.ix_([a, 3 + a], [a, 3 + a])] += k_s * np.array([[1, -1], [-1, 1]])
-        self.Kq, self.nq, self.m, self.s = sp.csr_matrix(K), 9, np.arange(3, 9), bc.ChainSettings()
+        self.Kq, self.nq, self.m, self.s = sp.csr_matrix(K), 9, np.arange(3, 9), cg.ChainSettings()
         self.N = sp.csr_matrix(np.eye(9)[[2]])            # gap opening = block z
         self.Rt = sp.csr_matrix(np.eye(9)[[0, 1]])        # slip = block x, y
         self.kn, self.g0 = np.array([k_n]), np.array([0.0])
@@ -114,8 +117,8 @@ def test_loops_about_the_relaxed_spring_fit_like_the_paper():
     """Seed 002's fit (loops about the relaxed configuration, F = K X by least squares): with
     mu = 0 the loops have no width; with mu = 0.3 they do (the closed dead-turn contacts
     slide), and the fitted diagonal moves by less than 5 %: the loop's band averages out."""
-    L0 = bc.loop_stiffness(VISIFLEX_CATALOG, mu=0.0, points=2)
-    L3 = bc.loop_stiffness(VISIFLEX_CATALOG, mu=0.3, points=2)
+    L0 = cf.loop_stiffness(VISIFLEX_CATALOG, mu=0.0, points=2)
+    L3 = cf.loop_stiffness(VISIFLEX_CATALOG, mu=0.3, points=2)
     # N, N mm: the active set's +-tol band (2e-8 mm of gap at each of the line contacts'
     # points, measured 1.6e-4 N mm of a 100 N mm loop; 1e-5 with node contacts)
     assert max(L0["half_width"].values()) < 1e-3
@@ -127,20 +130,20 @@ def test_loops_about_the_relaxed_spring_fit_like_the_paper():
 
 def test_friction_bad_input():
     with pytest.raises(ParameterError) as e:
-        bc.friction_stiffness(VISIFLEX_CATALOG, mu=-0.1)
+        cf.friction_stiffness(VISIFLEX_CATALOG, mu=-0.1)
     assert "mu" in str(e.value) and "\n" not in str(e.value)
     with pytest.raises(ParameterError):
-        bc.ChainSettings(mu=-1.0)
+        cg.ChainSettings(mu=-1.0)
     with pytest.raises(ParameterError, match="contact"):
-        bc.loop_stiffness(VISIFLEX_CATALOG, bc.with_settings(contact=False))
+        cf.loop_stiffness(VISIFLEX_CATALOG, cg.with_settings(contact=False))
     with pytest.raises(ParameterError, match="amplitude"):
-        bc.loop_stiffness(VISIFLEX_CATALOG, amplitude_mm=0.0)
+        cf.loop_stiffness(VISIFLEX_CATALOG, amplitude_mm=0.0)
 
 
 def test_friction_same_input_same_output():
     """The frictional path (10 N preload in 10 increments, then a perturbation) is bit-identical
     run to run."""
-    settings, mu, chain, kt = bc._friction_setup(VISIFLEX_CATALOG, None, 0.3)
+    settings, mu, chain, kt = cf._friction_setup(VISIFLEX_CATALOG, None, 0.3)
     runs = []
     for _ in range(2):
         pre = chain.solve_friction(mu, kt, f_master=np.r_[0, 0, -10.0, 0, 0, 0], steps=10)

@@ -10,6 +10,7 @@ import pytest
 from designlab.errors import ParameterError
 from designlab.frames import skew
 from designlab.sensors.flexure import beam_chain as bc
+from designlab.sensors.flexure import chain_geometry as cg
 from designlab.sensors.flexure import report as fr
 from designlab.sensors.flexure.spring import VISIFLEX_CATALOG
 
@@ -47,9 +48,9 @@ def test_point_force_through_the_shape_functions_is_statically_the_contact_force
     equivalent node loads), has the point force as its resultant and no moment about the point:
     the shape functions carry rigid motions exactly. Checked on refined and coarse beams, at
     the helix points of the contact lines."""
-    ch = bc.Chain(bc.as_built(VISIFLEX_CATALOG), bc.ChainSettings(contact=False,
+    ch = bc.Chain(cg.as_built(VISIFLEX_CATALOG), cg.ChainSettings(contact=False,
                                                                   working_load_N=0.0))
-    ch2 = bc.Chain(bc.as_built(VISIFLEX_CATALOG), bc.ChainSettings())
+    ch2 = bc.Chain(cg.as_built(VISIFLEX_CATALOG), cg.ChainSettings())
     for chain in (ch, ch2):
         us = np.linspace(0.013, chain.coil.turns - 0.017, 37)
         D, _, _ = chain._ops(us, full=True)
@@ -71,7 +72,7 @@ def test_contact_forces_balance_the_working_load():
     the bonded base nodes plus the base seat contacts = 10 N, to 1e-6 N); the coil contacts are
     internal (equal and opposite on the two wires); each end's coil contact zone carries the
     same force (symmetric spring, measured 5.234 / 5.232 N) and lies in refined beams."""
-    ch = bc.Chain(bc.as_built(VISIFLEX_CATALOG), bc.ChainSettings())
+    ch = bc.Chain(cg.as_built(VISIFLEX_CATALOG), cg.ChainSettings())
     pre = ch.solve(f_master=np.r_[0.0, 0.0, -10.0, 0.0, 0.0, 0.0])
     cl, fn = pre["closed"], pre["f_n"]
     kind = np.array([c.kind for c in ch.contacts])
@@ -111,8 +112,8 @@ def test_contact_forces_balance_the_working_load():
 def test_contacts_outside_the_windows_get_refined():
     """A working load that closes contacts beyond the windows meshed from the gaps at rest
     (30 N: the ramps touch too) rebuilds the chain with windows around them."""
-    s = bc.ChainSettings(working_load_N=30.0)
-    coil = bc.as_built(VISIFLEX_CATALOG)
+    s = cg.ChainSettings(working_load_N=30.0)
+    coil = cg.as_built(VISIFLEX_CATALOG)
     first = bc.Chain(coil, s)
     assert first.unresolved(first.solve(f_master=np.r_[0, 0, -30.0, 0, 0, 0])["closed"])
     ch, pre = bc.resolved_chain(coil, s)
@@ -122,8 +123,8 @@ def test_contacts_outside_the_windows_get_refined():
 def test_node_contacts_are_the_scheme_before():
     """contact_spacing_mm = 0: one contact per node, no refinement (the chain of 2026-11-25
     before the line contacts: 10 N diagonal error 11.16 %, 4 closed contacts)."""
-    r = bc.chain_stiffness(VISIFLEX_CATALOG, bc.ChainSettings(contact_spacing_mm=0.0))
+    r = bc.chain_stiffness(VISIFLEX_CATALOG, cg.ChainSettings(contact_spacing_mm=0.0))
     assert r.info["contacts"] == 126 and r.info["working_load"]["closed_contacts"] == 4
     assert r.info["nodes"] == 136
     with pytest.raises(ParameterError, match="contact_spacing_mm"):
-        bc.ChainSettings(contact_spacing_mm=-0.1)
+        cg.ChainSettings(contact_spacing_mm=-0.1)

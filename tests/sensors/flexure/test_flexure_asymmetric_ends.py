@@ -8,6 +8,7 @@ import pytest
 
 from designlab.errors import ParameterError
 from designlab.sensors.flexure import beam_chain as bc
+from designlab.sensors.flexure import chain_geometry as cg
 from designlab.sensors.flexure import report as fr
 from designlab.sensors.flexure.spring import VISIFLEX_CATALOG, to_si
 
@@ -31,18 +32,18 @@ def _row(table, base, tip, state):
 
 @pytest.mark.parametrize("seat", fr.END_SEATS)
 def test_same_condition_at_both_ends_is_the_symmetric_setting_bit_for_bit(seat):
-    a = bc.chain_stiffness(VISIFLEX_CATALOG, bc.ChainSettings(seat=seat))
-    b = bc.chain_stiffness(VISIFLEX_CATALOG, bc.ChainSettings(seat_base=seat, seat_tip=seat))
+    a = bc.chain_stiffness(VISIFLEX_CATALOG, cg.ChainSettings(seat=seat))
+    b = bc.chain_stiffness(VISIFLEX_CATALOG, cg.ChainSettings(seat_base=seat, seat_tip=seat))
     assert np.array_equal(a.K, b.K) and np.array_equal(a.K_loaded, b.K_loaded)
     assert a.info["seats"] == {"base": seat, "tip": seat}
 
 
 def test_one_end_overrides_the_common_setting_only_at_that_end():
-    s = bc.ChainSettings(seat="potted", seat_base="contact")
+    s = cg.ChainSettings(seat="potted", seat_base="contact")
     assert s.end_seats == ("contact", "potted")
-    assert bc.ChainSettings().end_seats == ("bonded", "bonded")
-    a = bc.chain_stiffness(VISIFLEX_CATALOG, bc.with_settings(s, **UNLOADED))
-    b = bc.chain_stiffness(VISIFLEX_CATALOG, bc.ChainSettings(seat_base="contact",
+    assert cg.ChainSettings().end_seats == ("bonded", "bonded")
+    a = bc.chain_stiffness(VISIFLEX_CATALOG, cg.with_settings(s, **UNLOADED))
+    b = bc.chain_stiffness(VISIFLEX_CATALOG, cg.ChainSettings(seat_base="contact",
                                                               seat_tip="potted", **UNLOADED))
     assert np.array_equal(a.K, b.K)
     # the bonded node sets follow the ends: one node at the contact base, the whole dead turn
@@ -56,7 +57,7 @@ def test_zero_coupling_point_moves_towards_the_rotationally_compliant_end():
     zc = {}
     for base, tip in (("contact", "potted"), ("potted", "contact"), ("bonded", "potted"),
                       ("bonded", "bonded"), ("contact", "contact"), ("potted", "potted")):
-        r = bc.chain_stiffness(VISIFLEX_CATALOG, bc.ChainSettings(seat_base=base, seat_tip=tip,
+        r = bc.chain_stiffness(VISIFLEX_CATALOG, cg.ChainSettings(seat_base=base, seat_tip=tip,
                                                                   **UNLOADED))
         zc[base, tip] = r.zero_coupling()["mean_mm"]
     assert zc["contact", "potted"] < -2.0          # measured 2026-11-25: -2.46 mm
@@ -68,7 +69,7 @@ def test_zero_coupling_point_moves_towards_the_rotationally_compliant_end():
 
 
 def test_zero_coupling_point_agrees_with_the_camera_frame_definition(paper):
-    r = bc.chain_stiffness(VISIFLEX_CATALOG, bc.ChainSettings(seat_base="contact",
+    r = bc.chain_stiffness(VISIFLEX_CATALOG, cg.ChainSettings(seat_base="contact",
                                                               seat_tip="potted", **UNLOADED))
     h = fr.camera_offset(paper)
     Kc = fr.to_frame(r.K_centre_si, "camera", h)
@@ -78,7 +79,7 @@ def test_zero_coupling_point_agrees_with_the_camera_frame_definition(paper):
 
 def test_rocking_at_the_elastic_centre_does_not_depend_on_the_offset(paper):
     M = paper["K_c_measured"]
-    K = to_si(bc.chain_stiffness(VISIFLEX_CATALOG, bc.ChainSettings(**UNLOADED)).K_centre)
+    K = to_si(bc.chain_stiffness(VISIFLEX_CATALOG, cg.ChainSettings(**UNLOADED)).K_centre)
     for A in (M, K):
         ref = fr.rocking_at_elastic_centre(A)
         for h in (-0.02, 0.005, 0.011):
@@ -115,4 +116,4 @@ def test_no_end_combination_meets_both_goals_at_the_paper_offset(table, paper):
 @pytest.mark.parametrize("name", ["seat_base", "seat_tip"])
 def test_bad_end_condition_names_the_parameter(name):
     with pytest.raises(ParameterError, match=name):
-        bc.ChainSettings(**{name: "glued"})
+        cg.ChainSettings(**{name: "glued"})

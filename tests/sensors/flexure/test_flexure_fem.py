@@ -119,7 +119,7 @@ def test_solid_fem_with_contact_condenses_exactly_and_contact_stiffens():
     647.77 N*mm/rad, 4.5588, 4.5577, 2.4125 N/mm) within 0.5 %; line contacts (the default): with the meshed gaps (>= 0.4 mm) kept no contact
     closes under the 0.02 mm / 2 mrad perturbations; at the 10 N working load contact stiffens
     the axial and lateral terms. Minutes on a shared machine (one factorisation per call)."""
-    from designlab.sensors.flexure.beam_chain import ChainSettings
+    from designlab.sensors.flexure.chain_geometry import ChainSettings
     from designlab.sensors.flexure.helix_fem import fem_contact_stiffness
     from designlab.sensors.flexure.spring import VISIFLEX_CATALOG
 
@@ -133,7 +133,8 @@ def test_solid_fem_with_contact_condenses_exactly_and_contact_stiffens():
     assert res.info["working_load"]["closed_contacts"] > 0
     # the chain stiffens like the solid at 10 N (issue 18: the fast model checked against the
     # reference): loaded / no contact, axial and lateral, chain against solid
-    from designlab.sensors.flexure.beam_chain import chain_stiffness, with_settings
+    from designlab.sensors.flexure.beam_chain import chain_stiffness
+    from designlab.sensors.flexure.chain_geometry import with_settings
 
     ch = chain_stiffness(VISIFLEX_CATALOG)
     ch0 = chain_stiffness(VISIFLEX_CATALOG, with_settings(contact=False, working_load_N=0.0))
@@ -170,7 +171,7 @@ def test_solid_line_contacts_remove_the_node_contacts_scatter():
     between the contact line's nodes) are x/y symmetric within 3 % (718 / 703) and close more
     contact points than stations. Same mesh for both, straight TET10 as when these numbers were
     measured (minutes on a shared machine)."""
-    from designlab.sensors.flexure.beam_chain import ChainSettings
+    from designlab.sensors.flexure.chain_geometry import ChainSettings
     from designlab.sensors.flexure.helix_fem import fem_contact_stiffness
     from designlab.sensors.flexure.spring import VISIFLEX_CATALOG
 

@@ -14,7 +14,8 @@ import pytest
 from designlab.errors import ParameterError
 from designlab.fem.materials import get_material
 from designlab.sensors.flexure import stress as fs
-from designlab.sensors.flexure.beam_chain import Chain, ChainSettings, as_built
+from designlab.sensors.flexure.beam_chain import Chain
+from designlab.sensors.flexure.chain_geometry import ChainSettings, as_built
 from designlab.sensors.flexure.spring import VISIFLEX_CATALOG, HelicalSpring
 from designlab.sensors.protocols import FlexureWrenchTest
 

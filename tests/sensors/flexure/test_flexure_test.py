@@ -36,7 +36,8 @@ def test_default_truth_is_the_chain_of_the_spring_as_built():
     centre; the chain's seat-to-seat length is the part's (an independent number: the CAD)."""
     import time
 
-    from designlab.sensors.flexure.beam_chain import ChainSettings, chain_stiffness
+    from designlab.sensors.flexure.beam_chain import chain_stiffness
+    from designlab.sensors.flexure.chain_geometry import ChainSettings
 
     assert ft.FlexureModelSettings().truth == "chain"
     s = flexure_model.spring_as_built(PART)
