@@ -23,7 +23,8 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 from designlab.loop import base_models  # noqa: E402
 from designlab.measured.dataset import load_card  # noqa: E402
-from designlab.loop.loop import fit_peer, run_loop, write_outputs  # noqa: E402
+from designlab.loop.loop import fit_peer, run_loop  # noqa: E402
+from designlab.loop.report import write_outputs  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 CARD = ROOT / "examples" / "stretch_card.toml"

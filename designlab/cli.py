@@ -653,7 +653,9 @@ def loop_cmd(
     from rich.table import Table
 
     from designlab.measured.dataset import load_card
-    from designlab.loop.loop import load_model, run_loop, write_outputs
+    from designlab.loop.loop import run_loop
+    from designlab.loop.model import load_model
+    from designlab.loop.report import write_outputs
 
     _check_out(out)
     _check_options(("--folds", folds, 3, 1000), ("--max-effects", max_effects, 0, 100),

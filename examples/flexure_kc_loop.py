@@ -176,7 +176,9 @@ def other_order(train, model, outputs: list[str]) -> dict:
 def run(out: Path, seed: int = 0, folds: int = 5, peer: bool = True,
         pose_at: str = "centre", outputs: list[str] | None = None) -> dict:
     """Data, base and the loop (``designlab loop``'s library calls); returns the numbers."""
-    from designlab.loop.loop import load_model, run_loop, write_outputs
+    from designlab.loop.loop import run_loop
+    from designlab.loop.model import load_model
+    from designlab.loop.report import write_outputs
     from designlab.measured.dataset import load_card
     from designlab.sensors.flexure.report import load_paper
 

@@ -31,7 +31,7 @@ from designlab.sensors.registry import get_sensor
 from designlab.sensors.sensor import linear_sensor_model, settings_from
 
 if TYPE_CHECKING:
-    from designlab.loop.loop import SensorModel
+    from designlab.loop.model import SensorModel
 
 
 def _plain(d: dict[str, Any]) -> dict[str, Any]:
@@ -240,7 +240,7 @@ def protocol_from(name: str, path: str | Path | None = None,
 
 
 def _check_model_path(name: str, model_path: str | Path) -> None:
-    from designlab.loop.loop import load_model
+    from designlab.loop.model import load_model
     from designlab.sensors.registry import SENSORS
 
     if get_sensor(name).apply_model is None:

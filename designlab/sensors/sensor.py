@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
 
 if TYPE_CHECKING:
-    from designlab.loop.loop import SensorModel
+    from designlab.loop.model import SensorModel
 
 Progress = Callable[[str], None]
 
@@ -119,7 +119,7 @@ def linear_sensor_model(gains: dict[str, dict[str, float]], units: dict[str, str
     """A loop model (``designlab-model`` JSON) whose base is the affine map ``gains``
     (output -> {input: gain}, zero intercept) and which has no effects yet."""
     from designlab.loop.base_models import Base
-    from designlab.loop.loop import SensorModel
+    from designlab.loop.model import SensorModel
 
     base = Base("linear", {o: tuple(g) for o, g in gains.items()},
                 {o: {"intercept": 0.0, "gains": dict(g)} for o, g in gains.items()})

@@ -14,7 +14,8 @@ from designlab.frames import transform, transform_twist
 from designlab.loop import effects as fx
 from designlab.loop.base_models import Base
 from designlab.loop.effects.pose_reference import PoseReference, moved_twist
-from designlab.loop.loop import SensorModel, run_loop
+from designlab.loop.loop import run_loop
+from designlab.loop.model import SensorModel
 from designlab.measured.dataset import from_arrays
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -11,7 +11,9 @@ import pytest
 
 from designlab.errors import ModelError
 from designlab.loop import effects as fx
-from designlab.loop.loop import load_model, run_loop, write_outputs
+from designlab.loop.loop import run_loop
+from designlab.loop.model import load_model
+from designlab.loop.report import write_outputs
 from designlab.measured.dataset import from_arrays
 
 DT = 0.1

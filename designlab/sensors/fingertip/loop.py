@@ -121,7 +121,7 @@ def apply_model(report: dict[str, Any], prediction, model_path: str | Path,
     ``learned_from`` and ``loop_base`` (the same metrics of the linear readings alone).
     ``part``: the design (its load points); default: ``prediction.part``."""
     from designlab.loop import effects as fx
-    from designlab.loop.loop import load_model
+    from designlab.loop.model import load_model
     from designlab.measured.dataset import from_arrays
 
     learned = load_model(model_path, "--model")

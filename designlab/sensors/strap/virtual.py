@@ -182,7 +182,7 @@ def apply_model(report: dict[str, Any], prediction: StrapPrediction, model_path:
     again on the corrected channels. Returns the corrected report."""
     import dataclasses
 
-    from designlab.loop.loop import SensorModel, load_model
+    from designlab.loop.model import SensorModel, load_model
     from designlab.measured.dataset import from_arrays
 
     learned = load_model(model_path)

@@ -148,7 +148,7 @@ def test_predict_fingertip_end_to_end(tmp_path):
     assert pc["table_III_design"]["condition_number_paper"] == 34.92
     assert pc["matches"] or pc["does_not_match"]
     assert "hysteresis_percent.overall_noise_free" in pred["mesh_convergence"]
-    from designlab.loop.loop import load_model
+    from designlab.loop.model import load_model
 
     model = load_model(tmp_path / "model.json")        # the loop's starting point
     assert model.outputs == ["sensor_1", "sensor_2", "sensor_3"]

@@ -1,0 +1,178 @@
+"""A sensor model: a base plus fitted effects per output, and its JSON file.
+
+Model file (JSON, written by :meth:`SensorModel.save`, read by :func:`load_model`)::
+
+    {"format": "designlab-model", "version": 1,
+     "model": {"base": {"kind": "stretch-fem", "inputs": {"force": ["displacement"]},
+                        "parameters": {"force": {"E_MPa": 0.25, ...}}},
+               "outputs": {"force": {"unit": "N", "effects": [
+                   {"name": "relaxation", "channel": "displacement", "theta": {"tau": [8.1]},
+                    "beta": [0.03], "alpha": [0.01, -0.002], "nuisance": ["displacement"],
+                    "parameters": {...}}]}},
+               "inputs": {"displacement": {"unit": "mm", "quantity": "length", "kind": "drive"}}},
+     "provenance": {...}}
+
+Effects are applied in order: each adds ``F(data, yhat) @ beta + [1, base inputs] @ alpha`` to
+the prediction made before it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from designlab.atomic import atomic_write_json
+from designlab.errors import DesignlabError, ModelError, ParameterError
+from designlab.loop import effects as fx
+from designlab.loop.base_models import Base
+from designlab.loop.base_models import predict as base_predict
+from designlab.measured.card import UNITS
+from designlab.measured.dataset import Dataset
+from designlab.params import load_json
+
+FORMAT = "designlab-model"
+#: largest magnitude of a number in a model file (as data values): a 1e308 gain gives inf results
+MAX_ABS_NUMBER = 1e20
+
+
+@dataclass
+class SensorModel:
+    """A base plus, per output, an ordered list of fitted effects."""
+
+    base: Base
+    effects: dict[str, list[fx.Fitted]] = field(default_factory=dict)
+    units: dict[str, str] = field(default_factory=dict)
+    inputs: dict[str, dict] = field(default_factory=dict)
+    provenance: dict = field(default_factory=dict)
+
+    @property
+    def outputs(self) -> list[str]:
+        return list(self.base.parameters)
+
+    def predict(self, data: Dataset, output: str, measured: np.ndarray | None = None,
+                upto: int | None = None) -> np.ndarray:
+        """Prediction of ``output`` on ``data`` (output units) after the first ``upto``
+        effects (all by default). ``measured`` lets run offsets tare runs never seen."""
+        y = base_predict(self.base, data, output)
+        for f in self.effects.get(output, [])[:upto]:
+            ctx = fx.Context(data, output, y, f.nuisance, measured)
+            y = y + fx.contribution(f, ctx)
+        return y
+
+    def to_json(self) -> dict:
+        return {"format": FORMAT, "version": 1,
+                "model": {"base": self.base.to_json(),
+                          "outputs": {o: {"unit": self.units.get(o, ""),
+                                          "effects": [f.to_json() for f in
+                                                      self.effects.get(o, [])]}
+                                      for o in self.outputs},
+                          "inputs": self.inputs},
+                "provenance": self.provenance}
+
+    def save(self, path: str | Path) -> None:
+        """Write the model as JSON, atomically (NaN/inf as null)."""
+        atomic_write_json(Path(path), self.to_json())
+
+
+def load_model(path: str | Path, what: str = "--base") -> SensorModel:
+    """Read a model JSON written by :meth:`SensorModel.save` (``loop`` or ``predict``).
+
+    Size, encoding, nesting, finite numbers, ``format``/``version`` and the section types are
+    checked; the file is data: nothing in it runs.
+
+    Args:
+        path: the model file.
+        what: the option that named it, for the messages.
+
+    Returns:
+        The model. Anything wrong is a one-line :class:`ModelError`.
+    """
+    p = Path(path)
+    doc = _read_document(p, what)
+    m = doc["model"]
+    _check_numbers(p, m)
+    outs, inputs, prov = m.get("outputs", {}), m.get("inputs", {}), doc.get("provenance", {})
+    _check_sections(p, outs, inputs, prov)
+    try:
+        base = Base.from_json(m["base"])
+        eff = {o: [fx.Fitted.from_json(e) for e in v.get("effects", [])] for o, v in outs.items()}
+    except DesignlabError:
+        raise
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+        raise ModelError(f"{p}: malformed model section ({type(exc).__name__}: "
+                         f"{str(exc)[:80]})") from None
+    return SensorModel(base, eff, {o: str(v.get("unit", "")) for o, v in outs.items()},
+                       inputs, prov)
+
+
+def _read_document(p: Path, what: str) -> dict:
+    """The parsed file with its format, version and a model section holding a base table."""
+    try:
+        doc = load_json(p, what, max_bytes=64 * 1024 * 1024)
+    except ParameterError as exc:
+        raise ModelError(f"{p}: {what} needs {exc.allowed}") from None
+    if not isinstance(doc, dict):
+        raise ModelError(f"{p}: a JSON object is needed; expected a {FORMAT} file")
+    if doc.get("format") != FORMAT:
+        raise ModelError(f"{p}: format={str(doc.get('format'))[:60]!r} is not allowed: "
+                         f"{FORMAT!r}")
+    if doc.get("version") != 1 or isinstance(doc.get("version"), bool):
+        raise ModelError(f"{p}: version={str(doc.get('version'))[:20]!r} is not allowed: 1 "
+                         "(this designlab reads version 1)")
+    m = doc.get("model")
+    if not isinstance(m, dict) or not isinstance(m.get("base"), dict):
+        raise ModelError(f"{p}: no 'model' section with a 'base' table; expected a {FORMAT} file")
+    return doc
+
+
+def _check_numbers(p: Path, model: dict) -> None:
+    """Every number of the model section finite and at most :data:`MAX_ABS_NUMBER`."""
+    stack = [("model", model)]
+    while stack:
+        where, v = stack.pop()
+        if isinstance(v, dict):
+            stack.extend((f"{where}.{k}", x) for k, x in v.items())
+        elif isinstance(v, list):
+            stack.extend((f"{where}[{i}]", x) for i, x in enumerate(v))
+        elif isinstance(v, (int, float)) and not isinstance(v, bool) \
+                and not abs(v) <= MAX_ABS_NUMBER:
+            raise ModelError(f"{p}: {where[:120]}={str(v)[:30]} is not allowed: a finite "
+                             "number with |value| <= 1e+20 (as data values)")
+
+
+def _check_sections(p: Path, outs, inputs, prov) -> None:
+    for name, v in (("model.outputs", outs), ("model.inputs", inputs), ("provenance", prov)):
+        if not isinstance(v, dict):
+            raise ModelError(f"{p}: {name} is not allowed: a JSON object")
+    for o, v in outs.items():
+        if not isinstance(v, dict) or not isinstance(v.get("effects", []), list):
+            raise ModelError(f"{p}: model.outputs.{o} is not allowed: an object with an "
+                             "'effects' list")
+
+
+def convert_units(model: SensorModel, data: Dataset, outs: list[str]) -> None:
+    """Rescale a loaded model's outputs to the data's units, in place.
+
+    A model whose output unit differs from the data's (a ``predict`` model gives a flexure's
+    rotations in rad, a card's angles are read in deg): a linear base without effects is
+    rescaled to the data's unit (recorded in the provenance); anything else is a one-line
+    ModelError naming the output and both units.
+    """
+    for o in outs:
+        mu, du = model.units.get(o, ""), data.units.get(o, "")
+        if not mu or not du or mu == du:
+            continue
+        table = next((t for t in UNITS.values() if mu in t and du in t), None)
+        factor = (table[mu] / table[du] if table is not None
+                  and not isinstance(table[mu], tuple) else None)
+        if factor is None or model.base.kind != "linear" or model.effects.get(o):
+            raise ModelError(f"the model predicts output '{o}' in {mu}, the data has it in {du}; "
+                             "a model with effects or a nonlinear base cannot be rescaled")
+        p = model.base.parameters[o]
+        p["intercept"] = float(p["intercept"]) * factor
+        p["gains"] = {k: float(v) * factor for k, v in p["gains"].items()}
+        model.provenance.setdefault("unit_conversions", {})[o] = {
+            "from": mu, "to": du, "factor": factor}
+        model.units[o] = du
