@@ -412,20 +412,7 @@ def fit(u, y, dt: float, *, cells: int | None = None, max_cells: int = 3, order:
     To fit a compensator, pass the sensor signal as ``u`` and the reference force as ``y``.
     """
     t0 = time.perf_counter()
-    if update not in UPDATES:
-        raise ParameterError("update", update, "one of " + ", ".join(UPDATES))
-    if jacobian not in ("batched", "2-point"):
-        raise ParameterError("jacobian", jacobian, "batched or 2-point")
-    if not (isinstance(order, (int, np.integer)) and 0 <= order <= 9):
-        raise ParameterError("order", order, "an integer 0..9")
-    if cells is not None and not (isinstance(cells, (int, np.integer)) and 1 <= cells <= 8):
-        raise ParameterError("cells", cells, "an integer 1..8 or None (choose by validation)")
-    if not (isinstance(max_cells, (int, np.integer)) and 1 <= max_cells <= 8):
-        raise ParameterError("max_cells", max_cells, "an integer 1..8")
-    if not (0.05 <= holdout <= 0.5):
-        raise ParameterError("holdout", holdout, "0.05 <= value <= 0.5")
-    if not (np.isfinite(dt) and dt > 0):
-        raise ParameterError("dt", dt, "a time step > 0 s")
+    _check_fit_options(dt, cells, max_cells, order, update, holdout, jacobian)
     records = _as_records(u, y)
     u_all, y_all, starts = _concat(records)
     if u_all.size < 4 * (order + 4):
@@ -443,38 +430,125 @@ def fit(u, y, dt: float, *, cells: int | None = None, max_cells: int = 3, order:
             raise DataError("give both u_val and y_val for validation")
         val_records = _as_records(u_val, y_val, "u_val", "y_val")
     fit_mask = np.ones(un.size, bool)
-    val_mask = None
     if cells is None and val_records is None:
         n_hold = int(round(holdout * un.size))
         fit_mask[-n_hold:] = False
-        val_mask = ~fit_mask
     prob = _Problem(un, yn, dt, starts, fit_mask, order, update)
     if val_records is not None:
         uv, yv, sv = _concat(val_records)
         vprob = _Problem((uv - lo_u) / su, (yv - lo_y) / sy, dt, sv,
                          np.ones(uv.size, bool), order, update)
-    rec_len = max(r[0].size for r in records) * dt
-    lb_tau, ub_tau = np.log(2 * dt), np.log(max(rec_len / 2, 4 * dt))
-    bounds_cell = (np.array([lb_tau, np.log(1e-3), -10.0]), np.array([ub_tau, np.log(10.0), 10.0]))
-    rng_ = np.random.default_rng(seed)
-    counters = {"nfev": 0, "njev": 0, "starts": 0}
+    else:
+        vprob = dataclasses.replace(prob, fit_mask=~fit_mask)
+    fitter = _Fitter(prob, vprob, max(r[0].size for r in records) * dt,
+                     np.random.default_rng(seed), n_starts, n_screen, max_nfev, jacobian)
+    best_theta, best_val, history, message = fitter.cells(cells, max_cells, sy,
+                                                          val_records is not None)
+    if cells is None and val_records is None:
+        # refit the chosen model on all training data (warm start)
+        prob.fit_mask = np.ones(un.size, bool)
+        best_theta = fitter.local_fit(best_theta, *fitter.bounds(best_theta.size // 3)).x
+    params = _to_physical(best_theta, prob.coefficients(best_theta), lo_u, su, lo_y, sy, update)
+    yhat = np.concatenate([params.simulate(a, dt) for a, _ in records])
+    train_rmse = float(np.sqrt(np.mean((yhat - y_all) ** 2)))
+    report = MPLFitReport(n_cells=params.n_cells, order=order, update=update,
+                          iterations=fitter.counters["nfev"], jacobians=fitter.counters["njev"],
+                          starts=fitter.counters["starts"], rmse=train_rmse,
+                          val_rmse=None if best_val is None or not np.isfinite(best_val)
+                          else float(best_val),
+                          history=tuple(history), time_s=time.perf_counter() - t0,
+                          message=str(message))
+    return params, report
 
-    def val_rmse_of(theta) -> float:
+
+def _check_fit_options(dt, cells, max_cells, order, update, holdout, jacobian) -> None:
+    """The options of :func:`fit`: a one-line ParameterError for the first bad one."""
+    if update not in UPDATES:
+        raise ParameterError("update", update, "one of " + ", ".join(UPDATES))
+    if jacobian not in ("batched", "2-point"):
+        raise ParameterError("jacobian", jacobian, "batched or 2-point")
+    if not (isinstance(order, (int, np.integer)) and 0 <= order <= 9):
+        raise ParameterError("order", order, "an integer 0..9")
+    if cells is not None and not (isinstance(cells, (int, np.integer)) and 1 <= cells <= 8):
+        raise ParameterError("cells", cells, "an integer 1..8 or None (choose by validation)")
+    if not (isinstance(max_cells, (int, np.integer)) and 1 <= max_cells <= 8):
+        raise ParameterError("max_cells", max_cells, "an integer 1..8")
+    if not (0.05 <= holdout <= 0.5):
+        raise ParameterError("holdout", holdout, "0.05 <= value <= 0.5")
+    if not (np.isfinite(dt) and dt > 0):
+        raise ParameterError("dt", dt, "a time step > 0 s")
+
+
+class _Fitter:
+    """The nonlinear search of :func:`fit` on a normalised problem: Latin-hypercube screening,
+    local trust-region fits, cells added while the validation error falls. ``vprob`` holds the
+    validation rows (its ``fit_mask``): given records, or the held-out tail of ``prob``."""
+
+    def __init__(self, prob: _Problem, vprob: _Problem, rec_len: float,
+                 rng_: np.random.Generator, n_starts: int, n_screen: int, max_nfev: int,
+                 jacobian: str):
+        self.prob, self.vprob, self.rec_len, self.rng = prob, vprob, rec_len, rng_
+        self.n_starts, self.n_screen, self.max_nfev = n_starts, n_screen, max_nfev
+        self.jacobian = jacobian
+        dt = prob.dt
+        lb_tau, ub_tau = np.log(2 * dt), np.log(max(rec_len / 2, 4 * dt))
+        self.bounds_cell = (np.array([lb_tau, np.log(1e-3), -10.0]),
+                            np.array([ub_tau, np.log(10.0), 10.0]))
+        self.counters = {"nfev": 0, "njev": 0, "starts": 0}
+
+    def bounds(self, N: int) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of the parameters of N cells."""
+        lb = np.concatenate([np.repeat(self.bounds_cell[0][i], N) for i in range(3)])
+        ub = np.concatenate([np.repeat(self.bounds_cell[1][i], N) for i in range(3)])
+        return lb, ub
+
+    def cells(self, cells: int | None, max_cells: int, sy: float, given_val: bool
+              ) -> tuple[np.ndarray, float | None, list, str]:
+        """The fitted parameters, their validation RMSE (output unit), the history of
+        (cells, train RMSE, validation RMSE) and the last local fit's message: ``cells`` cells,
+        or cells added up to ``max_cells`` while the validation RMSE falls by more than 1 %."""
+        history = []
+        best_theta, best_val = None, np.inf
+        n_range = [cells] if cells is not None else range(1, max_cells + 1)
+        theta = None
+        message = ""
+        for N in n_range:
+            res = self.screen_and_fit(N, theta if (theta is not None and cells is None)
+                                      else None)
+            theta = res.x
+            train = float(np.sqrt(2 * res.cost / max(1, self.prob.fit_mask.sum()))) * sy
+            val = self.val_rmse(theta) * sy if (cells is None or given_val) else None
+            history.append((int(N), float(train),
+                            float(val) if val is not None else float("nan")))
+            message = res.message
+            if cells is not None:
+                best_theta, best_val = theta, val
+                break
+            if val < best_val * 0.99:
+                best_theta, best_val = theta, val
+                if val <= 1e-9 * sy:        # exact already: more cells cannot help
+                    break
+            else:
+                break
+        return best_theta, best_val, history, message
+
+    def val_rmse(self, theta: np.ndarray) -> float:
         """Validation RMSE (normalised) of theta, with g fitted on the training rows."""
-        g = prob.coefficients(theta)
-        if val_records is not None:
-            pr, mask = vprob, vprob.fit_mask
-        else:
-            pr, mask = prob, val_mask
+        g = self.prob.coefficients(theta)
+        pr, mask = self.vprob, self.vprob.fit_mask
         N = theta.size // 3
         tau, pt, w = np.exp(theta[:N]), np.exp(theta[N:2 * N]), theta[2 * N:]
-        s = cell_states(pr.u, pt, pt / (2 * tau), dt, update, starts=pr.starts)
+        s = cell_states(pr.u, pt, pt / (2 * tau), pr.dt, pr.update, starts=pr.starts)
         yhat = np.polynomial.polynomial.polyval(pr.u + w @ s, g)
         err = yhat[mask] - pr.y[mask]
         v = float(np.sqrt(np.mean(err * err)))
         return v if np.isfinite(v) else float("inf")
 
-    def local_fit(theta0, lb, ub):
+    def local_fit(self, theta0: np.ndarray, lb: np.ndarray, ub: np.ndarray):
+        """scipy's trust-region least squares from ``theta0`` within the bounds."""
+        from scipy import optimize
+
+        prob = self.prob
         cache = {}
 
         def fun(th):
@@ -492,26 +566,24 @@ def fit(u, y, dt: float, *, cells: int | None = None, max_cells: int = 3, order:
             fp = prob.residuals(pert)
             return ((fp - f0[None, :]) / step[:, None]).T
 
-        from scipy import optimize
-
         res = optimize.least_squares(fun, np.clip(theta0, lb, ub),
-                                     jac=jac if jacobian == "batched" else "2-point",
+                                     jac=jac if self.jacobian == "batched" else "2-point",
                                      bounds=(lb, ub),
-                                     method="trf", x_scale="jac", max_nfev=max_nfev,
+                                     method="trf", x_scale="jac", max_nfev=self.max_nfev,
                                      ftol=1e-10, xtol=1e-10, gtol=1e-10)
-        counters["nfev"] += res.nfev
-        counters["njev"] += int(res.njev or 0)
-        counters["starts"] += 1
+        self.counters["nfev"] += res.nfev
+        self.counters["njev"] += int(res.njev or 0)
+        self.counters["starts"] += 1
         return res
 
-    def screen_and_fit(N, fixed: np.ndarray | None):
-        """Candidates for N cells (the first N-1 cells from ``fixed``), best local fit."""
-        lb = np.concatenate([np.repeat(bounds_cell[0][i], N) for i in range(3)])
-        ub = np.concatenate([np.repeat(bounds_cell[1][i], N) for i in range(3)])
-        n_new = N if fixed is None else 1
+    def candidates(self, N: int, fixed: np.ndarray | None) -> np.ndarray:
+        """``n_screen`` starting points for N cells (the first N-1 cells from ``fixed``), each
+        candidate's cells sorted by tau."""
         from scipy.stats import qmc
 
-        lhs = qmc.LatinHypercube(d=3 * n_new, seed=rng_).random(n_screen)
+        dt, rec_len, n_screen = self.prob.dt, self.rec_len, self.n_screen
+        n_new = N if fixed is None else 1
+        lhs = qmc.LatinHypercube(d=3 * n_new, seed=self.rng).random(n_screen)
         lo_s = np.array([np.log(max(0.1, 2 * dt)), np.log(0.01), -1.0])
         hi_s = np.array([np.log(max(min(300.0, rec_len / 2), 4 * dt)), np.log(1.0), 1.0])
         new = lo_s.repeat(n_new) + lhs * (hi_s - lo_s).repeat(n_new)   # (n_screen, 3 n_new)
@@ -529,57 +601,21 @@ def fit(u, y, dt: float, *, cells: int | None = None, max_cells: int = 3, order:
                                    0.1 * new[:, 2:3]], axis=1)
         # sort each candidate's cells by tau (removes the permutation symmetry)
         order_ = np.argsort(cand[:, :N], axis=1)
-        cand = np.concatenate([np.take_along_axis(cand[:, i * N:(i + 1) * N], order_, 1)
+        return np.concatenate([np.take_along_axis(cand[:, i * N:(i + 1) * N], order_, 1)
                                for i in range(3)], axis=1)
-        cand = np.clip(cand, lb, ub)
-        costs = np.concatenate([np.sum(prob.residuals(c) ** 2, axis=1)
+
+    def screen_and_fit(self, N: int, fixed: np.ndarray | None):
+        """Candidates for N cells (the first N-1 cells from ``fixed``), best local fit."""
+        lb, ub = self.bounds(N)
+        cand = np.clip(self.candidates(N, fixed), lb, ub)
+        costs = np.concatenate([np.sum(self.prob.residuals(c) ** 2, axis=1)
                                 for c in np.array_split(cand, max(1, len(cand) // 16))])
         best = None
-        for i in np.argsort(costs)[:n_starts]:
-            res = local_fit(cand[i], lb, ub)
+        for i in np.argsort(costs)[:self.n_starts]:
+            res = self.local_fit(cand[i], lb, ub)
             if best is None or res.cost < best.cost:
                 best = res
         return best
-
-    history = []
-    best_theta, best_val = None, np.inf
-    n_range = [cells] if cells is not None else range(1, max_cells + 1)
-    theta = None
-    message = ""
-    for N in n_range:
-        res = screen_and_fit(N, theta if (theta is not None and cells is None) else None)
-        theta = res.x
-        train = float(np.sqrt(2 * res.cost / max(1, prob.fit_mask.sum()))) * sy
-        val = val_rmse_of(theta) * sy if (cells is None or val_records is not None) else None
-        history.append((int(N), float(train), float(val) if val is not None else float("nan")))
-        message = res.message
-        if cells is not None:
-            best_theta, best_val = theta, val
-            break
-        if val < best_val * 0.99:
-            best_theta, best_val = theta, val
-            if val <= 1e-9 * sy:        # exact already: more cells cannot help
-                break
-        else:
-            break
-    if cells is None and val_records is None:
-        # refit the chosen model on all training data (warm start)
-        prob.fit_mask = np.ones(un.size, bool)
-        N = best_theta.size // 3
-        lb = np.concatenate([np.repeat(bounds_cell[0][i], N) for i in range(3)])
-        ub = np.concatenate([np.repeat(bounds_cell[1][i], N) for i in range(3)])
-        best_theta = local_fit(best_theta, lb, ub).x
-    params = _to_physical(best_theta, prob.coefficients(best_theta), lo_u, su, lo_y, sy, update)
-    yhat = np.concatenate([params.simulate(a, dt) for a, _ in records])
-    train_rmse = float(np.sqrt(np.mean((yhat - y_all) ** 2)))
-    report = MPLFitReport(n_cells=params.n_cells, order=order, update=update,
-                          iterations=counters["nfev"], jacobians=counters["njev"],
-                          starts=counters["starts"], rmse=train_rmse,
-                          val_rmse=None if best_val is None or not np.isfinite(best_val)
-                          else float(best_val),
-                          history=tuple(history), time_s=time.perf_counter() - t0,
-                          message=str(message))
-    return params, report
 
 
 def _to_physical(theta, g_n, lo_u, su, lo_y, sy, update) -> MPLParams:

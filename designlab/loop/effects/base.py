@@ -352,44 +352,74 @@ def fit_group(members: list[Effect], ctx: Context, residual: np.ndarray, rows: n
     if len(own) > 1:
         raise ModelError("a joint fit takes at most one effect with its own solver")
     order = own + [i for i in range(len(members)) if i not in own]
-    best = None
-    why = "an empty grid"
     try:
-        for combo in itertools.product(*grids):
-            Fs = [m.columns(ctx, th) for m, th in zip(members, combo)]
-            bad = next((th for F, th in zip(Fs, combo) if not np.all(np.isfinite(F))), None)
-            if bad is not None:
-                why = f"non-finite regressors at {bad}"
-                continue
-            widths = [F.shape[1] for F in Fs]
-            if fixed:
-                X, target = N[rows], r - Fs[0][rows].sum(1)
-            else:   # the member with its own solver first (its columns lead in X)
-                X = np.column_stack([Fs[i][rows] for i in order] + [N[rows]])
-                target = r
-            if X.shape[1]:
-                coef = (np.linalg.lstsq(X, target, rcond=None)[0] if fixed
-                        else members[order[0]].solve(X, target, widths[order[0]]))
-                sse = float(np.sum((target - X @ coef) ** 2))
-                if not fixed:   # back to the members' order
-                    at, parts = 0, {}
-                    for i in order:
-                        parts[i] = coef[at:at + widths[i]]
-                        at += widths[i]
-                    coef = np.r_[np.concatenate([parts[i] for i in range(len(members))]),
-                                 coef[at:]]
-            else:
-                coef, sse = np.zeros(0), float(np.sum(target ** 2))
-            p = X.shape[1] + (len(combo[0]) if fixed else 0)
-            aic = n * math.log(max(sse, 1e-300) / n) + 2 * p
-            if best is None or aic < best[0]:
-                best = (aic, combo, widths, coef, sse)
+        best, why = _best_setting(members, grids, ctx, N, r, rows, n, fixed, order)
     finally:
         ctx.cache.pop("rows", None)
     if best is None:
         raise ModelError(f"effect {'+'.join(m.key for m in members)}: no setting could be "
                          f"fitted ({why})")
-    _, combo, widths, coef, sse = best
+    return _fitted(members, *best[1:], fixed, ctx, runs)
+
+
+def _best_setting(members: list[Effect], grids: list, ctx: Context, N: np.ndarray,
+                  r: np.ndarray, rows: np.ndarray, n: int, fixed: bool, order: list[int]
+                  ) -> tuple[tuple | None, str]:
+    """The lowest-AIC setting over the product of the grids, (aic, combo, widths, coef, sse)
+    or None, and why the last setting that could not be fitted failed."""
+    best = None
+    why = "an empty grid"
+    for combo in itertools.product(*grids):
+        got = _fit_combo(members, combo, ctx, N[rows], r, rows, fixed, order)
+        if isinstance(got, str):
+            why = got
+            continue
+        widths, coef, sse, p = got
+        aic = n * math.log(max(sse, 1e-300) / n) + 2 * p
+        if best is None or aic < best[0]:
+            best = (aic, combo, widths, coef, sse)
+    return best, why
+
+
+def _fit_combo(members: list[Effect], combo: tuple, ctx: Context, Nr: np.ndarray,
+               r: np.ndarray, rows: np.ndarray, fixed: bool, order: list[int]
+               ) -> tuple[list[int], np.ndarray, float, int] | str:
+    """Least squares at one setting of every member: (column widths, coefficients in the
+    members' order then the nuisance's, sum of squared errors, parameters counted by AIC), or
+    why the setting cannot be fitted."""
+    Fs = [m.columns(ctx, th) for m, th in zip(members, combo)]
+    bad = next((th for F, th in zip(Fs, combo) if not np.all(np.isfinite(F))), None)
+    if bad is not None:
+        return f"non-finite regressors at {bad}"
+    widths = [F.shape[1] for F in Fs]
+    if fixed:
+        X, target = Nr, r - Fs[0][rows].sum(1)
+    else:   # the member with its own solver first (its columns lead in X)
+        X = np.column_stack([Fs[i][rows] for i in order] + [Nr])
+        target = r
+    if X.shape[1]:
+        coef = (np.linalg.lstsq(X, target, rcond=None)[0] if fixed
+                else members[order[0]].solve(X, target, widths[order[0]]))
+        sse = float(np.sum((target - X @ coef) ** 2))
+        if not fixed:
+            coef = _members_order(coef, order, widths)
+    else:
+        coef, sse = np.zeros(0), float(np.sum(target ** 2))
+    return widths, coef, sse, X.shape[1] + (len(combo[0]) if fixed else 0)
+
+
+def _members_order(coef: np.ndarray, order: list[int], widths: list[int]) -> np.ndarray:
+    """Coefficients solved in ``order`` back to the members' order (the nuisance's last)."""
+    at, parts = 0, {}
+    for i in order:
+        parts[i] = coef[at:at + widths[i]]
+        at += widths[i]
+    return np.r_[np.concatenate([parts[i] for i in range(len(widths))]), coef[at:]]
+
+
+def _fitted(members: list[Effect], combo: tuple, widths: list[int], coef: np.ndarray,
+            sse: float, fixed: bool, ctx: Context, runs: tuple[str, ...]) -> list[Fitted]:
+    """One :class:`Fitted` per member; the last carries the nuisance refit."""
     out, at = [], 0
     for i, (m, th) in enumerate(zip(members, combo)):
         if fixed:
