@@ -253,10 +253,7 @@ def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[st
     Returns:
         The improved model, loop.json's report and the series of the plots.
     """
-    if isinstance(max_fit_samples, bool) or not isinstance(max_fit_samples, int) \
-            or max_fit_samples < 10 * folds:
-        raise DataError(f"max_fit_samples={max_fit_samples!r} is not allowed: an integer >= "
-                        f"{10 * folds} (10 x folds)")
+    _check_budget(max_fit_samples, folds)
     val = data.validate()
     _check_runs(data, peer)
     train, budget = fit_samples(data.train(), max_fit_samples)
@@ -266,10 +263,7 @@ def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[st
     if len(val) == 0:
         raise DataError("no validation samples: give a file role = \"validate\" or a "
                         "[split] train fraction")
-    outs = list(outputs or data.outputs)
-    for o in outs:
-        if o not in data.outputs:
-            raise DataError(f"output '{o}' is not in the data; it has {', '.join(data.outputs)}")
+    outs = _outputs(data, outputs)
     model, base_name = _start_model(base, data, train, outs)
     if np.unique(train.segment).size >= 2:
         blocks, cv_kind = cv_runs(train), "leave-one-run-out"
@@ -303,6 +297,22 @@ def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[st
                         "loop": {"base": base_name, "card": data.report.get("card"),
                                  "errors": errors}}
     return LoopResult(model, report, series)
+
+
+def _check_budget(max_fit_samples: Any, folds: int) -> None:
+    if isinstance(max_fit_samples, bool) or not isinstance(max_fit_samples, int) \
+            or max_fit_samples < 10 * folds:
+        raise DataError(f"max_fit_samples={max_fit_samples!r} is not allowed: an integer >= "
+                        f"{10 * folds} (10 x folds)")
+
+
+def _outputs(data: Dataset, outputs: list[str] | None) -> list[str]:
+    """The outputs to analyse, each one of the data's."""
+    outs = list(outputs or data.outputs)
+    for o in outs:
+        if o not in data.outputs:
+            raise DataError(f"output '{o}' is not in the data; it has {', '.join(data.outputs)}")
+    return outs
 
 
 def _start_model(base: str | SensorModel, data: Dataset, train: Dataset, outs: list[str]
@@ -498,14 +508,18 @@ class _Selection:
             refitted if joint(chosen) else [], e_b, e_a))
         self.model.effects[self.o] = new_effects
         if joint(chosen) and fx.group_member(chosen):
-            for g in self.accepted:   # the refitted effects' parameters as they are now
-                h = next((e for e in group if e.effect.key == g["key"]), None)
-                if h is not None:
-                    g["parameters"] = fx.describe(h)
+            self._refitted_parameters(group)
         else:
             self.tail_start = len(new_effects)
         self._predicted(yhat_new, yhat_all_new)
         self.cands = [c for c in self.cands if c.key != chosen.key]
+
+    def _refitted_parameters(self, group: list[fx.Fitted]) -> None:
+        """The accepted effects' parameters as they are now, after a joint refit."""
+        for g in self.accepted:
+            h = next((e for e in group if e.effect.key == g["key"]), None)
+            if h is not None:
+                g["parameters"] = fx.describe(h)
 
     def _finish_runs(self) -> None:
         """Several training runs: how a new run gets its offset (tare or the runs' mean), the

@@ -45,7 +45,14 @@ from typing import Any, Mapping
 import numpy as np
 
 from designlab.errors import DataError
-from designlab.measured.card import CANONICAL, Card, check_card, data_path, parse_card, quantity_of
+from designlab.measured.card import (
+    CANONICAL,
+    Card,
+    check_card,
+    data_path,
+    parse_card,
+    quantity_of,
+)
 from designlab.params import load_toml
 
 #: largest magnitude of a data value (no sensor reads 1e20 in any unit of UNITS): at 1e99,
