@@ -55,9 +55,8 @@ import numpy as np
 
 from designlab.sensors.flexure import report as fr
 from designlab.sensors.flexure.chain_geometry import ChainSettings
-from designlab.sensors.flexure.helix_fem import (CURVED_DEFAULT, contact_candidates,
-                                                 fem_contact_stiffness, flexure_from_spring,
-                                                 helix_mesh)
+from designlab.sensors.flexure.contact_fem import contact_candidates, fem_contact_stiffness
+from designlab.sensors.flexure.helix_fem import CURVED_DEFAULT, flexure_from_spring, helix_mesh
 from designlab.sensors.flexure.spring import VISIFLEX_CATALOG
 
 

@@ -382,7 +382,8 @@ def flexure(preset: str = typer.Option("visiflex-catalog", "--preset",
     K_fem = K_fem_loaded = None
     fem_info = None
     if fem:
-        from designlab.sensors.flexure.helix_fem import CURVED_DEFAULT, fem_contact_stiffness
+        from designlab.sensors.flexure.contact_fem import fem_contact_stiffness
+        from designlab.sensors.flexure.helix_fem import CURVED_DEFAULT
 
         with progress_bar("FEM 6x6") as bar:
             def step(text: str, done: int, total: int) -> None:

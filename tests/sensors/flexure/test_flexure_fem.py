@@ -120,7 +120,7 @@ def test_solid_fem_with_contact_condenses_exactly_and_contact_stiffens():
     closes under the 0.02 mm / 2 mrad perturbations; at the 10 N working load contact stiffens
     the axial and lateral terms. Minutes on a shared machine (one factorisation per call)."""
     from designlab.sensors.flexure.chain_geometry import ChainSettings
-    from designlab.sensors.flexure.helix_fem import fem_contact_stiffness
+    from designlab.sensors.flexure.contact_fem import fem_contact_stiffness
     from designlab.sensors.flexure.spring import VISIFLEX_CATALOG
 
     solid = np.array([538.07, 538.16, 647.77, 4.5588, 4.5577, 2.4125])
@@ -153,7 +153,7 @@ def test_solid_fem_with_contact_condenses_exactly_and_contact_stiffens():
 
 def test_contact_spacing_is_checked_before_meshing():
     from designlab.errors import ParameterError
-    from designlab.sensors.flexure.helix_fem import fem_contact_stiffness
+    from designlab.sensors.flexure.contact_fem import fem_contact_stiffness
     from designlab.sensors.flexure.spring import VISIFLEX_CATALOG
 
     pytest.importorskip("build123d")
@@ -172,7 +172,7 @@ def test_solid_line_contacts_remove_the_node_contacts_scatter():
     contact points than stations. Same mesh for both, straight TET10 as when these numbers were
     measured (minutes on a shared machine)."""
     from designlab.sensors.flexure.chain_geometry import ChainSettings
-    from designlab.sensors.flexure.helix_fem import fem_contact_stiffness
+    from designlab.sensors.flexure.contact_fem import fem_contact_stiffness
     from designlab.sensors.flexure.spring import VISIFLEX_CATALOG
 
     cs = ChainSettings(seat="bonded")
