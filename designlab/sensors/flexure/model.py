@@ -1,37 +1,7 @@
 """The seed 002 spring flexure's model below its sensor record: the virtual wrench test, wrench ->
-pose -> estimated wrench. Holds the wrench/twist order and K_f units, the settings
-(:class:`FlexureModelSettings`), the spring as built (:func:`helical_spring`,
-:func:`spring_as_built`, :func:`chain_truth`), :func:`run` with its metrics (:func:`evaluate`)
-and the staircase hysteresis. :mod:`designlab.sensors.flexure.virtual` (the sensor record) and
-its helpers (force_error, loop, montecarlo) import from here, never the other way.
-
-The built flexure answers a wrench ``W`` at the fingertip with the pose ``X = K_true^-1 W``. The
-"truth" stiffness ``K_true`` is, by ``FlexureModelSettings.truth``:
-
-* ``"chain"`` (default, ~0.5 s): the spring as built (:func:`spring_as_built`: closed-and-ground
-  ends, one dead turn per end whose gap to the first active turn closes to zero, seated in the
-  discs, unilateral coil and seat contact) by the beam chain
-  (:func:`designlab.sensors.flexure.beam_chain.chain_stiffness`), linearised at the axial working
-  load ``working_load_N`` (0: the unloaded spring);
-* ``"fem"``: the solid FEM of the meshed helix (real pitch, flat ground ends clamped, tip rigid
-  to a 6-dof master; dead turns meshed 0.1 d clear of their neighbours, no contact);
-* ``"timoshenko"``: the equivalent Timoshenko column (closed form with the active length).
-
-The
-sensor turns the measured pose back into a wrench with the stiffness its designer computed, the
-paper's zero-pitch closed form ``K_design`` (:func:`designlab.sensors.flexure.spring.stiffness_zero_pitch`):
-``W_est = K_design X``. The error ``W - W_est`` over the protocol's wrenches is reported like
-seed 002 Table I (mean and standard deviation per axis), optionally with pose-estimation noise.
-
-Frame {f}: the spring centre, rigid with the fingertip (seed 002 Section II), global axes (z on
-the coil axis). Order: wrench (m_x, m_y, m_z, f_x, f_y, f_z), twist (w_x, w_y, w_z, v_x, v_y,
-v_z). Units inside: N mm, N, mm, rad; ``K_f`` is reported in SI (N*m/rad, N/m, N) as the paper
-prints it.
-
-Hysteresis: a steel spring is elastic in the model, so it is 0 by construction unless a material
-has a Prony series; then each axis runs a loading/unloading staircase through
-:func:`~designlab.fem.viscoelastic.solve_history` and eq. (1) of seed 001 is applied to the
-estimated wrench.
+pose -> estimated wrench, with the settings (:class:`FlexureModelSettings`), the spring as built
+(:func:`helical_spring`, :func:`spring_as_built`, :func:`chain_truth`), :func:`run` and its
+metrics (:func:`evaluate`). What the truth and the estimate are: docs/notes/flexure_model.md.
 """
 
 from __future__ import annotations
@@ -176,97 +146,81 @@ class FlexurePrediction:
     displacement: Any = None    # axial force of the protocol (None without the FEM)
 
 
-def run(part=None, protocol: FlexureWrenchTest | None = None,
-        settings: FlexureModelSettings | None = None, *, materials=None, mesh=None,
-        progress: Callable[[str], None] | None = None, wire_stress: bool = True
-        ) -> FlexurePrediction:
-    """K_f (closed form, FEM), the protocol's wrenches through the true stiffness, the sensor's
-    estimate through the designer's, the metrics and (``wire_stress``) the wire's stress and
-    safety factor per load case (``report["stress"]``, :mod:`designlab.sensors.flexure.stress`;
-    a safety factor below 2 warns)."""
-    from designlab.sensors.flexure.spring import stiffness_timoshenko, stiffness_zero_pitch, to_si
-    from designlab.geometry.flexure import SpringFlexure
+def _fem_truth(part, protocol: FlexureWrenchTest, settings: FlexureModelSettings, mesh,
+               materials, say, timings: dict):
+    """The meshed helix's 6x6 at the spring centre by the solid FEM (no contact): (K_fem, its
+    info, the FEM model, the mesh, the displacement under the protocol's largest axial force)."""
+    t0 = time.perf_counter()
+    if mesh is None:
+        from designlab.mesh.meshing import mesh_part
 
-    part = part or SpringFlexure()
-    protocol = protocol or FlexureWrenchTest()
-    settings = settings or FlexureModelSettings()
-    say = progress or (lambda s: None)
-    timings = {"mesh": 0.0, "assemble": 0.0, "solve": 0.0, "metrics": 0.0}
-    spring = helical_spring(part)
-    centre = np.asarray(part.spring_center, float)
-    K_design = stiffness_zero_pitch(spring)
-    K_tim = stiffness_timoshenko(spring, frame="centre")
-    notes = ["K_design: seed 002 closed form (zero pitch, many coils) at the spring centre"]
-    fem_info = None
-    K_fem = None
-    model = None
-    u_vtu = None
-    if settings.truth == "fem" or mesh is not None:
-        t0 = time.perf_counter()
-        if mesh is None:
-            from designlab.mesh.meshing import mesh_part
+        say("meshing")
+        mesh = mesh_part(part, order=settings.order, edge_length=settings.edge_length,
+                         quality=settings.mesh_quality, epsilon=settings.epsilon,
+                         mesher=settings.mesher)
+    timings["mesh"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    say("assembling")
+    model, ref = _fem_model(mesh, settings, np.asarray(part.spring_center, float), materials)
+    system = model.build()
+    timings["assemble"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    say("solving 6 unit wrenches")
+    from designlab.fem.static import solve_static
 
-            say("meshing")
-            mesh = mesh_part(part, order=settings.order, edge_length=settings.edge_length,
-                             quality=settings.mesh_quality, epsilon=settings.epsilon,
-                             mesher=settings.mesher)
-        timings["mesh"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        say("assembling")
-        model, ref = _fem_model(mesh, settings, centre, materials)
-        system = model.build()
-        timings["assemble"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        say("solving 6 unit wrenches")
-        from designlab.fem.static import solve_static
+    res = solve_static(model, solver=settings.solver)
+    C = np.column_stack([res.twist(ref, name) for name in WRENCH])
+    u_vtu = res.displacement("f_z") * protocol.max_force_N
+    timings["solve"] = time.perf_counter() - t0
+    asym = float(np.linalg.norm(C - C.T) / np.linalg.norm(C))
+    try:
+        K_fem = np.linalg.inv((C + C.T) / 2)
+    except np.linalg.LinAlgError:
+        raise ModelError("FEM compliance of the flexure is singular: check the base/tip "
+                         "sets") from None
+    K_fem = (K_fem + K_fem.T) / 2
+    fem_info = {"points": int(mesh.n_points), "cells": int(mesh.n_cells),
+                "order": int(mesh.order), "dofs": int(system.n_dofs),
+                "edge_length_mm": settings.edge_length, "asymmetry": asym,
+                "solver": type(res.solver).__name__}
+    return K_fem, fem_info, model, mesh, u_vtu
 
-        res = solve_static(model, solver=settings.solver)
-        C = np.column_stack([res.twist(ref, name) for name in WRENCH])
-        u_vtu = res.displacement("f_z") * protocol.max_force_N
-        timings["solve"] = time.perf_counter() - t0
-        asym = float(np.linalg.norm(C - C.T) / np.linalg.norm(C))
-        try:
-            K_fem = np.linalg.inv((C + C.T) / 2)
-        except np.linalg.LinAlgError:
-            raise ModelError("FEM compliance of the flexure is singular: check the base/tip "
-                             "sets") from None
-        K_fem = (K_fem + K_fem.T) / 2
-        fem_info = {"points": int(mesh.n_points), "cells": int(mesh.n_cells),
-                    "order": int(mesh.order), "dofs": int(system.n_dofs),
-                    "edge_length_mm": settings.edge_length, "asymmetry": asym,
-                    "solver": type(res.solver).__name__}
-    if K_fem is not None and getattr(part, "ends", None) == "closed_ground":
-        notes.append("FEM helix: the closed end coils are modelled 0.1 d apart without coil "
-                     "contact, so they deform like active coils and the FEM is softer than "
-                     "the closed form's active turns (ratios in K_f_fem_over_closed_form)")
-    chain = chain_info = K_chain = K_chain_loaded = None
-    if settings.truth == "chain":
-        t0 = time.perf_counter()
-        say("beam chain of the spring as built")
-        chain = chain_truth(part, settings)
-        K_chain = chain.K_centre
-        K_chain_loaded = chain.at(chain.centre, loaded=True) if chain.K_loaded is not None \
-            else None
-        timings["solve"] += time.perf_counter() - t0
-        chain_info = dict(chain.info, seat=settings.seat,
-                          working_load_N=settings.working_load_N)
+
+def _chain_truth_state(part, settings: FlexureModelSettings, say, timings: dict):
+    """The beam chain of the spring as built: (chain, its info, K at the centre unloaded and
+    at the working load or None)."""
+    t0 = time.perf_counter()
+    say("beam chain of the spring as built")
+    chain = chain_truth(part, settings)
+    K_chain = chain.K_centre
+    K_chain_loaded = chain.at(chain.centre, loaded=True) if chain.K_loaded is not None \
+        else None
+    timings["solve"] += time.perf_counter() - t0
+    chain_info = dict(chain.info, seat=settings.seat, working_load_N=settings.working_load_N)
+    return chain, chain_info, K_chain, K_chain_loaded
+
+
+def _pick_truth(settings: FlexureModelSettings, K: dict, chain, notes: list) -> np.ndarray:
+    """The stiffness the built flexure answers with, by ``settings.truth``, with its note."""
     if settings.truth == "fem":
-        K_true = K_fem
         notes.append("truth: FEM of the meshed helix (real pitch, ground ends, base clamped, "
                      "tip rigid)")
-    elif settings.truth == "chain":
-        loaded = K_chain_loaded is not None
-        K_true = K_chain_loaded if loaded else K_chain
+        return K["fem"]
+    if settings.truth == "chain":
+        loaded = K["chain_loaded"] is not None
         notes.append(f"truth: beam chain of the spring as built ({chain.coil.label}; seat "
                      f"{settings.seat}; "
                      + (f"linearised at the {settings.working_load_N:g} N axial working load)"
                         if loaded else "unloaded)"))
-    else:
-        K_true = K_tim
-        notes.append("truth: Timoshenko column (closed form with the spring's active length); "
-                     "no FEM")
+        return K["chain_loaded"] if loaded else K["chain"]
+    notes.append("truth: Timoshenko column (closed form with the spring's active length); "
+                 "no FEM")
+    return K["timoshenko"]
 
-    t0 = time.perf_counter()
+
+def _poses(protocol: FlexureWrenchTest, K_true: np.ndarray, settings: FlexureModelSettings,
+           notes: list) -> tuple[np.ndarray, np.ndarray]:
+    """The protocol's wrenches and the poses ``X = K_true^-1 W`` (+ pose noise)."""
     W = protocol.wrenches()
     C_true = np.linalg.inv(K_true)
     X = W @ C_true.T
@@ -276,38 +230,87 @@ def run(part=None, protocol: FlexureWrenchTest | None = None,
                                                 [settings.pose_noise_mm] * 3]
         notes.append(f"pose noise: {settings.pose_noise_mm:g} mm, {settings.pose_noise_rad:g} "
                      f"rad (std, seed {settings.seed})")
+    return W, X
+
+
+def _elastic_hysteresis(notes: list) -> dict:
+    notes.append("hysteresis 0 %: elastic model, not a prediction of the real flexure")
+    return {"overall": 0.0, "by_location": {a: 0.0 for a in WRENCH},
+            "note": "elastic model (no Prony series in the materials): no hysteresis by "
+                    "construction; seed 002 measured 2-5 % of range on the real flexure"}
+
+
+def _stiffness_entries(K: dict, K_true: np.ndarray, settings: FlexureModelSettings,
+                       chain_info) -> dict:
+    """The report's K_f entries (SI), one per model that ran (None where it did not)."""
+    from designlab.sensors.flexure.spring import to_si
+
+    si = {k: (to_si(v).tolist() if v is not None else None) for k, v in K.items()}
+    K_fem = K["fem"]
+    return {"K_f": to_si(K_true).tolist(), "K_f_units": K_F_UNITS,
+            "K_f_source": settings.truth, "K_f_closed_form": si["design"],
+            "K_f_timoshenko": si["timoshenko"], "K_f_fem": si["fem"],
+            "K_f_chain": si["chain"], "K_f_chain_loaded": si["chain_loaded"],
+            "chain": chain_info,
+            "K_f_fem_over_closed_form": (np.diag(K_fem) / np.diag(K["design"])).tolist()
+            if K_fem is not None else None,
+            "condition_number": float(np.linalg.cond(to_si(K_true))),
+            "condition_number_units": "cond of K_f in SI (mixed units: depends on them)"}
+
+
+def _spring_entry(spring, part) -> dict:
+    return {"wire_radius_mm": spring.wire_radius, "mean_diameter_mm": spring.mean_diameter,
+            "active_coils": spring.active_coils, "pitch_angle_rad": spring.pitch_angle,
+            "E_MPa": spring.E, "G_MPa": spring.G, "length_mm": float(part.length)}
+
+
+def run(part=None, protocol: FlexureWrenchTest | None = None,
+        settings: FlexureModelSettings | None = None, *, materials=None, mesh=None,
+        progress: Callable[[str], None] | None = None, wire_stress: bool = True
+        ) -> FlexurePrediction:
+    """K_f (closed form, FEM), the protocol's wrenches through the true stiffness, the sensor's
+    estimate through the designer's, the metrics and (``wire_stress``) the wire's stress and
+    safety factor per load case (``report["stress"]``, :mod:`designlab.sensors.flexure.stress`;
+    a safety factor below 2 warns)."""
+    from designlab.geometry.flexure import SpringFlexure
+    from designlab.sensors.flexure.spring import stiffness_timoshenko, stiffness_zero_pitch
+
+    part = part or SpringFlexure()
+    protocol = protocol or FlexureWrenchTest()
+    settings = settings or FlexureModelSettings()
+    say = progress or (lambda s: None)
+    timings = {"mesh": 0.0, "assemble": 0.0, "solve": 0.0, "metrics": 0.0}
+    spring = helical_spring(part)
+    K = {"design": stiffness_zero_pitch(spring),
+         "timoshenko": stiffness_timoshenko(spring, frame="centre"),
+         "fem": None, "chain": None, "chain_loaded": None}
+    notes = ["K_design: seed 002 closed form (zero pitch, many coils) at the spring centre"]
+    fem_info = model = u_vtu = None
+    if settings.truth == "fem" or mesh is not None:
+        K["fem"], fem_info, model, mesh, u_vtu = _fem_truth(part, protocol, settings, mesh,
+                                                            materials, say, timings)
+    if K["fem"] is not None and getattr(part, "ends", None) == "closed_ground":
+        notes.append("FEM helix: the closed end coils are modelled 0.1 d apart without coil "
+                     "contact, so they deform like active coils and the FEM is softer than "
+                     "the closed form's active turns (ratios in K_f_fem_over_closed_form)")
+    chain = chain_info = None
+    if settings.truth == "chain":
+        chain, chain_info, K["chain"], K["chain_loaded"] = _chain_truth_state(part, settings,
+                                                                              say, timings)
+    K_true = _pick_truth(settings, K, chain, notes)
+    K_design = K["design"]
+
+    t0 = time.perf_counter()
+    W, X = _poses(protocol, K_true, settings, notes)
     W_est = X @ K_design.T
     report = evaluate(W, X, W_est, K_true, K_design)
     hyst = _hysteresis(model, protocol, settings, K_design, say) if model is not None else None
-    if hyst is None:
-        report["hysteresis_percent"] = {
-            "overall": 0.0, "by_location": {a: 0.0 for a in WRENCH},
-            "note": "elastic model (no Prony series in the materials): no hysteresis by "
-                    "construction; seed 002 measured 2-5 % of range on the real flexure"}
-        notes.append("hysteresis 0 %: elastic model, not a prediction of the real flexure")
-    else:
-        report["hysteresis_percent"] = hyst
+    report["hysteresis_percent"] = _elastic_hysteresis(notes) if hyst is None else hyst
     timings["metrics"] = time.perf_counter() - t0
 
-    report["K_f"] = to_si(K_true).tolist()
-    report["K_f_units"] = K_F_UNITS
-    report["K_f_source"] = settings.truth
-    report["K_f_closed_form"] = to_si(K_design).tolist()
-    report["K_f_timoshenko"] = to_si(K_tim).tolist()
-    report["K_f_fem"] = to_si(K_fem).tolist() if K_fem is not None else None
-    report["K_f_chain"] = to_si(K_chain).tolist() if K_chain is not None else None
-    report["K_f_chain_loaded"] = to_si(K_chain_loaded).tolist() \
-        if K_chain_loaded is not None else None
-    report["chain"] = chain_info
-    report["K_f_fem_over_closed_form"] = (np.diag(K_fem) / np.diag(K_design)).tolist() \
-        if K_fem is not None else None
-    report["condition_number"] = float(np.linalg.cond(to_si(K_true)))
-    report["condition_number_units"] = "cond of K_f in SI (mixed units: depends on them)"
+    report.update(_stiffness_entries(K, K_true, settings, chain_info))
     report["mesh"] = fem_info
-    report["spring"] = {"wire_radius_mm": spring.wire_radius,
-                        "mean_diameter_mm": spring.mean_diameter,
-                        "active_coils": spring.active_coils, "pitch_angle_rad": spring.pitch_angle,
-                        "E_MPa": spring.E, "G_MPa": spring.G, "length_mm": float(part.length)}
+    report["spring"] = _spring_entry(spring, part)
     if wire_stress:
         t0 = time.perf_counter()
         say("wire stress")

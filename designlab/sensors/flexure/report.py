@@ -167,6 +167,100 @@ def goal_metrics(rows: list, key: str) -> dict | None:
             "coupling_model_over_measured": coup}
 
 
+def _comparison_row(name: str, i: int, j: int, theory, measured, mats: dict) -> dict:
+    """One table entry: the paper's theory and measurement, each model's value and % errors."""
+    row = {"entry": name, "i": i, "j": j, "paper_theory": float(theory[i, j]),
+           "paper_measured": float(measured[i, j])}
+    for key, K in mats.items():
+        row[key] = None if K is None else float(K[i, j])
+    row["closed_form_vs_theory_pct"] = _pct(row["closed_form"], row["paper_theory"])
+    for key in mats:
+        row[f"{key}_vs_measured_pct"] = (None if row[key] is None
+                                         else _pct(row[key], row["paper_measured"]))
+    if row["fem"] is not None:
+        row["closer_to_measured"] = ("fem" if abs(row["fem"] - row["paper_measured"])
+                                     < abs(row["closed_form"] - row["paper_measured"])
+                                     else "closed_form")
+    else:
+        row["closer_to_measured"] = None
+    return row
+
+
+def _ratios(paper: dict, K_cf: np.ndarray, K_fem_spring_si) -> dict:
+    ratios = {"paper_theory": stiffness_ratios(paper["K_f_theory"]),
+              "closed_form": stiffness_ratios(K_cf),
+              "paper_measured_camera": stiffness_ratios(paper["K_c_measured"])}
+    if K_fem_spring_si is not None:
+        ratios["fem"] = stiffness_ratios(K_fem_spring_si)
+    ratios["closed_form_vs_paper_pct"] = {k: _pct(ratios["closed_form"][k], v)
+                                          for k, v in ratios["paper_theory"].items()}
+    return ratios
+
+
+def _paper_notes(paper: dict, cf: dict, explanation, h: float, centre_measured: float) -> list:
+    """The notes on the paper's numbers: the common factor's reading, the K_c / K_f k_wz
+    mismatch and where the camera frame sits."""
+    notes = []
+    if explanation is not None:
+        notes.append(f"with the stated parameters our closed form is {cf['factor']:.2f}x the paper's "
+                     f"K_f on every diagonal term (spread {100 * cf['spread']:.1f} %); "
+                     f"{explanation['reading']} predicts {explanation['formula']} = "
+                     f"{explanation['predicted_factor']:.3f} and a free length of "
+                     f"{explanation['free_length_mm']:.2f} mm (paper: "
+                     f"{explanation['paper_rest_length_mm']:g} mm): --preset visiflex-catalog")
+    if paper["K_c_theory"][2, 2] != paper["K_f_theory"][2, 2]:
+        notes.append(f"the paper's K_c k_wz = {paper['K_c_theory'][2, 2]:g} differs from its K_f "
+                     f"k_wz = {paper['K_f_theory'][2, 2]:g}; an offset along z cannot change it "
+                     "(printing/rounding in the paper)")
+    notes.append(f"the camera frame is {1e3 * h:.2f} mm below the spring centre (from the paper's "
+                 f"K_f -> K_c couplings); the measured K_c has its zero-coupling point "
+                 f"{1e3 * centre_measured:.2f} mm above the camera origin")
+    return notes
+
+
+def _camera_fits(spring_frame: dict, paper: dict) -> dict:
+    """Per model (spring-centre 6x6, SI): the camera offset fitted to the measured K_c and the
+    goal metrics there."""
+    camera_fit = {k: fit_camera_offset(K, paper["K_c_measured"]) for k, K in spring_frame.items()
+                  if K is not None}
+    for k, fit in camera_fit.items():
+        Kc = to_frame(spring_frame[k], "camera", fit["offset_m"])
+        fit["diagonal_mean_abs_error_pct"] = float(np.mean(
+            [abs(_pct(Kc[i, i], paper["K_c_measured"][i, i])) for i in range(6)]))
+        fit["coupling_model_over_measured"] = {
+            n: float(Kc[i, j] / paper["K_c_measured"][i, j]) for n, i, j in ENTRIES if i != j}
+    return camera_fit
+
+
+def _offset_free(mats: dict, measured, theory, frame: str, h: float) -> dict:
+    """The offset-independent bending invariants per matrix and, in the camera frame, the goal
+    floor each sets."""
+    offset_free = {k: bending_invariants(K) for k, K in
+                   [("paper_measured", measured), ("paper_theory", theory), *mats.items()]
+                   if K is not None}
+    if frame == "camera":
+        for inv in offset_free.values():
+            q = inv["lateral_over_rocking"]
+            inv["goal_floor_paper_offset"] = diagonal_error_floor(measured, q, h)
+            inv["goal_floor_any_offset"] = diagonal_error_floor(measured, q)
+        offset_free["ratio_limit_paper_offset"] = {
+            "diagonal_pct": 15.0, "offset_m": h,
+            "lateral_over_rocking": ratio_for_floor(measured, h, 15.0)}
+    return offset_free
+
+
+def _tolist(K):
+    return None if K is None else np.asarray(K).tolist()
+
+
+def _spring_summary(spring: HelicalSpring) -> dict:
+    return {"spring": dataclasses.asdict(spring) | {"active_coils": spring.active_coils,
+                                                     "active_length_mm": spring.active_length,
+                                                     "free_length_mm": spring.free_length},
+            "centre_terms_si": {k: float(v * (1e-3 if k.startswith("k_b") or k == "k_tz" else 1e3))
+                                for k, v in centre_terms(spring).items()}}
+
+
 def flexure_report(spring: HelicalSpring, frame: str = "camera", K_fem_spring_si: np.ndarray | None = None,
                    paper: dict | None = None, K_chain_spring_si: np.ndarray | None = None,
                    K_chain_loaded_si: np.ndarray | None = None,
@@ -189,98 +283,32 @@ def flexure_report(spring: HelicalSpring, frame: str = "camera", K_fem_spring_si
     measured = paper["K_c_measured"]
     if frame == "spring":  # the measured K_c moved back to the spring centre
         measured = transform_stiffness(measured, transform(translation=(0.0, 0.0, -h)))
-    mats = {"closed_form": to_frame(K_cf, frame, h), "closed_form_timoshenko": to_frame(K_tim, frame, h),
-            "chain": None if K_chain_spring_si is None else to_frame(K_chain_spring_si, frame, h),
-            "chain_loaded": None if K_chain_loaded_si is None else to_frame(K_chain_loaded_si, frame, h),
-            "fem": None if K_fem_spring_si is None else to_frame(K_fem_spring_si, frame, h),
-            "fem_loaded": None if K_fem_loaded_si is None else to_frame(K_fem_loaded_si, frame, h)}
+    spring_frame = {"closed_form": K_cf, "closed_form_timoshenko": K_tim,
+                    "chain": K_chain_spring_si, "chain_loaded": K_chain_loaded_si,
+                    "fem": K_fem_spring_si, "fem_loaded": K_fem_loaded_si}
+    mats = {k: None if K is None else to_frame(K, frame, h) for k, K in spring_frame.items()}
     cf = common_factor(K_cf, paper["K_f_theory"])
     explanation = None
     if cf["is_common"] and abs(cf["factor"] - 1.0) > COMMON_FACTOR_SPREAD:
         explanation = explain_factor(spring, paper)
-    rows = []
-    for name, i, j in ENTRIES:
-        row = {"entry": name, "i": i, "j": j, "paper_theory": float(theory[i, j]),
-               "paper_measured": float(measured[i, j])}
-        for key, K in mats.items():
-            row[key] = None if K is None else float(K[i, j])
-        row["closed_form_vs_theory_pct"] = _pct(row["closed_form"], row["paper_theory"])
-        for key in mats:
-            row[f"{key}_vs_measured_pct"] = (None if row[key] is None
-                                             else _pct(row[key], row["paper_measured"]))
-        if row["fem"] is not None:
-            row["closer_to_measured"] = ("fem" if abs(row["fem"] - row["paper_measured"])
-                                         < abs(row["closed_form"] - row["paper_measured"])
-                                         else "closed_form")
-        else:
-            row["closer_to_measured"] = None
-        rows.append(row)
-    ratios = {"paper_theory": stiffness_ratios(paper["K_f_theory"]),
-              "closed_form": stiffness_ratios(K_cf),
-              "paper_measured_camera": stiffness_ratios(paper["K_c_measured"])}
-    if K_fem_spring_si is not None:
-        ratios["fem"] = stiffness_ratios(K_fem_spring_si)
-    ratios["closed_form_vs_paper_pct"] = {k: _pct(ratios["closed_form"][k], v)
-                                          for k, v in ratios["paper_theory"].items()}
+    rows = [_comparison_row(name, i, j, theory, measured, mats) for name, i, j in ENTRIES]
     cond = {k: (None if K is None else float(np.linalg.cond(K))) for k, K in mats.items()}
     cond["paper_theory"] = float(np.linalg.cond(theory))
     cond["paper_measured"] = float(np.linalg.cond(measured))
-    notes = []
-    if explanation is not None:
-        notes.append(f"with the stated parameters our closed form is {cf['factor']:.2f}x the paper's "
-                     f"K_f on every diagonal term (spread {100 * cf['spread']:.1f} %); "
-                     f"{explanation['reading']} predicts {explanation['formula']} = "
-                     f"{explanation['predicted_factor']:.3f} and a free length of "
-                     f"{explanation['free_length_mm']:.2f} mm (paper: "
-                     f"{explanation['paper_rest_length_mm']:g} mm): --preset visiflex-catalog")
-    if paper["K_c_theory"][2, 2] != paper["K_f_theory"][2, 2]:
-        notes.append(f"the paper's K_c k_wz = {paper['K_c_theory'][2, 2]:g} differs from its K_f "
-                     f"k_wz = {paper['K_f_theory'][2, 2]:g}; an offset along z cannot change it "
-                     "(printing/rounding in the paper)")
-    Km = paper["K_c_measured"]
-    centre_measured = zero_coupling_point(Km)
-    notes.append(f"the camera frame is {1e3 * h:.2f} mm below the spring centre (from the paper's "
-                 f"K_f -> K_c couplings); the measured K_c has its zero-coupling point "
-                 f"{1e3 * centre_measured:.2f} mm above the camera origin")
-    spring_frame = {"closed_form_timoshenko": K_tim, "chain": K_chain_spring_si,
-                    "chain_loaded": K_chain_loaded_si, "fem": K_fem_spring_si,
-                    "fem_loaded": K_fem_loaded_si}
-    camera_fit = {k: fit_camera_offset(K, paper["K_c_measured"]) for k, K in spring_frame.items()
-                  if K is not None}
-    for k, fit in camera_fit.items():
-        Kc = to_frame(spring_frame[k], "camera", fit["offset_m"])
-        fit["diagonal_mean_abs_error_pct"] = float(np.mean(
-            [abs(_pct(Kc[i, i], paper["K_c_measured"][i, i])) for i in range(6)]))
-        fit["coupling_model_over_measured"] = {
-            n: float(Kc[i, j] / paper["K_c_measured"][i, j]) for n, i, j in ENTRIES if i != j}
+    centre_measured = zero_coupling_point(paper["K_c_measured"])
+    notes = _paper_notes(paper, cf, explanation, h, centre_measured)
+    camera_fit = _camera_fits({k: K for k, K in spring_frame.items() if k != "closed_form"},
+                              paper)
     goals = {k: goal_metrics(rows, k) for k in mats}
-    offset_free = {k: bending_invariants(K) for k, K in
-                   [("paper_measured", measured), ("paper_theory", theory), *mats.items()]
-                   if K is not None}
-    if frame == "camera":
-        for inv in offset_free.values():
-            q = inv["lateral_over_rocking"]
-            inv["goal_floor_paper_offset"] = diagonal_error_floor(measured, q, h)
-            inv["goal_floor_any_offset"] = diagonal_error_floor(measured, q)
-        offset_free["ratio_limit_paper_offset"] = {
-            "diagonal_pct": 15.0, "offset_m": h,
-            "lateral_over_rocking": ratio_for_floor(measured, h, 15.0)}
+    offset_free = _offset_free(mats, measured, theory, frame, h)
     notes.append(offset_free_note(offset_free))
-    tolist = lambda K: None if K is None else np.asarray(K).tolist()  # noqa: E731
-    return {"frame": frame, "units": UNITS, "offset_m": h,
-            "spring": dataclasses.asdict(spring) | {"active_coils": spring.active_coils,
-                                                     "active_length_mm": spring.active_length,
-                                                     "free_length_mm": spring.free_length},
-            "centre_terms_si": {k: float(v * (1e-3 if k.startswith("k_b") or k == "k_tz" else 1e3))
-                                for k, v in centre_terms(spring).items()},
-            "closed_form": tolist(mats["closed_form"]),
-            "closed_form_timoshenko": tolist(mats["closed_form_timoshenko"]),
-            "fem": tolist(mats["fem"]), "fem_loaded": tolist(mats["fem_loaded"]),
-            "chain": tolist(mats["chain"]),
-            "chain_loaded": tolist(mats["chain_loaded"]),
+    return {"frame": frame, "units": UNITS, "offset_m": h, **_spring_summary(spring),
+            **{k: _tolist(mats[k]) for k in ("closed_form", "closed_form_timoshenko", "fem",
+                                             "fem_loaded", "chain", "chain_loaded")},
             "goals": goals, "camera_fit": camera_fit, "offset_free": offset_free,
-            "paper_theory": tolist(theory), "paper_measured": tolist(measured),
-            "ratios": ratios, "common_factor": cf, "explanation": explanation, "notes": notes,
+            "paper_theory": _tolist(theory), "paper_measured": _tolist(measured),
+            "ratios": _ratios(paper, K_cf, K_fem_spring_si), "common_factor": cf,
+            "explanation": explanation, "notes": notes,
             "measured_elastic_centre_m": centre_measured,
             "condition_numbers": cond, "rows": rows, "paper_json": paper.get("path")}
 
@@ -301,80 +329,97 @@ COLUMNS = (("closed_form", "closed form"), ("closed_form_timoshenko", "Timoshenk
            ("fem_loaded", "solid FEM @load"))
 
 
+def _num(v):
+    return "-" if v is None else (f"{v:.0f}" if abs(v) >= 100 else f"{v:.3g}")
+
+
+def _pct_text(v):
+    return "-" if v is None else f"{v:+.1f}"
+
+
+def _table(title: str, columns, caption: str = ""):
+    """A rich Table with ``columns`` (the first left-aligned, the rest right-aligned)."""
+    from rich.table import Table
+
+    t = Table(title=title, caption_justify="left")
+    for k, c in enumerate(columns):
+        t.add_column(c, justify="left" if k == 0 else "right", no_wrap=True)
+    if caption:
+        t.caption = caption
+    return t
+
+
+def _value_tables(report: dict, cols: list) -> tuple:
+    """The values (paper theory/measured and each model) and the % errors per entry."""
+    values = _table(f"Visiflex flexure stiffness, {report['frame']} frame ({report['units']})",
+                    ["entry", "paper theory", "paper meas."] + [t for _, t in cols])
+    errors = _table("% error: closed form vs paper theory, then each model vs paper measured",
+                    ["entry", "closed/paper"] + [f"{t}/meas" for _, t in cols])
+    for r in report["rows"]:
+        values.add_row(r["entry"], _num(r["paper_theory"]), _num(r["paper_measured"]),
+                       *[_num(r[k]) for k, _ in cols])
+        errors.add_row(r["entry"], _pct_text(r["closed_form_vs_theory_pct"]),
+                       *[_pct_text(r[f"{k}_vs_measured_pct"]) for k, _ in cols])
+    c = report["condition_numbers"]
+    errors.caption = "cond(K): " + ", ".join(f"{k} {v:.4g}" for k, v in c.items() if v is not None)
+    return values, errors
+
+
+def _goals_table(report: dict, cols: list):
+    """The goal metrics per model at the paper's and at the fitted camera offset."""
+    goals = _table("goals: mean |error| over the measured diagonal <= 15 %, couplings "
+                   "within 1.5x of -37.8 / 30.1",
+                   ("model", "camera offset", "diag. MAE %", "k_wx_vy ratio", "k_wy_vx ratio"),
+                   "paper offset: from the paper's own K_f -> K_c theory; fitted: least squares "
+                   "on the 8 measured entries (relative errors), a quantity fitted to the "
+                   "measurement. Goal metrics are in the camera frame.")
+    for k, t in cols:
+        for label, g in (("paper", report["goals"].get(k)), ("fitted", report["camera_fit"].get(k))):
+            if g is None:
+                continue
+            offset = report["offset_m"] if label == "paper" else g["offset_m"]
+            cr = g["coupling_model_over_measured"]
+            goals.add_row(t, f"{label} {1e3 * offset:.2f} mm",
+                          f"{g['diagonal_mean_abs_error_pct']:.1f}",
+                          f"{cr['k_wx_vy']:.2f}", f"{cr['k_wy_vx']:.2f}")
+    return goals
+
+
+def _floor_table(report: dict):
+    """What no camera offset changes and the goal floor it sets (None when not computed)."""
+    inv = {k: v for k, v in (report.get("offset_free") or {}).items() if k != "ratio_limit_paper_offset"}
+    limit = (report.get("offset_free") or {}).get("ratio_limit_paper_offset") or {}
+    if not (all("goal_floor_paper_offset" in v for v in inv.values()) and inv):
+        return None
+    caption = ("floor: the smallest mean |error| over the measured diagonal that any "
+               "model with this lateral/rocking ratio reaches with both couplings within "
+               "1.5x (lateral stiffness free, axial and torsion exact: a lower bound), "
+               "its elastic centre at the paper's offset (symmetric ends) or at the best "
+               "height above the camera."
+               + (f" At the paper's offset the floor is 15 % at a ratio of "
+                  f"{limit['lateral_over_rocking']:.0f}: above it no model meets both "
+                  "goals." if limit.get("lateral_over_rocking") else ""))
+    floor = _table("what no camera offset changes: lateral / rocking stiffness at the "
+                   "elastic centre (1/m^2), and the goals' bound it sets",
+                   ("model", "lat/rock x", "y", "floor % @paper", "floor % @best", "best mm"),
+                   caption)
+    names = dict(COLUMNS, paper_measured="paper meas.", paper_theory="paper theory")
+    for k, v in inv.items():
+        q, a, b = v["lateral_over_rocking"], v["goal_floor_paper_offset"], v["goal_floor_any_offset"]
+        floor.add_row(names.get(k, k), f"{q['x']:.0f}", f"{q['y']:.0f}",
+                      f"{a['diagonal_floor_pct']:.1f}", f"{b['diagonal_floor_pct']:.1f}",
+                      f"{1e3 * b['offset_m']:.2f}")
+    return floor
+
+
 def report_tables(report: dict) -> list:
     """Three rich Tables: values (paper theory/measured and each model present), % errors of
     each model against the measurement, and the goal metrics with the paper's and the fitted
-    camera offset."""
-    from rich.table import Table
-
+    camera offset; a fourth with the offset-free goal floor where it was computed."""
     cols = [(k, t) for k, t in COLUMNS if report.get(k) is not None]
-
-    def num(v):
-        return "-" if v is None else (f"{v:.0f}" if abs(v) >= 100 else f"{v:.3g}")
-
-    def pct(v):
-        return "-" if v is None else f"{v:+.1f}"
-
-    values = Table(title=f"Visiflex flexure stiffness, {report['frame']} frame ({report['units']})",
-                   caption_justify="left")
-    for c in ["entry", "paper theory", "paper meas."] + [t for _, t in cols]:
-        values.add_column(c, justify="left" if c == "entry" else "right", no_wrap=True)
-    errors = Table(title="% error: closed form vs paper theory, then each model vs paper measured",
-                   caption_justify="left")
-    for c in ["entry", "closed/paper"] + [f"{t}/meas" for _, t in cols]:
-        errors.add_column(c, justify="left" if c == "entry" else "right", no_wrap=True)
-    for r in report["rows"]:
-        values.add_row(r["entry"], num(r["paper_theory"]), num(r["paper_measured"]),
-                       *[num(r[k]) for k, _ in cols])
-        errors.add_row(r["entry"], pct(r["closed_form_vs_theory_pct"]),
-                       *[pct(r[f"{k}_vs_measured_pct"]) for k, _ in cols])
-    c = report["condition_numbers"]
-    errors.caption = "cond(K): " + ", ".join(f"{k} {v:.4g}" for k, v in c.items() if v is not None)
-    goals = Table(title="goals: mean |error| over the measured diagonal <= 15 %, couplings "
-                        "within 1.5x of -37.8 / 30.1", caption_justify="left")
-    for c in ("model", "camera offset", "diag. MAE %", "k_wx_vy ratio", "k_wy_vx ratio"):
-        goals.add_column(c, justify="left" if c == "model" else "right", no_wrap=True)
-    for k, t in cols:
-        g = report["goals"].get(k)
-        if g is not None:
-            cr = g["coupling_model_over_measured"]
-            goals.add_row(t, f"paper {1e3 * report['offset_m']:.2f} mm",
-                          f"{g['diagonal_mean_abs_error_pct']:.1f}",
-                          f"{cr['k_wx_vy']:.2f}", f"{cr['k_wy_vx']:.2f}")
-        f = report["camera_fit"].get(k)
-        if f is not None:
-            cr = f["coupling_model_over_measured"]
-            goals.add_row(t, f"fitted {1e3 * f['offset_m']:.2f} mm",
-                          f"{f['diagonal_mean_abs_error_pct']:.1f}",
-                          f"{cr['k_wx_vy']:.2f}", f"{cr['k_wy_vx']:.2f}")
-    goals.caption = ("paper offset: from the paper's own K_f -> K_c theory; fitted: least squares "
-                     "on the 8 measured entries (relative errors), a quantity fitted to the "
-                     "measurement. Goal metrics are in the camera frame.")
-    tables = [values, errors, goals]
-    inv = {k: v for k, v in (report.get("offset_free") or {}).items() if k != "ratio_limit_paper_offset"}
-    limit = (report.get("offset_free") or {}).get("ratio_limit_paper_offset") or {}
-    if all("goal_floor_paper_offset" in v for v in inv.values()) and inv:
-        floor = Table(title="what no camera offset changes: lateral / rocking stiffness at the "
-                            "elastic centre (1/m^2), and the goals' bound it sets",
-                      caption_justify="left")
-        for c in ("model", "lat/rock x", "y", "floor % @paper", "floor % @best", "best mm"):
-            floor.add_column(c, justify="left" if c == "model" else "right", no_wrap=True)
-        names = dict(COLUMNS, paper_measured="paper meas.", paper_theory="paper theory")
-        for k, v in inv.items():
-            q, a, b = v["lateral_over_rocking"], v["goal_floor_paper_offset"], v["goal_floor_any_offset"]
-            floor.add_row(names.get(k, k), f"{q['x']:.0f}", f"{q['y']:.0f}",
-                          f"{a['diagonal_floor_pct']:.1f}", f"{b['diagonal_floor_pct']:.1f}",
-                          f"{1e3 * b['offset_m']:.2f}")
-        floor.caption = ("floor: the smallest mean |error| over the measured diagonal that any "
-                         "model with this lateral/rocking ratio reaches with both couplings within "
-                         "1.5x (lateral stiffness free, axial and torsion exact: a lower bound), "
-                         "its elastic centre at the paper's offset (symmetric ends) or at the best "
-                         "height above the camera."
-                         + (f" At the paper's offset the floor is 15 % at a ratio of "
-                            f"{limit['lateral_over_rocking']:.0f}: above it no model meets both "
-                            "goals." if limit.get("lateral_over_rocking") else ""))
-        tables.append(floor)
-    return tables
+    floor = _floor_table(report)
+    return [*_value_tables(report, cols), _goals_table(report, cols)] + \
+        ([floor] if floor is not None else [])
 
 
 #: the end conditions of the beam chain (:class:`~designlab.sensors.flexure.chain_geometry.ChainSettings`
@@ -527,7 +572,7 @@ def end_condition_table(spring: HelicalSpring, paper: dict | None = None,
 
 
 def meets_goals(row: dict, diagonal_pct: float = 15.0, coupling_factor: float = 1.5) -> bool:
-    """Issue 18's goals for one :func:`end_condition_table` row: diagonal error <= 15 % and both
+    """The goals for one :func:`end_condition_table` row: diagonal error <= 15 % and both
     couplings within a factor 1.5 of the measured."""
     c = row["coupling_model_over_measured"].values()
     return (row["diagonal_mean_abs_error_pct"] <= diagonal_pct
