@@ -81,8 +81,8 @@ def test_getting_started_notebook_runs():
 
 
 def test_cli_params_lists_every_field(capsys, monkeypatch):
-    from designlab import cli
     from designlab.cli import main
+    from designlab.cli.app import console
     from designlab.geometry.api import field_rows
     from designlab.geometry.parts import PARTS
 
@@ -90,7 +90,7 @@ def test_cli_params_lists_every_field(capsys, monkeypatch):
         main(["params", "nope"])
     assert exc.value.code == 2
     # wide enough that no name is wrapped, whatever width the console took at import
-    monkeypatch.setattr(cli.console, "width", 250)
+    monkeypatch.setattr(console, "width", 250)
     main(["params", "strap"])
     out = capsys.readouterr().out
     for r in field_rows(PARTS["strap"]):

@@ -150,7 +150,7 @@ SENSOR_NAME = re.compile(r"""["'](fingertip|strap|flexure)["']""")
 #: everything outside geometry/ and sensors/: the layers' folders, the root modules, the API
 #: facade and the CLI (its help examples name sensors in running text, never as a quoted name)
 NO_SENSOR_NAMES = ["mesh", "fem", "calibration", "measured", "loop", "predict", "optimize", "errors.py",
-                   "params.py", "atomic.py", "frames.py", "version.py", "__init__.py", "cli.py"]
+                   "params.py", "atomic.py", "frames.py", "version.py", "__init__.py", "cli"]
 
 
 def sensor_names(where: str) -> list[str]:

@@ -1,4 +1,4 @@
-"""The ``designlab`` command ends without the interpreter's teardown (``cli._exit_now``); what
+"""The ``designlab`` command ends without the interpreter's teardown (``cli.app._exit_now``); what
 normal exit would have closed must not outlive it: multiprocessing's resource tracker, started
 by a sweep's process pools."""
 
@@ -11,7 +11,7 @@ from multiprocessing import resource_tracker
 resource_tracker.ensure_running()
 pid = resource_tracker._resource_tracker._pid
 os.kill(pid, 0)                                 # running
-from designlab.cli import _stop_resource_tracker
+from designlab.cli.app import _stop_resource_tracker
 _stop_resource_tracker()
 try:
     os.kill(pid, 0)

@@ -152,7 +152,7 @@ def test_mesh_quality_option_has_the_settings_name():
     --base help names the load-arm form."""
     import typer.main
 
-    from designlab.cli import app
+    from designlab.cli.app import app
 
     cmds = typer.main.get_command(app).commands
     opts = {o for p in cmds["mesh"].params for o in p.opts}
@@ -226,20 +226,20 @@ def test_sweep_identity_covers_the_config_and_the_uncertainty_table():
     range, setting, or Monte Carlo spec of a robust sweep gives another."""
     import dataclasses
 
-    from designlab.cli import _config_identity
+    from designlab.cli.runs import config_identity
     from designlab.optimize.robust import load_sweep
     from designlab.optimize.space import sweep_config
     from designlab.params import load_toml
 
     cfg, ev = load_sweep(ROOT / "examples" / "uncertainty_sweep_flexure.toml")
     again, ev2 = load_sweep(ROOT / "examples" / "uncertainty_sweep_flexure.toml")
-    assert _config_identity(cfg, ev.spec) == _config_identity(again, ev2.spec)
+    assert config_identity(cfg, ev.spec) == config_identity(again, ev2.spec)
     other = dataclasses.replace(ev.spec, samples=ev.spec.samples + 1)
-    assert _config_identity(cfg, ev.spec) != _config_identity(cfg, other)
-    assert _config_identity(cfg, ev.spec) != _config_identity(cfg)
+    assert config_identity(cfg, ev.spec) != config_identity(cfg, other)
+    assert config_identity(cfg, ev.spec) != config_identity(cfg)
     a = sweep_config(load_toml(ROOT / "examples" / "sweep_fingertip_quick.toml"))
     b = dataclasses.replace(a, settings={"model": {"edge_length": 2.5}})
-    assert _config_identity(a) != _config_identity(b)
+    assert config_identity(a) != config_identity(b)
 
 
 def test_show_says_what_to_open_next(tmp_path, capsys):

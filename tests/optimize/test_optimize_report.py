@@ -40,7 +40,7 @@ def _fake_export(calls):
 
 def test_a_cached_chosen_design_is_not_exported_again(tmp_path, monkeypatch, capsys):
     import designlab.optimize.evaluate as ev
-    from designlab.cli import _export_chosen
+    from designlab.cli.sweep import _export_chosen
 
     calls: list = []
     monkeypatch.setattr(ev, "export_design", _fake_export(calls))
