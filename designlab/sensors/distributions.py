@@ -34,10 +34,19 @@ class Distribution:
     source: str = ""
 
     def check(self, name: str) -> "Distribution":
+        """This distribution, its kind, numbers, required keys and bounds checked (``name``:
+        the input's, for the messages)."""
         where = f"uncertainty.{name}"
         if self.dist not in DISTRIBUTIONS:
             raise ParameterError(f"{where}.dist", self.dist, "one of " + ", ".join(DISTRIBUTIONS)
                                  + did_you_mean(self.dist, DISTRIBUTIONS))
+        self._check_numbers(where)
+        self._check_spread(where)
+        self._check_bounds(where)
+        return self
+
+    def _check_numbers(self, where: str) -> None:
+        """Every number given is finite; the ones this kind needs are given."""
         for k in ("mean", "std", "lo", "hi", "value"):
             v = getattr(self, k)
             if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))
@@ -49,12 +58,18 @@ class Distribution:
             if getattr(self, k) is None:
                 raise ParameterError(f"{where}.{k}", None, f"a number ({self.dist} needs "
                                      + ", ".join(need) + ")")
+
+    def _check_spread(self, where: str) -> None:
+        """A spread is never negative; a lognormal is positive."""
         if self.std is not None and self.std < 0:
             raise ParameterError(f"{where}.std", self.std, ">= 0 (a spread is never negative)")
         if self.dist == "lognormal" and not self.mean > 0:
             raise ParameterError(f"{where}.mean", self.mean, "> 0 for a lognormal")
         if self.dist == "lognormal" and self.lo is not None and self.lo < 0:
             raise ParameterError(f"{where}.lo", self.lo, ">= 0 for a lognormal")
+
+    def _check_bounds(self, where: str) -> None:
+        """lo < hi (equal only for a uniform) and a normal's or lognormal's mean inside them."""
         if self.lo is not None and self.hi is not None and not self.lo < self.hi:
             if not (self.dist == "uniform" and self.lo == self.hi):
                 raise ParameterError(f"{where}.hi", self.hi, f"> lo ({self.lo:g})")
@@ -64,7 +79,6 @@ class Distribution:
                 raise ParameterError(f"{where}.mean", self.mean,
                                      f"inside the bounds [{self.lo}, {self.hi}] (bounds that "
                                      "exclude the mean truncate away the distribution's centre)")
-        return self
 
     @property
     def center(self) -> float:

@@ -34,9 +34,10 @@ heating, noise and resolution.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
-from designlab.fem.transducers import (DIVIDER_OHM, SUPPLY_V, divider_current, divider_slope,
+from designlab.fem.transducers import (DIVIDER_OHM, StrainGauge, SUPPLY_V, divider_current, divider_slope,
                                        johnson_noise_vrms, optimal_divider_resistor,
                                        quantization_noise_vrms, resistivity_from,
                                        sheet_resistance)
@@ -245,3 +246,22 @@ def trade_off(part, strain_per_N: dict[str, dict[str, float]], material, **kw) -
 __all__ = ["PAPER_GAUGE_OHM", "effective_resistivity", "measured_resistivity",
            "resistivity_in_use", "gauge_resistance", "electrical_report", "self_heating",
            "trade_off", "scale_sensitivity"]
+
+
+@dataclass(frozen=True)
+class DividerGauge:
+    """A channel's readout after the FEM stage of the strap: :class:`~designlab.fem.transducers.StrainGauge`'s
+    own resistance and divider formulas (borrowed below) on the stored gauge factor, without
+    the model the gauge was measured on."""
+
+    gauge_factor: float
+    gauge_quadratic: float
+    R0: float
+    R_fixed: float
+    V_s: float
+    tcr: float = 0.0
+    T0: float = 20.0
+
+    dR_R = StrainGauge.dR_R
+    resistance = StrainGauge.resistance
+    voltage = StrainGauge.voltage

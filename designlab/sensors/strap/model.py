@@ -2,64 +2,8 @@
 
 The strap's model below its sensor record: the settings (:class:`StrapModelSettings`), the
 channels and load cases, the wrap geometry, the mesh and the FEM model, the FEM stage and its
-key, the readout, :func:`run` with its metrics (:func:`evaluate`) and the wrap's stress.
-:mod:`designlab.sensors.strap.virtual` (the record, plots, loop, stress load cases) and the strap's
-helpers (pulp studies, fit, noise, Monte Carlo) import from here, never the other way.
-
-The FEM model (mm, N, MPa, s):
-
-* the meshed strap (NinjaFlex) with its two embedded meanders (PI-ETPU), materials from the mesh;
-* **worn configuration** (default): the strap is printed flat, but worn it wraps around the
-  fingertip. Its arch planform is the development of a cone: the arch centre becomes the cone
-  apex, the arch centreline a circle of radius ``finger_radius`` around the finger axis, every
-  point keeps its distance to the inner face (which lies on the finger). The flat mesh is mapped
-  onto that cone (:func:`wrap_points`, an isometry of the inner face) and used as the stress-free
-  reference (the pre-stress of wrapping is neglected: linear analysis; the finite-strain
-  wrap of :func:`designlab.sensors.strap.pulp.wrap_equilibrium` puts it at +4.3 % of the
-  5 N signal, and the linear model's 5 N gauge strain is ~22 % above the geometrically
-  nonlinear one: ``docs/hyperelastic.md``);
-* the tabs (``nail_plate`` facets) are fixed: they are held on the nail plate;
-* the finger pad (``finger_contact``, inner face around the apex) pushes the strap: ``F_n`` along
-  the outward normal of the inner face at the pad centre, ``F_x`` along the strap centreline there
-  (towards the right gauge), applied through a distributing (RBE3-like) coupling at the pad centre
-  (load = "coupling") or as a uniform traction over the contact (load = "traction"); the pulp is
-  soft, so it spreads the load over the contact without stiffening it (no rigid coupling);
-* two gauges: volume-mean strain of ``trace_left`` / ``trace_right`` along the strap centreline
-  (the meander legs' direction: the circle around the arch centre, mapped like the mesh), GF from
-  the trace material, dR/R -> voltage divider (2.2 kOhm, 5 V, seed 000 Fig. 3) -> Ch1 (left),
-  Ch2 (right); readings are voltage changes from the unloaded state.
-
-Why worn: flat, the strap is a 0.6 mm plate loaded across its thickness, the gauges sit at its
-mid-plane, and a linear model has no mechanism turning F_n into gauge strain (only bending,
-whose mean over a mid-plane gauge vanishes: 118 mm apex deflection and 0.0003-0.0006 gauge
-strain per N on the 1.5 mm mesh, a tenth of the worn strap's 0.0053). Wrapped, the
-band carries the pad's push as membrane tension on both sides of the apex (same sign in Ch1 and
-Ch2: the sum reads F_n) while F_x stretches one side and relaxes the other (the difference reads
-F_x), the premise of seed 000. ``configuration="flat"`` is kept for comparison.
-
-Elastic materials: one static solve with the unit load cases ``F_n`` and ``F_x`` scaled by the
-protocol; with Prony series: the whole history through
-:func:`~designlab.fem.viscoelastic.solve_history` (both cases, one History) with
-``method="auto"``: the certified reduced-order march (a Krylov basis of the two load patterns,
-every step's full-order residual checked; the full march when it does not certify), reported in
-the FEM stage as ``march``, ``rom_residual`` and ``rom_basis``. The stress check's long-time
-unit displacements come from the same basis when their residual certifies
-(``long_time_residual``; else, NaN, one more factorisation of the relaxed stiffness).
-
-The FEM stage (:func:`solve_fem`: mesh, wrap, model, the gauges' strain history) is cached under
-:func:`fem_key`, a key of only what it depends on; the readout (divider, ADC, the wrap's
-prestrain from the slot, the staircase read window) runs after it, so designs that differ only
-there share one solve. Unit-load step responses superposed over the protocol were measured and
-not taken: two separate histories in one march cost 1.3x the combined one on the default mesh
-(41.8k DOF, 60 steps: 13.9 vs 10.6 s CPU incl. the factorisation), and the default protocol
-(51 s) is shorter than the 7 tau_max (76 s) after which a step response could be cut. Exact
-convolution of step responses (the model is linear time-invariant at a constant step) needs
-each of the two load patterns' responses over the whole protocol: 511 steps of two right-hand
-sides, more than the one combined march (511 single solves). The reduced march replaces those
-511 solves by 26 (the basis) and a march in 26 unknowns: on the default mesh the history takes
-2.0 s instead of 12.0 s wall, the gauge strains within 6e-12 of the full march's largest
-(``benchmarks/bench_viscoelastic_rom.py``, load ~2 on 2 cores); hysteresis and condition number
-change by < 1e-11 relative.
+key, the readout, :func:`run` and its metrics (:func:`evaluate`). The FEM model, why the strap
+is modelled worn and how the history is marched: docs/notes/strap_model.md.
 """
 
 from __future__ import annotations
@@ -79,8 +23,9 @@ from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
 from designlab.sensors.protocols import StrapLoadTest
 from designlab.errors import ParameterError
 from designlab.fem.settings import FEMSettings
-from designlab.fem.transducers import StrainGauge
 from designlab.params import rng, validate, whole_numbers
+from designlab.sensors.strap.electrical import DividerGauge
+from designlab.sensors.strap.wrap_stress import wrap_stress, wrap_stress_warnings
 
 CHANNELS = ("Ch1", "Ch2")          #: Ch1 = left gauge (x < 0), Ch2 = right gauge (x > 0)
 GAUGE_REGIONS = ("trace_left", "trace_right")
@@ -89,19 +34,8 @@ CASES = ("F_n", "F_x")
 
 @dataclass(frozen=True)
 class StrapModelSettings(FEMSettings):
-    """FEM settings of the strap test (mm).
-
-    The mesh is made with fTetWild directly on the part's bodies and facet sets, with the part's
-    refinement spheres at ``refinement_edge`` (0 = none): ``mesh_part`` always adds the part's
-    0.2 mm spheres, which give ~180k cells (400 s to mesh), far more than the gauges' *mean*
-    strain needs: edges of 1.5 mm (5.6k TET10), 1.0 mm (10.4k) and 1.5 mm with 0.5 mm at the
-    gauges (7.8k) give strain per N within 1.3 % (F_n) and 3 % (F_x) of each other.
-
-    ``tissue_stiffness``: the finger under the strap as a Winkler foundation. Without it the
-    wrapped band is held only at its tabs and bends freely (9.4 mm at the apex per N; 1.3 mm
-    with 0.02 N/mm^3); the
-    pulp's ~2 N/mm under a ~1 cm^2 contact (fingertip indentation tests) gives ~0.02 N/mm^3.
-    Gauge strain per N changes by +40 % from none to 0.01 and by +9 % from 0.01 to 0.05."""
+    """FEM settings of the strap test (mm). Why these mesh and tissue defaults:
+    docs/notes/strap_model.md."""
 
     edge_length: float = field(default=1.5, metadata=rng(0.2, 5, unit="mm"))
     refinement_edge: float = field(default=0.0, metadata=rng(0, 5, unit="mm",
@@ -554,51 +488,18 @@ def solve_fem(part, protocol: StrapLoadTest, settings: StrapModelSettings, mater
             "edge_length": np.array(float(edge)), "solver": np.array(solver)}
 
 
-@dataclass(frozen=True)
-class _Gauge:
-    """A channel's readout after the FEM stage: :class:`~designlab.fem.transducers.StrainGauge`'s
-    own resistance and divider formulas (borrowed below) on the stored gauge factor, without
-    the model the gauge was measured on."""
-
-    gauge_factor: float
-    gauge_quadratic: float
-    R0: float
-    R_fixed: float
-    V_s: float
-    tcr: float = 0.0
-    T0: float = 20.0
-
-    dR_R = StrainGauge.dR_R
-    resistance = StrainGauge.resistance
-    voltage = StrainGauge.voltage
-
-
-def run(part=None, protocol: StrapLoadTest | None = None,
-        settings: StrapModelSettings | None = None, *, materials=None, mesh=None,
-        progress: Callable[[str], None] | None = None, cache=None) -> StrapPrediction:
-    """Mesh (unless ``mesh``, the flat printed mesh, is given), wrap, build, run the protocol's
-    history and evaluate the metrics. ``cache`` (:class:`~designlab.fem.cache.FEMCache`): the
-    FEM stage (:func:`solve_fem`) is computed once per :func:`fem_key` and reused by every
-    design that shares it (readout settings, the wrap's slot, the nail plate)."""
+def _prediction_mesh(fem: dict, settings: StrapModelSettings, materials=None):
+    """The prediction's mesh (VTU, stress check): the strap, without the pulp's cells and
+    nodes (appended after the strap's, strap_pulp_layer.add_pulp; the pulp is no library
+    material and has no strength, report["finger"] has its strain). Returns (mesh, its node
+    count, the region materials)."""
     from designlab.fem.model import Model
-    from designlab.fem.cache import timed_stage
-    from designlab.geometry.strap import ArchStrap
     from designlab.mesh.tetmesh import TetMesh
 
-    part = part or ArchStrap()
-    protocol = protocol or StrapLoadTest()
-    settings = settings or StrapModelSettings()
-    say = progress or (lambda s: None)
-    key = None if mesh is not None else fem_key(part, protocol, settings, materials)
-    fem, reused, timings = timed_stage(
-        lambda: solve_fem(part, protocol, settings, materials, mesh, say), key, cache)
     names = [str(n) for n in fem["region_names"]]
     n_keep = len(fem["points"])
     keep = np.ones(len(fem["cells"]), bool)
     if settings.finger_model == "solid":
-        # the prediction's mesh (VTU, stress check) is the strap: the pulp's cells and nodes
-        # (appended after the strap's, strap_pulp_layer.add_pulp) are left out; the pulp is no
-        # library material and has no strength. report["finger"] has its strain.
         from designlab.sensors.strap.pulp_layer import PULP
 
         keep = np.asarray(fem["region"]) != names.index(PULP)
@@ -607,89 +508,95 @@ def run(part=None, protocol: StrapLoadTest | None = None,
                    np.asarray(fem["region"])[keep], dict(enumerate(names)),
                    dict(zip(names, (str(m) for m in fem["region_materials"]))))
     region_materials = Model(mesh, finger_materials(settings, materials)).region_materials
-    frame = pad_frame(part, settings)
+    return mesh, n_keep, region_materials
 
-    t, fn, fx = protocol.time_history()
+
+def _gauge_strains(fem: dict, fn: np.ndarray, fx: np.ndarray):
+    """(viscous, gauge strain history, unit strains per N or None, displacement at the peak)."""
     viscous = bool(fem["viscoelastic"])
     if viscous:
-        strain = np.array(fem["strain"], float)
-        unit = None
-        u_peak = np.array(fem["u_peak"], float)
-    else:
-        unit = np.array(fem["unit"], float)
-        strain = np.column_stack([fn, fx]) @ unit.T
-        u_peak = np.array(fem["U_n"], float) * float(fn.max())
+        return viscous, np.array(fem["strain"], float), None, np.array(fem["u_peak"], float)
+    unit = np.array(fem["unit"], float)
+    strain = np.column_stack([fn, fx]) @ unit.T
+    return viscous, strain, unit, np.array(fem["U_n"], float) * float(fn.max())
 
-    t0 = time.perf_counter()
+
+def _prestrained(part, settings: StrapModelSettings, trace_mat, R0: float, strain, unit, say):
+    """The wrap's prestrain state and the strains it scales: (state or None, initial strain,
+    strain, unit)."""
+    if not settings.prestrained:
+        return None, 0.0, strain, unit
+    import designlab.sensors.strap.prestrain as ps
+
+    say("prestrain")
+    pre = ps.prestrain_state(part, 2 * math.pi * settings.finger_radius, trace_mat, R0,
+                             settings.divider_ohm, slot=settings.slot or None,
+                             length=settings.wrap_length or None)
+    eps0 = 0.0
+    if pre["initial_strain"] > 0:       # a slack strap reads stress-free
+        eps0 = pre["initial_strain"]
+        strain = strain * pre["mechanical_factor"]
+        if unit is not None:
+            unit = unit * pre["mechanical_factor"]
+    return pre, eps0, strain, unit
+
+
+def _readout_entries(part, settings: StrapModelSettings, trace_mat, g1: DividerGauge, eps0: float,
+                     pre, sens: dict) -> dict:
+    """The electrical report and (worn) the paper's slots on this finger, from this run's
+    sensitivity without prestrain."""
     import designlab.sensors.strap.electrical as el
     import designlab.sensors.strap.prestrain as ps
 
-    trace_mat = region_materials[mesh.region_id(GAUGE_REGIONS[0])]
-    R0 = el.gauge_resistance(part, settings.contact_ohm, trace_mat)["total"]
-    gauges = {c: _Gauge(float(fem["gauge_factor"][i]), float(fem["gauge_quadratic"][i]), R0,
-                        settings.divider_ohm, settings.supply_V)
-              for i, c in enumerate(CHANNELS)}
-    g1 = gauges[CHANNELS[0]]
-    pre = None
-    eps0 = 0.0
-    if settings.prestrained:
-        say("prestrain")
-        pre = ps.prestrain_state(part, 2 * math.pi * settings.finger_radius, trace_mat, g1.R0,
-                                 settings.divider_ohm, slot=settings.slot or None,
-                                 length=settings.wrap_length or None)
-        if pre["initial_strain"] > 0:       # a slack strap reads stress-free
-            eps0 = pre["initial_strain"]
-            strain = strain * pre["mechanical_factor"]
-            if unit is not None:
-                unit = unit * pre["mechanical_factor"]
-    voltage = np.column_stack([gauges[c].voltage(eps0 + strain[:, i])
-                               for i, c in enumerate(CHANNELS)])
-    v0 = np.array([float(gauges[c].voltage(eps0)) for c in CHANNELS])
-    dV = voltage - v0
-    report = evaluate(protocol, settings, t, fn, fx, dV, strain)
-    sens = report["sensitivity"]["V_per_N"]
     R_rest = float(g1.resistance(eps0))
-    report["electrical"] = el.electrical_report(
+    out = {"electrical": el.electrical_report(
         part, trace_mat, sens["sum"]["F_n"], sens["diff"]["F_x"],
         contact_ohm=settings.contact_ohm, R_fixed=settings.divider_ohm, V_s=settings.supply_V,
         adc_bits=settings.adc_bits, adc_full_scale_V=settings.supply_V,
-        bandwidth_hz=settings.bandwidth_hz, R_rest=R_rest)
-    report["prestrain"] = pre
+        bandwidth_hz=settings.bandwidth_hz, R_rest=R_rest), "prestrain": pre}
     if settings.configuration == "worn":
-        # the paper's slots on this finger, from this run's sensitivity without prestrain
         f = pre["sensitivity_factor"] if pre and pre["initial_strain"] > 0 else 1.0
-        report["slots"] = ps.slot_table(part, 2 * math.pi * settings.finger_radius, trace_mat,
-                                        g1.R0, settings.divider_ohm, sens["sum"]["F_n"] / f,
-                                        sens["diff"]["F_x"] / f)
-    timings["metrics"] = time.perf_counter() - t0
-    report["timings_s"] = timings
-    report["mesh"] = {"points": int(mesh.n_points), "cells": int(mesh.n_cells),
-                      "order": int(mesh.order), "dofs": int(fem["dofs"]),
-                      "edge_length_mm": float(fem["edge_length"]),
-                      "refinement_edge_mm": settings.refinement_edge,
-                      "mesher": str(fem["mesher"]),
-                      "attempts": [str(a) for a in fem["mesh_attempts"]],
-                      "solver": str(fem["solver"])}
-    report["fem_reused"] = reused
-    report["finger"] = {"finger_model": settings.finger_model}
-    if settings.finger_model == "solid":
-        per_n, p95 = (float(v) for v in fem["pulp_strain_per_N"])
-        peak = float(np.abs(fn).max())
-        report["finger"] |= {
-            "pulp_depth_mm": settings.pulp_depth, "pulp_E_MPa": settings.pulp_modulus,
-            "pulp_nu": settings.pulp_poisson, "pulp_layers": settings.pulp_layers,
-            "pulp_max_principal_strain_per_N": per_n,
-            "pulp_max_principal_strain_at_peak_F_n": per_n * peak,
-            "pulp_p95_principal_strain_at_peak_F_n": p95 * peak,
-            "note": "linear elastic pulp (a hyperelastic pulp linearised at rest, E = 3 mu); "
-                    "the pulp modulus is not a literature value (docs/strap.md)"}
-        if settings.order == 1:
-            report["finger"]["warning"] = ("TET4 cells lock the nearly incompressible pulp "
-                                           "(35 % too stiff on a bonded layer): use order 2")
-    else:
-        report["finger"]["tissue_stiffness_N_per_mm3"] = settings.tissue_stiffness
-    report["fem_key"] = key[:16] if key is not None else None
-    report["model"] = {
+        out["slots"] = ps.slot_table(part, 2 * math.pi * settings.finger_radius, trace_mat,
+                                     g1.R0, settings.divider_ohm, sens["sum"]["F_n"] / f,
+                                     sens["diff"]["F_x"] / f)
+    return out
+
+
+def _mesh_entry(mesh, fem: dict, settings: StrapModelSettings) -> dict:
+    return {"points": int(mesh.n_points), "cells": int(mesh.n_cells),
+            "order": int(mesh.order), "dofs": int(fem["dofs"]),
+            "edge_length_mm": float(fem["edge_length"]),
+            "refinement_edge_mm": settings.refinement_edge,
+            "mesher": str(fem["mesher"]),
+            "attempts": [str(a) for a in fem["mesh_attempts"]],
+            "solver": str(fem["solver"])}
+
+
+def _finger_entry(fem: dict, settings: StrapModelSettings, fn: np.ndarray) -> dict:
+    """The finger model: the solid pulp's strain at the peak F_n, or the Winkler stiffness."""
+    finger = {"finger_model": settings.finger_model}
+    if settings.finger_model != "solid":
+        finger["tissue_stiffness_N_per_mm3"] = settings.tissue_stiffness
+        return finger
+    per_n, p95 = (float(v) for v in fem["pulp_strain_per_N"])
+    peak = float(np.abs(fn).max())
+    finger |= {
+        "pulp_depth_mm": settings.pulp_depth, "pulp_E_MPa": settings.pulp_modulus,
+        "pulp_nu": settings.pulp_poisson, "pulp_layers": settings.pulp_layers,
+        "pulp_max_principal_strain_per_N": per_n,
+        "pulp_max_principal_strain_at_peak_F_n": per_n * peak,
+        "pulp_p95_principal_strain_at_peak_F_n": p95 * peak,
+        "note": "linear elastic pulp (a hyperelastic pulp linearised at rest, E = 3 mu); "
+                "the pulp modulus is not a literature value (docs/strap.md)"}
+    if settings.order == 1:
+        finger["warning"] = ("TET4 cells lock the nearly incompressible pulp "
+                             "(35 % too stiff on a bonded layer): use order 2")
+    return finger
+
+
+def _model_entry(settings: StrapModelSettings, frame: dict, gauges: dict, mesh,
+                 region_materials) -> dict:
+    return {
         "configuration": settings.configuration,
         "finger_radius_mm": settings.finger_radius if settings.configuration == "worn" else None,
         "load": settings.load, "pad_centre_mm": frame["centre"].tolist(),
@@ -700,6 +607,64 @@ def run(part=None, protocol: StrapLoadTest | None = None,
                    f"{settings.supply_V:g} V (seed 000 Fig. 3: 2.2 kOhm, 5 V)",
         "materials": {mesh.region_names[r]: m.name for r, m in region_materials.items()},
     }
+
+
+def _stand_ins(region_materials, viscous: bool) -> list:
+    """The materials' stand-in notes (the Prony stand-in only where the history used it)."""
+    from designlab.fem.materials import stand_in_note
+
+    return sorted({n for m in region_materials.values()
+                   if (n := stand_in_note(m if viscous else
+                                          dataclasses.replace(m, stand_ins=tuple(
+                                              q for q in m.stand_ins if q != "prony"))))})
+
+
+def run(part=None, protocol: StrapLoadTest | None = None,
+        settings: StrapModelSettings | None = None, *, materials=None, mesh=None,
+        progress: Callable[[str], None] | None = None, cache=None) -> StrapPrediction:
+    """Mesh (unless ``mesh``, the flat printed mesh, is given), wrap, build, run the protocol's
+    history and evaluate the metrics. ``cache`` (:class:`~designlab.fem.cache.FEMCache`): the
+    FEM stage (:func:`solve_fem`) is computed once per :func:`fem_key` and reused by every
+    design that shares it (readout settings, the wrap's slot, the nail plate)."""
+    from designlab.fem.cache import timed_stage
+    from designlab.geometry.strap import ArchStrap
+    from designlab.sensors.strap.electrical import gauge_resistance
+
+    part = part or ArchStrap()
+    protocol = protocol or StrapLoadTest()
+    settings = settings or StrapModelSettings()
+    say = progress or (lambda s: None)
+    key = None if mesh is not None else fem_key(part, protocol, settings, materials)
+    fem, reused, timings = timed_stage(
+        lambda: solve_fem(part, protocol, settings, materials, mesh, say), key, cache)
+    mesh, n_keep, region_materials = _prediction_mesh(fem, settings, materials)
+    frame = pad_frame(part, settings)
+
+    t, fn, fx = protocol.time_history()
+    viscous, strain, unit, u_peak = _gauge_strains(fem, fn, fx)
+
+    t0 = time.perf_counter()
+    trace_mat = region_materials[mesh.region_id(GAUGE_REGIONS[0])]
+    R0 = gauge_resistance(part, settings.contact_ohm, trace_mat)["total"]
+    gauges = {c: DividerGauge(float(fem["gauge_factor"][i]), float(fem["gauge_quadratic"][i]), R0,
+                        settings.divider_ohm, settings.supply_V)
+              for i, c in enumerate(CHANNELS)}
+    g1 = gauges[CHANNELS[0]]
+    pre, eps0, strain, unit = _prestrained(part, settings, trace_mat, g1.R0, strain, unit, say)
+    voltage = np.column_stack([gauges[c].voltage(eps0 + strain[:, i])
+                               for i, c in enumerate(CHANNELS)])
+    v0 = np.array([float(gauges[c].voltage(eps0)) for c in CHANNELS])
+    dV = voltage - v0
+    report = evaluate(protocol, settings, t, fn, fx, dV, strain)
+    report.update(_readout_entries(part, settings, trace_mat, g1, eps0, pre,
+                                   report["sensitivity"]["V_per_N"]))
+    timings["metrics"] = time.perf_counter() - t0
+    report["timings_s"] = timings
+    report["mesh"] = _mesh_entry(mesh, fem, settings)
+    report["fem_reused"] = reused
+    report["finger"] = _finger_entry(fem, settings, fn)
+    report["fem_key"] = key[:16] if key is not None else None
+    report["model"] = _model_entry(settings, frame, gauges, mesh, region_materials)
     if unit is not None:
         report["strain_per_N"] = {c: {"F_n": float(unit[i, 0]), "F_x": float(unit[i, 1])}
                                   for i, c in enumerate(CHANNELS)}
@@ -708,17 +673,11 @@ def run(part=None, protocol: StrapLoadTest | None = None,
         report["march"] = {"method": str(fem["march"]), "basis": int(fem["rom_basis"]),
                            **{k: (None if np.isnan(v := float(fem[k])) else v)
                               for k in ("rom_residual", "long_time_residual")}}
-    from designlab.fem.materials import stand_in_note
-
-    stand = sorted({n for m in region_materials.values()
-                    if (n := stand_in_note(m if viscous else
-                                           dataclasses.replace(m, stand_ins=tuple(
-                                               q for q in m.stand_ins if q != "prony"))))})
+    stand = _stand_ins(region_materials, viscous)
     report["material_stand_ins"] = stand
-    report["notes"] = []
-    if not viscous:
-        report["notes"].append("materials have no Prony series: elastic response, hysteresis "
-                               "is 0 by construction (not a measurement of the printed part)")
+    report["notes"] = [] if viscous else [
+        "materials have no Prony series: elastic response, hysteresis is 0 by construction "
+        "(not a measurement of the printed part)"]
     report["notes"].extend(stand)
     if pre is not None:
         pre["stress"] = wrap_stress(region_materials, mesh, pre["initial_strain"])
@@ -726,53 +685,6 @@ def run(part=None, protocol: StrapLoadTest | None = None,
             warnings.warn(w, stacklevel=2)
     U_long = np.array(fem["U_long"], float)[:n_keep] if "U_long" in fem else None
     return StrapPrediction(t, fn, fx, strain, voltage, dV, report, mesh, u_peak[:n_keep], U_long)
-
-
-# ------------------------------------------------------------------------------------ stress
-
-def wrap_stress(region_materials, mesh, eps0: float) -> dict[str, Any]:
-    """Stress of the wrap's initial strain ``eps0`` in closed form: a uniaxial membrane stress
-    along the band, the same strain in every body, the incompressible neo-Hookean stand-in law
-    of :func:`designlab.sensors.strap.prestrain.neo_hooke` (``E eps0`` at small strain) with each
-    material's instantaneous modulus (when the strap is put on; it relaxes to the long-time
-    value while worn). Uniaxial: von Mises = |sigma|. The FEM carries no prestress (linear
-    increments on the worn state, module docstring): under a load the von Mises stress is at
-    most this plus the load case's (von Mises is a seminorm: triangle inequality)."""
-    from designlab.fem.stress import WARN_SAFETY_FACTOR, relaxed
-    from designlab.sensors.strap.prestrain import neo_hooke
-
-    e = max(float(eps0), 0.0)
-    factor = neo_hooke(e)["stress_over_linear"]
-    bodies, worst = {}, None
-    for rid, m in sorted(region_materials.items()):
-        body = mesh.region_names.get(rid, str(rid))
-        sigma = float(m.E * e * factor)
-        sf = (None if m.strength is None else (m.strength / sigma if sigma > 0 else float("inf")))
-        bodies[body] = {"material": m.name, "max_von_mises_MPa": sigma,
-                        "long_time_MPa": float(relaxed(m).E * e * factor),
-                        "linear_E_eps0_MPa": float(m.E * e),
-                        "strength_MPa": m.strength, "safety_factor": sf}
-        if sf is not None and (worst is None or sf < worst["safety_factor"]):
-            worst = {"body": body, **bodies[body]}
-    return {"initial_strain": float(eps0),
-            "method": "uniaxial membrane stress of the wrap's initial strain (closed form, "
-                      "neo-Hookean stand-in, instantaneous modulus); under load the von Mises "
-                      "stress is at most this plus the load case's",
-            "bodies": bodies, "min_safety_factor": None if worst is None else
-            worst["safety_factor"], "critical": worst, "warn_below": WARN_SAFETY_FACTOR}
-
-
-def wrap_stress_warnings(ws: dict[str, Any]) -> list[str]:
-    """One line per body whose wrap safety factor is below the warning level."""
-    out = []
-    for body, e in ws["bodies"].items():
-        sf = e["safety_factor"]
-        if sf is not None and sf < ws["warn_below"]:
-            out.append(f"safety factor {sf:.2g} < {ws['warn_below']:g} in {body} "
-                       f"({e['material']}) from the wrap alone (initial strain "
-                       f"{ws['initial_strain']:.3g}): {e['max_von_mises_MPa']:.3g} MPa vs "
-                       f"strength {e['strength_MPa']:.3g} MPa")
-    return out
 
 
 # ------------------------------------------------------------------------------------ metrics

@@ -128,7 +128,8 @@ def build(ctx: dict[str, Any], values: dict[str, Any], seed: int) -> dict[str, A
     paper's calibration with readout noise from ``seed``."""
     import designlab.sensors.strap.electrical as el
     import designlab.sensors.strap.prestrain as ps
-    from designlab.sensors.strap.model import CHANNELS, _fit_transfer, _Gauge
+    from designlab.sensors.strap.electrical import DividerGauge
+    from designlab.sensors.strap.model import CHANNELS, _fit_transfer
     from designlab.sensors.strap.noise import StrapForceTest, run_strap_force_test
 
     part, sett, proto = ctx["part"], ctx["settings"], ctx["protocol"]
@@ -152,7 +153,7 @@ def build(ctx: dict[str, Any], values: dict[str, Any], seed: int) -> dict[str, A
                                  slot=sett.slot or None, length=sett.wrap_length or None)
         if pre["initial_strain"] > 0:
             eps0, mech = pre["initial_strain"], pre["mechanical_factor"]
-    gauge = _Gauge(mat.gauge_factor, mat.gauge_quadratic, R0, sett.divider_ohm, sett.supply_V)
+    gauge = DividerGauge(mat.gauge_factor, mat.gauge_quadratic, R0, sett.divider_ohm, sett.supply_V)
     _, fn, fx = proto.time_history()
     F = np.column_stack([fn, fx])
     strain = F @ (unit * mech).T
