@@ -1,14 +1,5 @@
 """Noise and error sources of the three sensors, each with the value and the source it comes from.
-
-One place for the numbers the error budgets (:mod:`designlab.sensors.flexure.force_error`,
-:mod:`designlab.sensors.fingertip.calibration`) and the Monte Carlo defaults
-(:mod:`designlab.predict.uncertainty`) use. The fingertip's readout noise (FSS015 repeatability,
-zero drift, DAQ quantisation) is the colleague's model in
-:mod:`designlab.sensors.fingertip.contact` (``ContactSettings``, ``readings_noise``); the strap's
-electrical noise (Johnson, ADC) is :mod:`designlab.sensors.strap.electrical`. This module only
-adds what they do not have and the conversions from what a paper prints to a standard deviation.
-
-Units: mm, N, V.
+Details: docs/notes/sensors_shared.md.
 """
 
 from __future__ import annotations

@@ -1,14 +1,5 @@
-"""Test protocols as data (TOML-configurable); the papers' values are the defaults.
-
-* :class:`HangingWeightTest` - seed 001 Section III: a 5 g tray on strings at a named load point,
-  weights added one by one, each held until settled and read as the mean of the 3 s after its
-  marker, then removed in reverse. G1 = lateral loads at heights h1..h9, G2 = axial loads at radii
-  r1..r5 (Table II) or h1..h6 / r1..r6 (Table III, preset ``"optimized"``); six rotations.
-* :class:`StrapLoadTest` - seed 000: normal and shear fingertip loads (F_n, F_x) on the strap's
-  inner surface, as steps and grasp-like cycles (normal about 10x shear, seed 000 Figs. 7-8).
-* :class:`FlexureWrenchTest` - seed 002: wrenches at the fingertip.
-
-Times in s, masses in g, forces in N (g = 9.81 m/s^2).
+"""Test protocols as data (TOML-configurable); the papers' values are the defaults. Details:
+docs/notes/sensors_shared.md.
 """
 
 from __future__ import annotations

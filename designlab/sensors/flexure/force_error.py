@@ -1,35 +1,5 @@
-"""Seed 002's force-sensing test, run virtually with its noise and hysteresis (Table I).
-
-What the paper did (Sec. V-B-3): the LIPMM moved the dome to 502 random poses within the
-workspace, an ATI sensor read the wrench; 92 pairs {true pose X_c, wrench F_c} fitted a linear
-stiffness K_c by least squares (21 upper-triangular entries), and the remaining 410 tested it
-with the pose the camera estimated: F_est = K_c X_est, error F_c - F_est (Table I: mean +-0.07 N,
-std 0.30 / 0.30 / 0.34 N).
-
-The virtual test does the same on the built flexure (``K_true`` of
-:func:`designlab.sensors.flexure.model.run`, its ``truth`` setting: the beam chain as built at
-the working load by default, or the solid FEM of the helix, or the Timoshenko column):
-
-* **poses**: random wrenches, forces uniform in +-``max_force_N`` (10 N, the fingertip force of
-  seed 002 Sec. III) and moments in +-``max_moment_Nmm`` per axis, visited in random order;
-  the pose is ``X = K_true^-1 W`` (the LIPMM drives the pose; the wrench is what it takes);
-* **hysteresis** (the reference wrench): an Iwan micro-slip model per axis
-  (:class:`designlab.sensors.noise.IwanHysteresis`) whose full loop deviates from its median by
-  ``hysteresis_percent`` of the axis' full range (seed 002: 2-5 %), driven along the straight
-  path between consecutive poses; ``F_c = K_true X + h``;
-* **pose noise** (the camera): normal, ``pose_noise_mm`` per translation (25 um: the paper's
-  20 um mean absolute error as a standard deviation), ``pose_noise_rad`` per rotation (not
-  reported by the paper: 0 by default);
-* **calibration as the paper**: least squares of K_c on the first 92 {X, F_c}, tested on the
-  other 410 with X_est.
-
-The error splits exactly into three terms, reported per axis beside the total:
-``F_c - K_c X_est = (K_ref - K_c) X  +  (F_c - K_ref X)  -  K_c n`` (model error, hysteresis,
-pose noise), ``K_ref`` the best linear stiffness of the hysteretic flexure (least squares over
-all points): the hysteresis term is what no linear model can represent, the model term what
-K_c misses of the best one. With a linear truth the model term is only what 92 hysteretic
-points leave in K_c; ``calibration="closed_form"`` uses the designer's zero-pitch K instead (no
-calibration) and shows the model error of the closed form.
+"""Seed 002's force-sensing test, run virtually with its noise and hysteresis (Table I). Details:
+docs/notes/flexure_modules.md.
 """
 
 from __future__ import annotations

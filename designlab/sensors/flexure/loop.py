@@ -1,17 +1,5 @@
-"""The loop, both ways, for seed 002's spring flexure (wrench at the fingertip -> pose).
-
-measured -> loop: a dataset card of a flexure log has the wrench as inputs (``m_x, m_y, m_z``
-in N mm, ``f_x, f_y, f_z`` in N) and the pose the tracker reports as outputs (twist ``w_x, w_y,
-w_z`` in rad or deg, ``v_x, v_y, v_z`` in mm). ``designlab predict flexure`` writes the design's
-compliance K_f^-1 as ``model.json``; ``designlab loop --base that/model.json`` then learns how
-the printed flexure differs from its model: ``gain_offset`` (a zero offset of the pose and a
-relative compliance error per axis) and any mechanism of the library (hysteresis, relaxation).
-Angles read in deg are handled by the loop (the linear base is rescaled, and recorded).
-
-loop -> predict (:func:`apply_model`): the learned effects are added to a new design's
-virtual-test poses (the protocol's wrenches, each held ``hold_s``, in the protocol's order, plus
-an up/down staircase per axis for hysteresis), the wrench is estimated again with the designer's
-K_design and the metrics (wrench error per axis, calibration, hysteresis) are re-evaluated.
+"""The loop, both ways, for seed 002's spring flexure (wrench at the fingertip -> pose). Details:
+docs/notes/flexure_modules.md.
 """
 
 from __future__ import annotations

@@ -1,18 +1,8 @@
 """The flexure's Monte Carlo model (``Sensor.uncertainty``): its uncertain inputs, the FEM stage
 (the built flexure's stiffness, once per design) and one virtual build (seed 002's force test
 with the build's hysteresis and pose noise, :func:`designlab.sensors.flexure.force_error.
-run_force_test`).
-
-Wire diameter. A catalogue spring's wire is within a tolerance of its nominal diameter ``d0``;
-the build's wire ``d0 + wire_diameter_offset_mm`` changes the built flexure's 6x6 (the
-designer's closed form keeps ``d0``) and the wire stress. The FEM stage computes the built
-flexure's stiffness (its ``truth`` model: beam chain, Timoshenko column; a ``"fem"`` truth takes
-the chain's) also at ``d0 (1 +- DIAMETER_STEP)``; a build's stiffness is then, entry by entry,
-the power law ``K0 (d / d0)^p`` through those three points (``p = 4`` exactly for the closed
-form and the Timoshenko column, whose every term is ``E d^4`` or ``G d^4``), or the straight
-line where an entry changes sign or vanishes (:func:`stiffness_at_diameter`). The wire stress
-re-uses the nominal section forces (statics) with the build's wire (section modulus, Wahl
-factors, strength ``S_ut(d)``)."""
+run_force_test`). Details: docs/notes/flexure_modules.md.
+"""
 
 from __future__ import annotations
 

@@ -1,27 +1,5 @@
-"""Closed-form 6x6 stiffness of a helical compression spring (seed 002), mm/N/MPa inside.
-
-The spring is an equivalent column (Haringx): a round wire of radius ``r`` (``I = pi r^4/4``,
-``J = pi r^4/2``) coiled ``n_a`` active turns at mean radius ``R`` has, per load on the coil axis,
-the wire moments (energy method, wire axial/shear strain neglected, many coils):
-
-============  =========================================  ===============================
-load           wire moment at coil angle phi              stiffness at the spring centre
-============  =========================================  ===============================
-torque m_x     m_x (cos phi bending + sin phi torsion)    k_bx = 2 / (L_w (1/EI + 1/GJ))
-torque m_z     m_z bending                                k_tz = EI / L_w
-force f_x      R f_x sin phi bending                      k_x  = 2 EI / (R^2 L_w)
-force f_z      R f_z torsion                              k_z  = GJ / (R^2 L_w)
-============  =========================================  ===============================
-
-with the wire length ``L_w = 2 pi R n_a``. In the zero-pitch limit the spring has no length, the
-equivalent column has only these terms and ``K_f`` at the centre is diagonal: this is the paper's
-closed form. With the spring's real active length ``L`` (``n_a`` times the pitch ``2 pi R tan a``)
-the column also bends (Timoshenko: bending rigidity ``B = k_bx L``, shear rigidity ``S = k_x L``),
-the centre lateral stiffness drops to ``1 / (L^2 / (12 k_bx) + 1 / k_x)``, and moving the centre
-stiffness to an end frame couples moments to translations.
-
-Stiffness order (w_x, w_y, w_z, v_x, v_y, v_z) -> (m_x, m_y, m_z, f_x, f_y, f_z). Inside designlab the
-units are N*mm/rad, N/mm and N (couplings); :func:`to_si` gives N*m/rad, N/m and N.
+"""Closed-form 6x6 stiffness of a helical compression spring (seed 002), mm/N/MPa inside. Details:
+docs/notes/flexure_modules.md.
 """
 
 from __future__ import annotations

@@ -1,42 +1,5 @@
 """Wire stress and safety factor of the spring flexure under the virtual test's load cases.
-
-Two models of the same wire, each section's stress from its section forces (axial ``N``,
-shear ``V``, torsion ``T``, bending moment ``M``; wire diameter ``d``, spring index
-``C = D / d``):
-
-* **closed form** (:func:`closed_form_sections`): the spring between two rigid ends is one
-  serial chain of wire, so a wrench ``(m, f)`` at the spring centre ``c`` is carried by every
-  free section at ``p`` as ``f`` and ``m + (c - p) x f`` (statics, no stiffness needed). The
-  sections are those of the textbook helix: mean radius ``R``, tangent at the active pitch
-  angle, at every coil angle and at heights up to ``L0/2 - r`` from the centre (the wire's
-  centreline where it leaves the ground end, one radius above the seat; plain ends: ``L/2``).
-  For an axial force this is Wahl's ``T = F R`` (the stress below reproduces
-  ``K_W 8 F D / (pi d^3)``); for a lateral force or a moment it is the moment at the coil of
-  Wahl's helical spring under lateral load (A. M. Wahl, *Mechanical Springs*, 2nd ed., 1963,
-  ch. 4 and 15: the end coils carry the largest moment).
-* **beam chain** (:meth:`designlab.sensors.flexure.beam_chain.Chain.section_forces`): the spring
-  as built with its bonded ground ends and the dead-coil and seat contacts, the same load
-  solved with the active-set contact; its section forces are the element end forces.
-
-Stress in a section (Shigley's *Mechanical Engineering Design*, 10th ed., Sec. 10-2 and 10-3
-for the compression spring, Sec. 10-12 for the bending of a coiled wire):
-
-* shear ``tau = K_c (16 T / (pi d^3) + V / A)``, ``K_c = K_W / K_s`` the curvature factor,
-  ``K_W = (4C - 1) / (4C - 4) + 0.615 / C`` (Wahl), ``K_s = 1 + 1 / (2C)`` (direct shear): for a
-  pure axial force (``V = F``, ``T = F D / 2``) this is exactly ``K_W 8 F D / (pi d^3)``;
-* normal ``sigma = K_i 32 M / (pi d^3) + N / A``, ``K_i = (4C^2 - C - 1) / (4C (C - 1))`` the
-  inner-fibre factor of a curved wire in bending;
-* von Mises ``sqrt(sigma^2 + 3 tau^2)`` with the largest normal and shear stress of the section
-  taken at one point (an upper bound: they need not share a fibre).
-
-Strength (von Mises equivalent, so that ``SF = strength / sigma_vM`` is Shigley's
-``S_sy / tau`` in pure torsion): SS302 (ASTM A313) wire ``sqrt(3) S_sy`` with
-``S_sy = 0.35 S_ut`` (Shigley Table 10-6, austenitic stainless, set not removed) and
-``S_ut = 1867 MPa / d^0.146`` (``d`` in mm, Shigley Table 10-4, A313 302 wire 0.3-2.5 mm;
-1020 MPa at the seed 002 wire d = 2.03 mm, :mod:`designlab.fem.materials`); any other wire
-material: its table strength (:attr:`designlab.fem.materials.Material.strength`).
-
-Units: mm, N, N mm, MPa.
+Details: docs/notes/flexure_modules.md.
 """
 
 from __future__ import annotations

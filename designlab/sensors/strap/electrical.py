@@ -1,34 +1,5 @@
 """Electrical design of the seed 000 strap from its geometry: trace resistance, divider, self-
-heating, noise and resolution.
-
-* **Resistance.** Each meander is a path of ``squares`` squares (``ArchStrap.trace_squares``:
-  legs, turns with Hall's corner squares, leads, pads), so ``R = rho_eff / t * squares +
-  2 R_contact``. The effective resistivity of *printed, annealed* PI-ETPU along the raster is
-  **back-calculated** from the paper's "around 1.8 kOhm" between the pads (seed 000 Sec. III-A)
-  on the default :class:`~designlab.geometry.strap.ArchStrap` (our estimate of the paper's
-  meander): rho_eff = (1800 ohm - 2 R_contact) t / squares = 7.04 ohm*mm (0.70 ohm*cm) with the
-  contacts lumped in (R_contact = 0, the default: the paper measured pad to pad with the wires
-  melted in and gives no contact resistance). Table I's "< 800 ohm*cm" is the filament's
-  upper bound, not the printed trace's value: on the same meander it would give ~2 MOhm,
-  1100x the measured 1.8 kOhm. By construction the paper's geometry gives 1.8 kOhm; any other
-  geometry follows R = rho L / A. **A measured resistivity replaces it**: a trace material
-  whose ``resistivity`` comes from a measured printed-material record
-  (:func:`~designlab.fem.materials.with_measured`, ``--measured FILE.json``; the value is
-  the printed trace's, ohm*mm along the raster) is used as rho instead, and the report says
-  which one is in use (``resistivity_source``).
-* **Divider** (seed 000 Fig. 3: gauge + 2.2 kOhm on 5 V, the voltage across the gauge read):
-  dV/dR = V_s R_f / (R + R_f)^2, and the fixed resistor that maximises the voltage per unit
-  dR/R is R_f = R (:func:`~designlab.fem.transducers.optimal_divider_resistor`).
-* **Self-heating.** P = I^2 R in each gauge; its temperature rise from two parallel paths: down
-  through the TPU under the trace into the finger (half-space spreading resistance of an
-  isothermal disc of the gauge's footprint area, 1 / (4 k a), Carslaw & Jaeger, Conduction of
-  Heat in Solids, 2nd ed. 1959, Sec. 8.2), and up by natural convection. The drift is
-  TCR x dT (TCR 0.002/C, seed 000 Sec. V-E); both gauges heat alike, so it enters the sum
-  channel (F_n) and cancels in the difference (F_x).
-* **Noise -> resolution.** Johnson noise of the divider's source resistance R || R_f in the
-  paper's 10 Hz low-pass bandwidth (Sec. III-D) and the ADC's quantisation noise; resolution =
-  noise of the sum (difference) channel / its sensitivity, in mN. Excess (1/f) noise of the
-  carbon-black composite is not modelled: no data for PI-ETPU.
+heating, noise and resolution. Details: docs/notes/strap_modules.md.
 """
 
 from __future__ import annotations

@@ -1,22 +1,5 @@
-"""The worn strap's initial strain and a strap sized to one finger (seed 000 Sec. V-E).
-
-**Wrap and prestrain** (the initial strain of the worn strap, what it changes in a linear
-model, the paper's slots): :mod:`designlab.sensors.strap.prestrain`, re-exported here.
-
-**Finger.** Width (across the nail) and depth (nail to pulp) of the distal phalanx at the strap,
-its length; the section is an ellipse (Ramanujan's perimeter). The accepted ranges are the
-range the wrap model is built for (a cylinder-like fingertip from a small little finger to a
-large thumb), not anthropometric percentiles: no cited fingertip-breadth survey could be
-checked while this was written (docs/strap.md).
-
-**Personalised strap's spread.** Sized to the *measured* perimeter, the strap's strain differs
-from the target by the perimeter error over the strap length, d eps = (1 + eps) dP / path:
-what varies over the fingers is the measurement (and what the model of fit leaves out).
-The cited measurement errors (``designlab/data/finger_measurement_error.json``, read from the
-abstracts): caliper %TEM 2.25-4.90 % for finger breadths < 25 mm, a structured-light scan's
-mean absolute error 0.30 mm (0.53-0.58 mm on finger circumferences); :func:`personalised_spread`
-reports the strain cv for each, and the sensitivities to a 1 % perimeter-model error and to
-0.1 mm of printed length.
+"""The worn strap's initial strain and a strap sized to one finger (seed 000 Sec. V-E). Details:
+docs/notes/strap_modules.md.
 """
 
 from __future__ import annotations

@@ -1,23 +1,9 @@
 """The strap's Monte Carlo model (``Sensor.uncertainty``): its uncertain inputs, the FEM stage
 (the gauges' strain per newton on a few finger-support stiffnesses, once per design) and one
-virtual build (the readout of seed 000 through the build's divider, gauge factor and resistance,
-then the paper's sum/difference calibration with its electrical noise,
-:func:`designlab.sensors.strap.noise.run_strap_force_test`).
-
-**What is exact and what is not.** The FEM stage solves the elastic strap (the library TPUs
-without their Prony stand-ins: the small-signal strain per newton) at the finger-support
-stiffnesses :data:`TISSUE_GRID` (N/mm^3). A build scales the moduli of *both* printed bodies
-(NinjaFlex band and PI-ETPU traces) by ``tpu_modulus_scale`` s and has its own support
-``tissue_stiffness`` k: the model's stiffness is then s K(k / s), so its strain per newton is
-exactly ``unit(k / s) / s``; ``unit`` between the grid's stiffnesses is a monotone cubic in
-log k (PCHIP) -- the one approximation of the mechanics (its error at a stiffness between two
-grid points is checked in ``tests/sensors/strap/test_strap_montecarlo.py``). A scale of *one* body alone (the
-traces stiffer than the band) changes the strain distribution and would need a FEM per sample:
-it is not an input. A build outside the grid (k / s below or above it) is recorded as failed.
-The trace width's print scatter moves the resistance (R = rho L / A) and not the mechanics (a
-0.2 mm trace in a 0.6 mm band; not re-solved); the finger perimeter moves the wrap's initial
-strain (strap_fit) and not the FEM's wrap geometry. Gauge factor, resistivity, divider and the
-readout noise need no FEM.
+virtual build (the readout of seed 000 through the build's divider, gauge factor and
+resistance, then the paper's sum/difference calibration with its electrical noise,
+:func:`designlab.sensors.strap.noise.run_strap_force_test`). Details:
+docs/notes/strap_modules.md.
 """
 
 from __future__ import annotations

@@ -1,30 +1,7 @@
 """The strap's noise and error budget (seed 000): divider, Johnson and ADC noise -> force error
 per axis, in the shape of the flexure's (:mod:`designlab.sensors.flexure.force_error`) and the
-fingertip's (:mod:`designlab.sensors.fingertip.calibration`) budgets.
-
-What the paper did (Sec. III-D, IV): each gauge read through a 2.2 kOhm divider on 5 V by the
-TMSi Saga's auxiliary inputs (1 kHz), bias removed, low-passed at 10 Hz, then a *first-order
-polyfit on task 1*: F_n from the sum Ch1 + Ch2, F_x from the difference Ch1 - Ch2, applied to the
-other tasks. The virtual test does the same on the designed strap:
-
-* **loads**: ``model_points`` + ``test_points`` static loads, F_n uniform in (0, ``normal_N``)
-  and F_x uniform in +-``shear_N`` (the protocol's amplitudes, seed 000 Figs. 7-8: shear about a
-  tenth of the normal force);
-* **readings**: ``dV = M F`` with ``M`` the strap prediction's sensitivities (V per N, channel x
-  (F_n, F_x): the divider gain, gauge factor and strains of the FEM) plus, per channel and
-  sample, independent normal noise: Johnson noise of the divider's source resistance R || R_f
-  in the 10 Hz bandwidth and the ADC's quantisation noise (both from
-  :func:`designlab.sensors.strap.electrical.electrical_report`; the ADC's 16 bit over 5 V is our
-  assumption, the Saga's AUX noise is not given; the quantisation noise is not reduced by the
-  10 Hz filter here: an upper bound);
-* **calibration as the paper**: least-squares lines F_n = a sum + b, F_x = c diff + d on the
-  first ``model_points``, tested on the other ``test_points``.
-
-The error splits exactly: ``F - (a s + b) = (F - a s_true - b) - a n_johnson - a n_adc``
-(model error: what one line per channel misses, i.e. the other axis' cross-talk and the fit's
-scatter; Johnson; ADC). Not in the budget (no data): the composite's 1/f noise, drift,
-relaxation and amplitude loss, which dominate the paper's linear-fit error (Sec. IV, Fig. 10:
-the RMSE is given as box plots only, so no number is compared here).
+fingertip's (:mod:`designlab.sensors.fingertip.calibration`) budgets. Details:
+docs/notes/strap_modules.md.
 """
 
 from __future__ import annotations

@@ -1,30 +1,6 @@
-"""The worn strap's initial strain and what it puts on the linear sensitivity (seed 000
-Sec. V-E): the wrap's path and initial strain, the neo-Hookean stand-in, the gauge's
-operating point, the stress-stiffening estimate and the paper's slots on one finger. It
-sits below the strap's virtual test (:func:`designlab.sensors.strap.model.run` applies it
-after the FEM) and :mod:`designlab.sensors.strap.fit` (a strap sized to one finger, which
-re-exports it).
-
-**Wrap.** Worn, the strap runs around the fingertip and both tabs cross over the nail plate:
-each tab hooks its slot onto the lug on the *far* side of the plate (the arch, 44 mm, covers
-most of a 9 mm-radius finger and the two 14 mm tabs overlap on the nail: hooking the near lug
-would leave no tension at all). The centreline path between the two engaged slot centres is
-therefore the finger's perimeter at the strap's mid-plane plus the lug spacing, and the initial
-membrane strain is ``eps0 = path / L_engaged - 1`` with ``L_engaged`` the unstretched length
-between the engaged slots (:meth:`ArchStrap.engaged_length`). Friction on the skin and the
-nail plate's thickness are neglected; the finger is rigid here (the pulp's compression under
-the strap's tension lowers eps0: :func:`designlab.sensors.strap.fit.compliant_initial_strain`
-estimates it in closed form, not applied; see docs/strap.md),
-so eps0 is an upper bound. The wrap's bending strain (t/2 / r at the faces) is zero on average
-over the gauges, which straddle the mid-plane.
-
-**What the prestrain changes in a linear model.** Superposition: the FEM's strain increments
-per newton do not depend on eps0. It enters through (1) the tangent stiffness of the TPU at
-eps0 (no measured curve of the printed TPU: an incompressible neo-Hookean law with E = 12 MPa
-is the labelled stand-in) and (2) the gauge's operating point: R(eps0) moves the divider's gain
-and dR/R = GF eps + c2 eps^2 has slope GF + 2 c2 eps0. Stress stiffening (geometric stiffness of
-the tension) is not in the sensitivity: :func:`stress_stiffening` estimates its size (ring and
-pad modes) and the report carries it beside the softening factor in use.
+"""The worn strap's initial strain and what it puts on the linear sensitivity (seed 000 Sec. V-E):
+the wrap's path, the neo-Hookean stand-in, the gauge's operating point and the paper's slots on
+one finger. Details: docs/notes/strap_modules.md.
 """
 
 from __future__ import annotations

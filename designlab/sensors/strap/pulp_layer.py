@@ -1,32 +1,6 @@
-"""The finger pulp under the strap as a solid layer (``finger_model = "solid"``, issue 16):
-its mesh and its material, below the strap's model
-(:func:`designlab.sensors.strap.model.build_model` puts the layer under the strap with
-:func:`~designlab.sensors.strap.model.strap_with_pulp`); the studies that run the whole
-strap with it are in :mod:`designlab.sensors.strap.pulp`, which re-exports this module.
-
-The strap's default finger is a Winkler foundation (``tissue_stiffness``, springs normal to the
-inner face outside the pad). The solid option replaces the springs by a body: the same support
-triangles of the strap's inner face (:func:`designlab.sensors.strap.model.inner_face_triangles`) are
-extruded ``pulp_depth`` mm towards the finger axis (flat: -z, so the wrap maps the layer onto
-the cone inside the strap) in ``pulp_layers`` layers of prisms, each split into three tetrahedra
-with the diagonal rule of the base triangle's sorted node ids (conforming between neighbouring
-prisms). The top face *is* the strap's inner face (shared nodes, shared mid-edge nodes for
-TET10): the pulp is bonded to the strap, and its far face (``pulp_bone``) is fixed, the bone /
-nail as a rigid mount. The side faces are free.
-
-Material: linear elastic, ``pulp_modulus`` (E, MPa) and ``pulp_poisson`` (default 0.49, nearly
-incompressible). A hyperelastic pulp linearised at the unloaded state has E = 3 mu (mu the
-neo-Hookean small-strain shear modulus) when incompressible; :func:`principal_strain`
-reports the largest principal strain in the pulp (and its 95th percentile): whether the
-linearisation holds can be read off. TET10 cells with the full 4-point rule at nu = 0.49 (no
-mixed formulation exists in :mod:`designlab.fem`): on a bonded layer they are within 0.6 % of
-a 4x finer mesh while TET4 locks (35 % too stiff; ``tests/sensors/strap/test_strap_pulp.py``): use
-``order = 2`` with the solid pulp (the report's ``finger.warning`` says so otherwise).
-
-No readable literature value for the fingertip pulp's modulus was found in this session (see
-``docs/strap.md``): the default E is **not** a literature number but the Winkler default's
-unconfined equivalent ``tissue_stiffness x pulp_depth`` (0.02 N/mm^3 x 3 mm = 0.06 MPa), stated
-as such; the depth 3 mm is an assumption (volar soft tissue over the distal phalanx).
+"""The finger pulp under the strap as a solid layer (``finger_model = "solid"``): its mesh, its
+material and its principal strain, below the strap's model. Details:
+docs/notes/strap_modules.md.
 """
 
 from __future__ import annotations

@@ -1,14 +1,7 @@
 """The seed 000 arch strap as a sensor: its record :data:`SENSOR` (the registry's) and the hooks
-that run on the virtual test's result: plots, the loop's :func:`gains` and
-:func:`apply_model`, the stress load cases and the force-error test (:func:`finish`). The
-model and the virtual test itself (settings, wrap geometry, FEM stage, :func:`run`, metrics)
-are :mod:`designlab.sensors.strap.model`, re-exported here.
-
-Stress (``Sensor.load_cases``, :func:`load_cases`): every vertex of the protocol's load envelope
-(:func:`load_envelope`: the exact maximum of von Mises over the history) from the FEM stage's
-long-time unit displacements; the wrap's prestress in closed form
-(:func:`~designlab.sensors.strap.model.wrap_stress`).
-Monte Carlo (``Sensor.uncertainty``): :mod:`designlab.sensors.strap.montecarlo`.
+that run on the virtual test's result (plots, the loop's gains, the stress load cases, the
+force-error test); the model itself is :mod:`designlab.sensors.strap.model`. Details:
+docs/notes/strap_modules.md.
 """
 
 from __future__ import annotations
