@@ -38,8 +38,8 @@ def figure(nrows: int = 1, ncols: int = 1, *, width: float = 6.0, height: float 
 
     ``fixed``: a fixed grid instead (``top``: where the axes end, a fraction of the height,
     room for a title and a ``suptitle``; ``wspace``/``hspace``: gaps between panels, fractions
-    of a panel). Constrained layout measures every tick label two more times per save (about
-    0.2-0.5 s CPU a figure); a fixed grid does not. Use it for panels whose tick labels and
+    of a panel). Constrained layout measures every tick label two more times per save; a fixed
+    grid does not. Use it for panels whose tick labels and
     titles are short and whose legends are figure legends or the last column's:
     :func:`legend_outside` then anchors a figure legend just outside the right edge, and the
     save (``bbox_inches="tight"``) takes the outer margins in."""

@@ -131,7 +131,7 @@ def spring_material(spring: HelicalSpring) -> Material:
 
 #: curved (isoparametric) TET10 for the helix by default (:func:`helix_mesh` ``curved``,
 #: :func:`fem_stiffness`, :func:`fem_contact_stiffness`): the wire surface's mid-edge nodes
-#: projected onto the swept circle, ~0.5 s on the default mesh; docs/flexure.md, "Solid FEM:
+#: projected onto the swept circle; docs/flexure.md, "Solid FEM:
 #: contact discretisation"
 CURVED_DEFAULT = True
 
@@ -145,8 +145,8 @@ def fem_stiffness(spring, edge_length: float | None = None, order: int = 2,
     spring:      a :class:`~designlab.sensors.flexure.spring.HelicalSpring` (its E, G are used for the wire)
                  or a ``SpringFlexure`` (its material name is used).
     edge_length: tet edge length, mm (default: the wire radius).
-    solver:      "direct" by default: a slender wire has little fill-in (114k TET10 dofs of the
-                 Visiflex helix factor in ~10 s) while AMG-CG converges slowly on it.
+    solver:      "direct" by default: a slender wire has little fill-in while AMG-CG converges
+                 slowly on it.
     curved:      TET10 (``order`` 2) with the wire surface's mid-edge nodes on the swept circle
                  (:func:`helix_mesh` ``curved``, by projection; cells it inverts straightened):
                  the round section not faceted, 6.9 % stiffer in k_wx than straight on the
@@ -206,11 +206,9 @@ def helix_mesh(flexure, edge_length: float | None = None, order: int = 2,
     straight. ``curve_by="projection"`` (default): each projected onto the circle swept
     along the part's centreline (:func:`wire_surface`), those on the part's flat faces (ground
     faces, wire end faces) kept on their plane and those on a rim projected within the plane
-    (:func:`designlab.mesh.curve.curve_boundary`; ~0.5 s with the Jacobian check on the
-    default mesh, within 3.7e-3 mm of gmsh's nodes, the no-contact 6x6 diagonal within 1e-5
+    (:func:`designlab.mesh.curve.curve_boundary`; on the default mesh within 3.7e-3 mm of gmsh's nodes, the no-contact 6x6 diagonal within 1e-5
     of gmsh's); ``"gmsh"``: gmsh's second-order nodes on the B-rep
-    (:func:`designlab.mesh.brep.curve_tet10`, a second gmsh run: ~80 s CPU on the default
-    mesh). A cell that curving inverts (Jacobian <= 0 at a node or quadrature point) gets its
+    (:func:`designlab.mesh.brep.curve_tet10`, a second gmsh run). A cell that curving inverts (Jacobian <= 0 at a node or quadrature point) gets its
     mid-nodes back on the chords (:func:`straighten_inverted`; ``straightened_cells`` in the
     info). The 5 % check above stays on the corner volume.
     Info: ``edge_asked_mm``, ``median_edge_mm`` (corner edges), ``sized_by``, ``curved``,

@@ -28,13 +28,9 @@ K_F_UNITS = ("SI: N*m/rad (rotational), N/m (translational), N (couplings); rows
 
 @dataclass(frozen=True)
 class FlexureModelSettings(FEMSettings):
-    """Settings of the flexure test (mm, s).
-
-    ``truth="chain"`` (default) is the beam chain of the spring as built (~0.5 s per design, no
-    mesh); ``"timoshenko"`` the column closed form. ``"fem"`` meshes the helix: with the
-    defaults (2 mm edges, 0.06 mm envelope, TET10, ~16k cells) fTetWild takes ~110 s and the
-    solve ~5 s; its diagonal is within 2 % of a 1 mm mesh (24k cells, ~700 s to mesh). A 0.15 mm
-    envelope meshes in ~40 s but thins the wire (-4 % volume, -13 % stiffness)."""
+    """Settings of the flexure test (mm, s). ``truth="chain"`` (default) is the beam chain of
+    the spring as built, ``"timoshenko"`` the column closed form, ``"fem"`` the meshed helix
+    (its mesh defaults: docs/notes/flexure_model.md)."""
 
     truth: str = field(default="chain", metadata=rng(choices=("chain", "fem", "timoshenko"),
                        doc="stiffness of the built flexure"))
