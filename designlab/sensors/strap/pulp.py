@@ -1,14 +1,6 @@
-"""Studies of the finger pulp under the strap as a solid layer (``finger_model = "solid"``),
-issue 16: Winkler against solid pulp (:func:`comparison`, ``python -m
-designlab.sensors.strap.pulp``), the nonlinear strap and the wrap. The layer itself (mesh,
-material, principal strain) is :mod:`designlab.sensors.strap.pulp_layer`, re-exported here
-with :func:`~designlab.sensors.strap.model.strap_with_pulp`.
-
-Nonlinear (issue 16, item 2; ``docs/hyperelastic.md``): :func:`nonlinear_comparison`
-(``python -m designlab.sensors.strap.pulp --nonlinear``) solves the strap at the protocol's
-peak F_n with :mod:`designlab.fem.hyperelastic` (strap bodies St-Venant-Kirchhoff, the pulp
-neo-Hookean with the linear E and nu's mu and kappa) against the linear model;
-:func:`wrap_kinematics` (``--wrap``) the exact strain of the wrap map itself.
+"""Studies of the finger pulp under the strap as a solid layer (``finger_model = "solid"``):
+Winkler against solid pulp (:func:`comparison`), the nonlinear strap and the wrap. Details:
+docs/notes/strap_modules.md.
 """
 
 from __future__ import annotations
@@ -114,7 +106,7 @@ def nonlinear_comparison(steps: int = 10, laws=("neo-Hooke",), part=None, protoc
     mesh: the nonlinear mV/N is that times the ratio, the readout being linear in strain).
     ``shear``: also the difference channel (Ch1 - Ch2) under the protocol's shear F_x at the
     peak F_n, nonlinear (one more solve of both loads) against the linear F_x case."""
-    from designlab.fem.hyperelastic import Continuum, NeoHooke, solve_hyperelastic
+    from designlab.fem.hyperelastic import NeoHooke
     from designlab.fem.static import solve_static
     from designlab.geometry.strap import ArchStrap
     import designlab.sensors.strap.model as st
@@ -139,10 +131,7 @@ def nonlinear_comparison(steps: int = 10, laws=("neo-Hooke",), part=None, protoc
     n3 = 3 * model.n_points
 
     def strain_stats(a, sel):
-        a = a.reshape(mesh.n_cells, -1)[sel].ravel()
-        if not len(a):
-            return None, None
-        return float(a.max()), float(np.percentile(a, 95.0))
+        return _strain_stats(a, sel, mesh.n_cells)
 
     say("linear")
     res = solve_static(model, solver=s.solver)
@@ -164,55 +153,86 @@ def nonlinear_comparison(steps: int = 10, laws=("neo-Hooke",), part=None, protoc
             raise ValueError(f"laws: {law!r} is not one of {PULP_LAWS}")
         hyper = {PULP: NeoHooke.from_linear(s.pulp_modulus, s.pulp_poisson)} \
             if law == "neo-Hooke" else {}
-        curve = []
-
-        def record(lam, u):
-            H = r_cont.displacement_gradient(u[:n3])
-            curve.append([lam * peak] + [_gauge_stretch_strain(gauges[c], H) for c in ch]
-                         + [float(gauges[c].strain(u)) for c in ch])
-            say(f"{law}: F_n {lam * peak:.3g} N")
-
-        r_cont = Continuum.of(model, hyper)
-        r = solve_hyperelastic(model, hyper, cases={"F_n": peak}, steps=steps,
-                               solver=s.solver, on_increment=record)
-        H = r.displacement_gradient()
-        biot = _principal_biot(H.reshape(-1, 3, 3))
-        c = np.array(curve)
-        tot = c[:, 1] + c[:, 2]
-        row = {"gauge_strain_at_peak": [float(c[-1, 1]), float(c[-1, 2]), float(tot[-1])],
-               # the linear gauges' measure (small strain B u) of the nonlinear solution:
-               # how much of the difference is the measure, how much the displacement field
-               "gauge_small_strain_of_nonlinear_u": [float(c[-1, 3]), float(c[-1, 4]),
-                                                     float(c[-1, 3] + c[-1, 4])],
-               "curve": [[round(float(v), 8) for v in line[:3]] for line in c]}
-        row["pulp_max_strain"], row["pulp_p95_strain"] = strain_stats(biot, pulp)
-        row["strap_max_strain"], row["strap_p95_strain"] = strain_stats(biot, ~pulp)
-        lin_sum = lin["gauge_strain_at_peak"][2]
-        row["secant_sum_over_linear"] = float(tot[-1] / lin_sum)
-        row["local_sum_over_linear"] = float((tot[-1] - tot[-2]) / (c[-1, 0] - c[-2, 0])
-                                             / (lin_sum / peak)) if len(c) > 1 else None
-        row["sum_mV_per_N_secant"] = lin["sum_mV_per_N"] * row["secant_sum_over_linear"]
-        row["solver"] = r.summary()
+        row = _nonlinear_row(model, gauges, hyper, law, peak, steps, s.solver, lin, pulp, say)
         if shear:
-            # the difference channel's response to the protocol's shear at the peak normal
-            # force: (F_n, F_x) = (peak, shear) minus (peak, 0), against the linear shear case
-            sx = float(proto.shear_N)
-            say(f"{law}: F_n {peak:g} N + F_x {sx:g} N")
-            r2 = solve_hyperelastic(model, hyper, cases={"F_n": peak, "F_x": sx}, steps=steps,
-                                    solver=s.solver)
-            H2 = r2.displacement_gradient()
-            g2 = [_gauge_stretch_strain(gauges[c], H2) for c in ch]
-            d_nl = (g2[0] - g2[1]) - (c[-1, 1] - c[-1, 2])
-            ux = res.U[:n3, res.system.case_index("F_x")]
-            ex = [float(gauges[k].strain(ux)) for k in ch]
-            d_lin = sx * (ex[0] - ex[1])
-            row["shear"] = {"F_x_N": sx, "gauge_strain_at_peak_with_shear": g2,
-                            "diff_strain_of_shear": float(d_nl),
-                            "linear_diff_strain_of_shear": float(d_lin),
-                            "diff_over_linear": float(d_nl / d_lin),
-                            "solver": r2.summary()}
+            row["shear"] = _shear_row(model, gauges, hyper, law, peak, float(proto.shear_N),
+                                      steps, s.solver, res, row, say)
         out[law] = row
     return out
+
+
+def _strain_stats(a, sel, n_cells: int):
+    """Largest and 95th-percentile strain over the cells ``sel`` (None, None when empty)."""
+    a = a.reshape(n_cells, -1)[sel].ravel()
+    if not len(a):
+        return None, None
+    return float(a.max()), float(np.percentile(a, 95.0))
+
+
+def _nonlinear_row(model, gauges, hyper: dict, law: str, peak: float, steps: int, solver,
+                   lin: dict, pulp: np.ndarray, say) -> dict[str, Any]:
+    """One pulp law's geometrically nonlinear solve at the peak F_n: the gauge strains, the
+    curve per increment, the principal strains and the sensitivity relative to the linear."""
+    from designlab.fem.hyperelastic import Continuum, solve_hyperelastic
+
+    ch = list(gauges)
+    n3 = 3 * model.n_points
+    curve = []
+
+    def record(lam, u):
+        H = r_cont.displacement_gradient(u[:n3])
+        curve.append([lam * peak] + [_gauge_stretch_strain(gauges[c], H) for c in ch]
+                     + [float(gauges[c].strain(u)) for c in ch])
+        say(f"{law}: F_n {lam * peak:.3g} N")
+
+    r_cont = Continuum.of(model, hyper)
+    r = solve_hyperelastic(model, hyper, cases={"F_n": peak}, steps=steps,
+                           solver=solver, on_increment=record)
+    H = r.displacement_gradient()
+    biot = _principal_biot(H.reshape(-1, 3, 3))
+    c = np.array(curve)
+    tot = c[:, 1] + c[:, 2]
+    row = {"gauge_strain_at_peak": [float(c[-1, 1]), float(c[-1, 2]), float(tot[-1])],
+           # the linear gauges' measure (small strain B u) of the nonlinear solution:
+           # how much of the difference is the measure, how much the displacement field
+           "gauge_small_strain_of_nonlinear_u": [float(c[-1, 3]), float(c[-1, 4]),
+                                                 float(c[-1, 3] + c[-1, 4])],
+           "curve": [[round(float(v), 8) for v in line[:3]] for line in c]}
+    n_cells = model.mesh.n_cells
+    row["pulp_max_strain"], row["pulp_p95_strain"] = _strain_stats(biot, pulp, n_cells)
+    row["strap_max_strain"], row["strap_p95_strain"] = _strain_stats(biot, ~pulp, n_cells)
+    lin_sum = lin["gauge_strain_at_peak"][2]
+    row["secant_sum_over_linear"] = float(tot[-1] / lin_sum)
+    row["local_sum_over_linear"] = float((tot[-1] - tot[-2]) / (c[-1, 0] - c[-2, 0])
+                                         / (lin_sum / peak)) if len(c) > 1 else None
+    row["sum_mV_per_N_secant"] = lin["sum_mV_per_N"] * row["secant_sum_over_linear"]
+    row["solver"] = r.summary()
+    return row
+
+
+def _shear_row(model, gauges, hyper: dict, law: str, peak: float, sx: float, steps: int,
+               solver, res, row: dict, say) -> dict[str, Any]:
+    """The difference channel's response to the protocol's shear at the peak normal force:
+    (F_n, F_x) = (peak, shear) minus (peak, 0), against the linear shear case ``res``."""
+    from designlab.fem.hyperelastic import solve_hyperelastic
+
+    ch = list(gauges)
+    n3 = 3 * model.n_points
+    say(f"{law}: F_n {peak:g} N + F_x {sx:g} N")
+    r2 = solve_hyperelastic(model, hyper, cases={"F_n": peak, "F_x": sx}, steps=steps,
+                            solver=solver)
+    H2 = r2.displacement_gradient()
+    g2 = [_gauge_stretch_strain(gauges[c], H2) for c in ch]
+    g_peak = row["gauge_strain_at_peak"]
+    d_nl = (g2[0] - g2[1]) - (g_peak[0] - g_peak[1])
+    ux = res.U[:n3, res.system.case_index("F_x")]
+    ex = [float(gauges[k].strain(ux)) for k in ch]
+    d_lin = sx * (ex[0] - ex[1])
+    return {"F_x_N": sx, "gauge_strain_at_peak_with_shear": g2,
+            "diff_strain_of_shear": float(d_nl),
+            "linear_diff_strain_of_shear": float(d_lin),
+            "diff_over_linear": float(d_nl / d_lin),
+            "solver": r2.summary()}
 
 
 def wrap_kinematics(part=None, **settings) -> dict[str, Any]:
@@ -287,17 +307,8 @@ def wrap_equilibrium(steps: int = 25, part=None, protocol=None, rtol: float = 1e
     prestressed band converge slowly (0.2 N increments: 25, 19, 16 ... 4 iterations at edge
     3 mm, 40, 28, 23 ... 4 on the default mesh; 1 N increments did not converge in 40),
     hence 25 increments and up to 60 iterations by default."""
-    import types
-
-    from designlab.fem.model import Model
-    from designlab.fem.assembly import cell_basis
-    from designlab.fem.hyperelastic import Continuum, NeoHooke
-    from designlab.fem.solvers import MANY_RHS, factorize
-    from designlab.fem.transducers import StrainGauge
-    from designlab.errors import ModelError
     from designlab.geometry.strap import ArchStrap
     import designlab.sensors.strap.model as st
-    from designlab.sensors.strap.model import elastic_materials
     from designlab.sensors.protocols import StrapLoadTest
 
     part = ArchStrap() if part is None else part
@@ -305,87 +316,17 @@ def wrap_equilibrium(steps: int = 25, part=None, protocol=None, rtol: float = 1e
     s = st.StrapModelSettings(**{"mesh_convergence": False, **settings,
                                  "finger_model": "solid"})
     say("meshing")
-    flat = st.mesh_strap(part, s)
-    mesh = strap_with_pulp(part, flat, s)
-    worn = st.worn_mesh(part, mesh, s.finger_radius)
-    model = Model(mesh, st.finger_materials(s, elastic_materials(part)))
-
-    def wrap_u(x):
-        return st.wrap_points(part, x, s.finger_radius) - x
-
-    model.prescribe("nail_plate", wrap_u, case="wrap")
-    model.prescribe(BONE, wrap_u, case="wrap")
-    frame = st.pad_frame(part, s)
-    pad = model.distributing_coupling("pad", "finger_contact",
-                                      ref_point=(0.0, part.arch_height, 0.0))
-    model.force(pad, force=frame["n"], case="F_n")
-    system = model.build()
-    n3 = 3 * model.n_points
-    pulp = mesh.region == mesh.region_id(PULP)
-    bf, bw = model.basis, cell_basis(worn)
-    sel = pulp[:, None]
-    mixed = dataclasses.replace(bf, dNdx=np.where(sel[..., None, None], bw.dNdx, bf.dNdx),
-                                dx=np.where(sel, bw.dx, bf.dx),
-                                x=np.where(sel[..., None], bw.x, bf.x))
-    proxy = types.SimpleNamespace(basis=mixed, mesh=mesh,
-                                  region_materials=model.region_materials)
-    cont = Continuum.of(proxy, {PULP: NeoHooke.from_linear(s.pulp_modulus, s.pulp_poisson)})
-    w = wrap_u(mesh.points)
-    cells = mesh.cells
-
-    def grad(u):
-        ue = u[:n3].reshape(-1, 3)[cells]
-        ue[pulp] -= w[cells[pulp]]
-        return np.einsum("eai,eqaJ->eqiJ", ue, mixed.dNdx, optimize=True)
-
-    def forces(u, tangent):
-        P, A = cont.stress(grad(u), tangent)
-        fi = np.zeros(system.n_dofs)
-        fi[:n3] = cont.internal_force(P)
-        return fi, (system.K(cont.tangent(A)) if tangent else None)
-
-    T, Tt = system.T, system.T.T.tocsr()
-    F = system.F[:, system.case_index("F_n")]
-    g = system.G[:, system.case_index("wrap")]
-    d = st.centreline_direction(part, dataclasses.replace(s, configuration="flat"))
-    gauges = [StrainGauge(model, st.gauge_cells(part, flat, reg), direction=d, name=c,
-                          gauge_factor=1.0) for c, reg in zip(st.CHANNELS, st.GAUGE_REGIONS)]
-
-    def read(u):
-        H = grad(u)
-        return [_gauge_stretch_strain(gg, H) for gg in gauges]
+    wp = _WrapProblem(part, s)
+    system, mesh, pulp, n3 = wp.system, wp.mesh, wp.pulp, wp.n3
+    grad, read = wp.grad, wp.read
 
     def equilibrium(u, lam):
-        q = u[system.free_dofs] if T.nnz == T.shape[1] else None
-        if q is None:
-            raise ModelError("wrap_equilibrium: rigid couplings are not supported")
-        hist = []
-        for it in range(max_iter + 1):
-            u = T @ q + g
-            fi, K = forces(u, True)
-            r = Tt @ (fi - lam * F)
-            ref = max(np.linalg.norm(lam * F), np.linalg.norm(fi), 1e-300)
-            rn = np.linalg.norm(r) / ref
-            hist.append(rn)
-            if rn <= rtol:
-                return u, hist
-            dq = factorize(system.reduce(K), s.solver, n_rhs=MANY_RHS).solve(-r)
-            step = 1.0
-            for _ in range(8):
-                try:
-                    ft, _ = forces(T @ (q + step * dq) + g, False)
-                    if np.linalg.norm(Tt @ (ft - lam * F)) / ref < rn:
-                        break
-                except ModelError:
-                    pass
-                step *= 0.5
-            q = q + step * dq
-        raise ModelError(f"wrap_equilibrium: no convergence at F_n factor {lam:g} "
-                         f"(residuals {[float(v) for v in hist]})")
+        return wp.equilibrium(u, lam, rtol, max_iter)
 
+    w = wp.w
     u_map = np.zeros(system.n_dofs)
     u_map[:n3] = w.ravel()
-    out: dict[str, Any] = {"cells": int(mesh.n_cells), "dofs": int(model.n_dofs),
+    out: dict[str, Any] = {"cells": int(mesh.n_cells), "dofs": int(wp.model.n_dofs),
                            "gauge_stretch_map": read(u_map)}
     say("wrap equilibrium")
     u, hist = equilibrium(u_map, 0.0)
@@ -413,6 +354,109 @@ def wrap_equilibrium(steps: int = 25, part=None, protocol=None, rtol: float = 1e
     biot = _principal_biot(grad(u).reshape(-1, 3, 3)).reshape(mesh.n_cells, -1)
     out["pulp_p95_strain_at_peak"] = float(np.percentile(biot[pulp], 95.0))
     return out
+
+
+class _WrapProblem:
+    """The strap on its solid pulp for :func:`wrap_equilibrium`: the strap's cells referred to
+    the flat print, the pulp's to the worn mesh, the nail plate and bone prescribed to the wrap
+    map, F_n on the pad; its displacement gradient, forces, gauge reading and Newton loop."""
+
+    def __init__(self, part, s):
+        import types
+
+        from designlab.fem.assembly import cell_basis
+        from designlab.fem.hyperelastic import Continuum, NeoHooke
+        from designlab.fem.model import Model
+        from designlab.fem.transducers import StrainGauge
+        import designlab.sensors.strap.model as st
+        from designlab.sensors.strap.model import elastic_materials
+
+        self.s = s
+        flat = st.mesh_strap(part, s)
+        mesh = self.mesh = strap_with_pulp(part, flat, s)
+        worn = st.worn_mesh(part, mesh, s.finger_radius)
+        model = Model(mesh, st.finger_materials(s, elastic_materials(part)))
+
+        def wrap_u(x):
+            return st.wrap_points(part, x, s.finger_radius) - x
+
+        model.prescribe("nail_plate", wrap_u, case="wrap")
+        model.prescribe(BONE, wrap_u, case="wrap")
+        frame = st.pad_frame(part, s)
+        pad = model.distributing_coupling("pad", "finger_contact",
+                                          ref_point=(0.0, part.arch_height, 0.0))
+        model.force(pad, force=frame["n"], case="F_n")
+        system = self.system = model.build()
+        self.n3 = 3 * model.n_points
+        pulp = self.pulp = mesh.region == mesh.region_id(PULP)
+        bf, bw = model.basis, cell_basis(worn)
+        sel = pulp[:, None]
+        self.mixed = dataclasses.replace(bf, dNdx=np.where(sel[..., None, None], bw.dNdx, bf.dNdx),
+                                         dx=np.where(sel, bw.dx, bf.dx),
+                                         x=np.where(sel[..., None], bw.x, bf.x))
+        proxy = types.SimpleNamespace(basis=self.mixed, mesh=mesh,
+                                      region_materials=model.region_materials)
+        self.cont = Continuum.of(proxy, {PULP: NeoHooke.from_linear(s.pulp_modulus,
+                                                                    s.pulp_poisson)})
+        self.w = wrap_u(mesh.points)
+        self.F = system.F[:, system.case_index("F_n")]
+        self.g = system.G[:, system.case_index("wrap")]
+        d = st.centreline_direction(part, dataclasses.replace(s, configuration="flat"))
+        self.gauges = [StrainGauge(model, st.gauge_cells(part, flat, reg), direction=d, name=c,
+                                   gauge_factor=1.0)
+                       for c, reg in zip(st.CHANNELS, st.GAUGE_REGIONS)]
+        self.model = model
+
+    def grad(self, u):
+        cells, pulp = self.mesh.cells, self.pulp
+        ue = u[:self.n3].reshape(-1, 3)[cells]
+        ue[pulp] -= self.w[cells[pulp]]
+        return np.einsum("eai,eqaJ->eqiJ", ue, self.mixed.dNdx, optimize=True)
+
+    def forces(self, u, tangent):
+        P, A = self.cont.stress(self.grad(u), tangent)
+        fi = np.zeros(self.system.n_dofs)
+        fi[:self.n3] = self.cont.internal_force(P)
+        return fi, (self.system.K(self.cont.tangent(A)) if tangent else None)
+
+    def read(self, u):
+        H = self.grad(u)
+        return [_gauge_stretch_strain(gg, H) for gg in self.gauges]
+
+    def equilibrium(self, u, lam, rtol: float, max_iter: int):
+        """Newton with a backtracking line search from ``u`` at the F_n factor ``lam``:
+        (displacement, residual history)."""
+        from designlab.errors import ModelError
+        from designlab.fem.solvers import MANY_RHS, factorize
+
+        system, F, g = self.system, self.F, self.g
+        T, Tt = system.T, system.T.T.tocsr()
+        q = u[system.free_dofs] if T.nnz == T.shape[1] else None
+        if q is None:
+            raise ModelError("wrap_equilibrium: rigid couplings are not supported")
+        hist = []
+        for it in range(max_iter + 1):
+            u = T @ q + g
+            fi, K = self.forces(u, True)
+            r = Tt @ (fi - lam * F)
+            ref = max(np.linalg.norm(lam * F), np.linalg.norm(fi), 1e-300)
+            rn = np.linalg.norm(r) / ref
+            hist.append(rn)
+            if rn <= rtol:
+                return u, hist
+            dq = factorize(system.reduce(K), self.s.solver, n_rhs=MANY_RHS).solve(-r)
+            step = 1.0
+            for _ in range(8):
+                try:
+                    ft, _ = self.forces(T @ (q + step * dq) + g, False)
+                    if np.linalg.norm(Tt @ (ft - lam * F)) / ref < rn:
+                        break
+                except ModelError:
+                    pass
+                step *= 0.5
+            q = q + step * dq
+        raise ModelError(f"wrap_equilibrium: no convergence at F_n factor {lam:g} "
+                         f"(residuals {[float(v) for v in hist]})")
 
 
 if __name__ == "__main__":
