@@ -376,25 +376,12 @@ def fem_key(part, protocol: StrapLoadTest, settings: StrapModelSettings, materia
                protocol=as_dict(protocol) if viscous else None)
 
 
-def solve_fem(part, protocol: StrapLoadTest, settings: StrapModelSettings, materials=None,
-              mesh=None, say: Callable[[str], None] = lambda s: None) -> dict[str, Any]:
-    """The FEM stage: mesh (unless the flat ``mesh`` is given), wrap, build, solve.
-
-    Returns plain arrays: the worn mesh (``points``, ``cells``, ``region``, ``region_names``,
-    ``region_materials``), ``dofs``, ``viscoelastic``, the gauges' ``gauge_factor`` and
-    ``gauge_quadratic`` (Ch1, Ch2), and either the gauge strain history ``strain`` (n_t, 2) and
-    the displacement ``u_peak`` at the peak normal force (a relaxing material: the protocol's
-    history is marched) or the strain per newton ``unit`` (channel, case) and the displacement
-    per newton of F_n ``U_n`` (elastic: one static solve of the unit cases); ``U_long``
-    (n_points, 3, 2): the long-time displacement per newton of F_n and F_x (relaxed moduli: one
-    more static solve when a material relaxes), the stress check's load cases; ``timings`` (mesh,
-    assemble, solve s), ``mesher``, ``mesh_attempts``, ``solver`` (the one that ran)."""
-    from designlab.fem.static import solve_static
-    from designlab.fem.viscoelastic import History, solve_history
-
+def _mesh_and_build(part, settings: StrapModelSettings, materials, mesh, say, timings: dict):
+    """Mesh (unless the flat ``mesh`` is given) and build the model; a wrap that turns a cell
+    inside out is re-meshed finer (``WRAP_REFINE``, at most ``WRAP_RETRIES`` times). Returns
+    (model, gauges, mesher, attempts, edge length)."""
     from designlab.errors import ModelError
 
-    timings = {"mesh": 0.0, "assemble": 0.0}
     given = mesh is not None
     mesher, attempts, edge = "given", [], settings.edge_length
     for retry in range(WRAP_RETRIES + 1):
@@ -425,6 +412,28 @@ def solve_fem(part, protocol: StrapLoadTest, settings: StrapModelSettings, mater
             edge *= WRAP_REFINE
         finally:
             timings["assemble"] += time.perf_counter() - t0
+    return model, gauges, mesher, attempts, edge
+
+
+def solve_fem(part, protocol: StrapLoadTest, settings: StrapModelSettings, materials=None,
+              mesh=None, say: Callable[[str], None] = lambda s: None) -> dict[str, Any]:
+    """The FEM stage: mesh (unless the flat ``mesh`` is given), wrap, build, solve.
+
+    Returns plain arrays: the worn mesh (``points``, ``cells``, ``region``, ``region_names``,
+    ``region_materials``), ``dofs``, ``viscoelastic``, the gauges' ``gauge_factor`` and
+    ``gauge_quadratic`` (Ch1, Ch2), and either the gauge strain history ``strain`` (n_t, 2) and
+    the displacement ``u_peak`` at the peak normal force (a relaxing material: the protocol's
+    history is marched) or the strain per newton ``unit`` (channel, case) and the displacement
+    per newton of F_n ``U_n`` (elastic: one static solve of the unit cases); ``U_long``
+    (n_points, 3, 2): the long-time displacement per newton of F_n and F_x (relaxed moduli: one
+    more static solve when a material relaxes), the stress check's load cases; ``timings`` (mesh,
+    assemble, solve s), ``mesher``, ``mesh_attempts``, ``solver`` (the one that ran)."""
+    from designlab.fem.static import solve_static
+    from designlab.fem.viscoelastic import History, solve_history
+
+    timings = {"mesh": 0.0, "assemble": 0.0}
+    model, gauges, mesher, attempts, edge = _mesh_and_build(
+        part, settings, materials, mesh, say, timings)
     t0 = time.perf_counter()
     mesh = model.mesh
     model.build()
