@@ -13,7 +13,7 @@ import pytest
 from designlab.errors import ParameterError
 from designlab.geometry.strap import ArchStrap
 from designlab.sensors.strap import virtual as st
-from designlab.sensors.strap import model as strap_model
+from designlab.sensors.strap import wrap_stress as strap_wrap
 from designlab.sensors.protocols import StrapLoadTest
 
 PART = ArchStrap()
@@ -114,12 +114,12 @@ def test_the_wrap_stress_is_the_closed_form_and_warns(wrapped):
     assert e["safety_factor"] == pytest.approx(4.0 / e["max_von_mises_MPa"])
     assert ws["bodies"]["trace_left"]["safety_factor"] is None
     # small strain: E eps
-    tiny = strap_model.wrap_stress({0: _mat("NinjaFlex")}, wrapped.result.mesh, 1e-4)
+    tiny = strap_wrap.wrap_stress({0: _mat("NinjaFlex")}, wrapped.result.mesh, 1e-4)
     assert next(iter(tiny["bodies"].values()))["max_von_mises_MPa"] == pytest.approx(
         12.0e-4, rel=2e-4)
     assert neo_hooke(0.5)["stress_over_linear"] * 12 * 0.5 > 2.0          # 4.2 MPa
-    big = strap_model.wrap_stress({0: _mat("NinjaFlex")}, wrapped.result.mesh, 0.5)
-    (w,) = strap_model.wrap_stress_warnings(big)
+    big = strap_wrap.wrap_stress({0: _mat("NinjaFlex")}, wrapped.result.mesh, 0.5)
+    (w,) = strap_wrap.wrap_stress_warnings(big)
     assert "from the wrap alone" in w and "initial strain 0.5" in w
 
 
