@@ -166,7 +166,8 @@ def bench_calculix(n: int, threads: int, rows: list) -> None:
 
 
 def bench_visco(n: int, rows: list) -> None:
-    from designlab.fem.viscoelastic import History, solve_history
+    from designlab.fem.history import History
+    from designlab.fem.viscoelastic import solve_history
 
     mesh = cube(n)
     mat = Material("tpu", E=12.0, nu=0.45, prony=Prony(g=(0.3, 0.2), tau=(0.5, 5.0)))

@@ -16,7 +16,8 @@ from designlab.fem.static import solve_static
 from designlab.fem.assembly import block_pattern, cell_basis, stiffness
 from designlab.fem.prony import Prony
 
-from designlab.fem.viscoelastic import History, solve_history
+from designlab.fem.history import History
+from designlab.fem.viscoelastic import solve_history
 from designlab.mesh.tetmesh import box_tet_mesh
 
 

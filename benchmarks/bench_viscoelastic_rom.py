@@ -18,7 +18,8 @@ import numpy as np
 
 
 def main(coarse: float = 1.0) -> None:
-    from designlab.fem.viscoelastic import History, long_time_displacements, solve_history
+    from designlab.fem.history import History
+    from designlab.fem.viscoelastic import long_time_displacements, solve_history
     from designlab.geometry.strap import ArchStrap
     from designlab.sensors.strap import virtual as S
     from designlab.sensors.strap import model as strap_model

@@ -28,7 +28,8 @@ API summary (stable names)::
 
 Viscoelastic histories (Prony series on the material; factor once per step size)::
 
-    from designlab.fem.viscoelastic import History, solve_history
+    from designlab.fem.history import History
+    from designlab.fem.viscoelastic import solve_history
     hist = History.step_hold(t_end=60.0, n_steps=120, cases={"weight": 1.0})  # or
     hist = History.piecewise([0, 1, 1, 30], [0, 1, 0, 0], case="weight", dt=0.1)  # ramp, drop
     hh = solve_history(model, hist)    # hh.U (n_dofs, n_steps), hh.t
@@ -64,7 +65,8 @@ from designlab.fem.materials import MATERIALS, Material, get_material
 from designlab.fem.model import Model, RefPoint, Spring, System
 from designlab.fem.solvers import factorize
 from designlab.fem.static import StaticResult, solve_static
-from designlab.fem.viscoelastic import History, HistoryResult, solve_history
+from designlab.fem.history import History, HistoryResult
+from designlab.fem.viscoelastic import solve_history
 
 __all__ = ["MATERIALS", "Material", "get_material", "Model", "RefPoint", "Spring", "System",
            "factorize", "StaticResult", "solve_static", "History", "HistoryResult",

@@ -1,7 +1,7 @@
 """Virtual transducers: what the sensors of the three seeds would read from an FEM solution.
 
 Each transducer has ``read(result)`` for a :class:`~designlab.fem.static.StaticResult`
-(one row per load case) or a :class:`~designlab.fem.viscoelastic.HistoryResult` (one row per
+(one row per load case) or a :class:`~designlab.fem.history.HistoryResult` (one row per
 time step). Linear ones are also linear maps of the displacement columns: ``from_u(U)``.
 
 - :class:`StrainGauge` (seed 000): volume-weighted mean strain along the trace direction over a

@@ -352,7 +352,8 @@ def viscoelastic_cases() -> list[dict]:
     3. step stress (creep), shear and bulk relaxing with different times: O(dt^2) error.
     """
     from designlab.fem.prony_fit import creep_compliance, stress_response
-    from designlab.fem.viscoelastic import History, solve_history
+    from designlab.fem.history import History
+    from designlab.fem.viscoelastic import solve_history
 
     L, a, eps0, sig0 = 20.0, 4.0, 0.01, 0.5
     alike = Prony(g=VISCO_G.g, tau=VISCO_G.tau, k=VISCO_G.g, k_tau=VISCO_G.tau)

@@ -14,7 +14,8 @@ from designlab.fem.output import write_png, write_result_vtu
 from designlab.fem.prony import Prony
 from designlab.fem.transducers import (ForceButton, ReactionWrench, RigidPose, StrainGauge,
                                        divider_voltage)
-from designlab.fem.viscoelastic import History, solve_history
+from designlab.fem.history import History
+from designlab.fem.viscoelastic import solve_history
 from designlab.mesh.tetmesh import TetMesh, box_tet_mesh
 
 

@@ -9,7 +9,8 @@ from designlab.errors import ModelError, ParameterError
 from designlab.fem.materials import Material
 from designlab.fem.model import Model
 from designlab.fem.prony import Prony
-from designlab.fem.viscoelastic import History, solve_history
+from designlab.fem.history import History
+from designlab.fem.viscoelastic import solve_history
 from designlab.mesh.tetmesh import box_tet_mesh
 
 L, W = 10.0, 2.0

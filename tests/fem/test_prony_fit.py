@@ -140,7 +140,8 @@ def test_fitted_material_reproduces_creep_data_in_the_fem(nu_fit):
 
     from designlab.fem.materials import Material
     from designlab.fem.model import Model
-    from designlab.fem.viscoelastic import History, solve_history
+    from designlab.fem.history import History
+    from designlab.fem.viscoelastic import solve_history
     from designlab.mesh.tetmesh import box_tet_mesh
 
     rng = np.random.default_rng(6)

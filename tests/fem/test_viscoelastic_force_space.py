@@ -17,7 +17,8 @@ from designlab.fem.model import Model
 from designlab.fem.assembly import stiffness
 from designlab.fem.prony import Prony
 from designlab.fem.static import check_constrained
-from designlab.fem.viscoelastic import History, _by_tau, _gamma, _Prony, _shapes, solve_history
+from designlab.fem.history import History, PronyTables, step_gamma
+from designlab.fem.viscoelastic import _by_tau, _shapes, solve_history
 from designlab.mesh.tetmesh import TetMesh, box_tet_mesh
 
 _VOIGT_C = np.array([2.0, 2.0, 2.0, 1.0, 1.0, 1.0])
@@ -44,7 +45,7 @@ def reference_history(model: Model, history: History, batch: bool = False):
     nb = F_all.shape[1]
     n3 = 3 * model.n_points
     B, dx = model.B, model.basis.dx.ravel()
-    pr = _Prony(model)
+    pr = PronyTables(model)
     nqp, nq = len(dx), model.basis.dx.shape[1]
     dev, vol = _by_tau(pr.dev, pr.G0, nqp), _by_tau(pr.vol, pr.K0, nqp)
     H = np.zeros((len(dev[0]), nqp, 6, nb))
@@ -71,9 +72,9 @@ def reference_history(model: Model, history: History, batch: bool = False):
             lus[key] = (spla.splu(system.reduce(K).tocsc()), K)
         lu, K = lus[key]
         a_d = np.array([np.exp(-dt / tau) for tau in dev[0]])
-        g_d = np.array([_gamma(dt, tau) for tau in dev[0]])
+        g_d = np.array([step_gamma(dt, tau) for tau in dev[0]])
         a_v = np.array([np.exp(-dt / tau) for tau in vol[0]])
-        g_v = np.array([_gamma(dt, tau) for tau in vol[0]])
+        g_v = np.array([step_gamma(dt, tau) for tau in vol[0]])
         sig_h = -np.tensordot(g_d, Wdev, 1) * e_old
         for i in range(len(a_d)):
             sig_h += a_d[i] * Wdev[i] * H[i]
@@ -184,7 +185,7 @@ def test_proportional_time_constants_share_one_stiffness():
     from designlab.fem.viscoelastic import _terms
 
     for m, n_groups in ((model, 3), (m2, 2)):
-        taus, shear, bulk = _terms(_Prony(m), m.basis.dx.shape[1])
+        taus, shear, bulk = _terms(PronyTables(m), m.basis.dx.shape[1])
         assert len(_shapes(np.concatenate([shear, bulk], axis=1))) == n_groups
     # and the march with shared stiffness still equals the reference
     _loaded(m2)

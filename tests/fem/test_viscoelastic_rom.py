@@ -12,8 +12,9 @@ from designlab.errors import ParameterError
 from designlab.fem.materials import Material
 from designlab.fem.model import Model
 from designlab.fem.prony import Prony
-from designlab.fem.viscoelastic import (ROM_MIN_STEPS, ROM_TOL, History, ReducedHistoryResult,
-                                        solve_history)
+from designlab.fem.history import History
+from designlab.fem.reduced_march import ROM_MIN_STEPS, ROM_TOL, ReducedHistoryResult
+from designlab.fem.viscoelastic import solve_history
 from designlab.mesh.tetmesh import TetMesh, box_tet_mesh
 
 L, W, E0 = 10.0, 2.0, 12.0

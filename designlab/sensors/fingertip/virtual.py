@@ -71,7 +71,8 @@ def step_responses(model, sensors, tau_max: float, dt: float, t_end: float,
     ``dt`` up to ``settle * tau_max`` (after that the response is constant to exp(-settle),
     0.1 %, of the relaxing part) or ``t_end``, whichever is shorter. ``info``: gets the
     ``solver`` that ran."""
-    from designlab.fem.viscoelastic import History, solve_history
+    from designlab.fem.history import History
+    from designlab.fem.viscoelastic import solve_history
 
     t_h = np.arange(0.0, min(t_end, settle * tau_max) + dt, dt)
     res = solve_history(model, History(t_h, {c: np.ones(len(t_h)) for c in WRENCH}),

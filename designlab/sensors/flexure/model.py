@@ -376,7 +376,8 @@ def _hysteresis(model, protocol: FlexureWrenchTest, settings: FlexureModelSettin
     every material is elastic."""
     if not any(m.prony is not None for m in model.region_materials.values()):
         return None
-    from designlab.fem.viscoelastic import History, solve_history
+    from designlab.fem.history import History
+    from designlab.fem.viscoelastic import solve_history
 
     def twist_of(name, t, load):
         say(f"viscoelastic history {name}")

@@ -429,7 +429,8 @@ def solve_fem(part, protocol: StrapLoadTest, settings: StrapModelSettings, mater
     more static solve when a material relaxes), the stress check's load cases; ``timings`` (mesh,
     assemble, solve s), ``mesher``, ``mesh_attempts``, ``solver`` (the one that ran)."""
     from designlab.fem.static import solve_static
-    from designlab.fem.viscoelastic import History, solve_history
+    from designlab.fem.history import History
+    from designlab.fem.viscoelastic import solve_history
 
     timings = {"mesh": 0.0, "assemble": 0.0}
     model, gauges, mesher, attempts, edge = _mesh_and_build(

@@ -13,7 +13,8 @@ from designlab.fem.materials import Material
 from designlab.fem.model import Model
 from designlab.fem.static import solve_static
 from designlab.fem.prony import Prony
-from designlab.fem.viscoelastic import History, solve_history
+from designlab.fem.history import History
+from designlab.fem.viscoelastic import solve_history
 from designlab.geometry.fingertip import CantileverFingertip
 from designlab.mesh.tetmesh import box_tet_mesh
 
