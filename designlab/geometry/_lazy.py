@@ -1,12 +1,7 @@
 """Modules that build123d imports at its own import but uses inside a few functions only, put
-off until first used. ``sympy``: ``build123d.objects_curve`` imports it for one tangent-arc
-constructor, which no designlab part calls (``import build123d`` 3.13 s CPU with it put off, 3.58
-s without, ``python benchmarks/bench_imports.py``, 2-core machine, 2026-11-26).
-
-A stand-in module is placed in ``sys.modules`` with the real module's ``__spec__`` (the import
-system reads ``__spec__`` on every ``import``, which is why :class:`importlib.util.LazyLoader`
-loads at once here); its first attribute lookup imports the real module, which then replaces
-it in ``sys.modules``, and the stand-in forwards every later lookup to it."""
+off until first used (``sympy``: one tangent-arc constructor no designlab part calls). A
+stand-in in ``sys.modules`` imports the real module on its first attribute lookup
+(docs/notes/lazy_imports.md)."""
 
 from __future__ import annotations
 
