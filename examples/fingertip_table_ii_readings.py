@@ -32,8 +32,8 @@ from pathlib import Path
 
 from designlab.geometry.fingertip import CantileverFingertip
 from designlab.geometry.parts import make_part
-from designlab.sensors.fingertip.contact import (condense_fingertip, paper_comparison,
-                                                 run_contact_test, table_ii_dome)
+from designlab.sensors.fingertip.contact import condense_fingertip, run_contact_test
+from designlab.sensors.fingertip.paper import paper_comparison, table_ii_dome
 from designlab.sensors.fingertip.model import FingertipModelSettings, mesh_fingertip
 from designlab.sensors.protocols import HangingWeightTest
 

@@ -27,7 +27,7 @@ which the tests compare with the full FEM.
 
 **Readings and calibration as the paper.** Reading = FSS015 sensitivity (2.4 mV/V/N typ.; per
 unit, Table I) x 5 V x gain 5, with the FSS015 repeatability and the DAQ quantisation of
-:func:`designlab.sensors.fingertip.contact.readings_noise`; each load set is the reading at the
+:func:`designlab.sensors.fingertip.readout.readings_noise`; each load set is the reading at the
 heaviest weight minus the one at no weight. A is fitted by least squares on the paper's 72 load
 sets (Table III locations h1-h6, r1-r6 x 6 rotations), then tested on held-out points: the same
 locations at the rotations halfway between (30 deg offset) and every weight of the staircase.
@@ -301,7 +301,7 @@ def _read(S_true: np.ndarray, build: FingertipBuild, rng_: np.random.Generator,
           which: str = "all") -> np.ndarray:
     """The colleague's readout (:func:`readings_noise`): repeatability, drift, DAQ."""
     from designlab.sensors.fingertip.model import ContactSettings
-    from designlab.sensors.fingertip.contact import readings_noise
+    from designlab.sensors.fingertip.readout import readings_noise
 
     rep = build.repeatability_percent_fs if which in ("all", "repeatability") else 0.0
     bits = build.daq_bits if which in ("all", "daq") else 32

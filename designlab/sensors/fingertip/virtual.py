@@ -350,7 +350,7 @@ def finish(report: dict[str, Any], prediction: FingertipPrediction, part,
             "share of P_z most."),
     }
     if prediction.condensed is not None:
-        from designlab.sensors.fingertip.contact import paper_comparison
+        from designlab.sensors.fingertip.paper import paper_comparison
 
         pc = report["paper_comparison"]
         pc["explanation"] = (

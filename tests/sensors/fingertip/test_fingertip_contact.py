@@ -301,7 +301,7 @@ def test_paper_designs_share_this_designs_fem_and_report_the_goals():
     key); the comparison names every goal with its value and target, and a goal's verdict
     follows its value."""
     from designlab.sensors.fingertip.model import FingertipModelSettings, fem_key
-    from designlab.sensors.fingertip.contact import paper_comparison, paper_design
+    from designlab.sensors.fingertip.paper import paper_comparison, paper_design
 
     part = CantileverFingertip(base_radius=10.0, h=5.0, r=7.0)
     fs = FingertipModelSettings()
@@ -432,7 +432,7 @@ def test_a_missed_h9_to_h1_goal_names_the_moment_sensitivity(meshed):
     """prediction.json's h9 -> h1 goal carries its diagnosis: the meshed structure's moment
     sensitivity against the paper's implied one and the ball restraint that would close the gap
     (more than the bolt gives); the sentence in does_not_match says both."""
-    from designlab.sensors.fingertip.contact import paper_comparison
+    from designlab.sensors.fingertip.paper import paper_comparison
 
     s = ContactSettings()
     with warnings.catch_warnings():

@@ -9,7 +9,8 @@ import pytest
 
 from designlab.geometry.fingertip import TABLE_II_HEIGHTS, CantileverFingertip
 from designlab.sensors.fingertip.model import FSS015_V_PER_N, wrench_at_ball
-from designlab.sensors.fingertip.contact import (CHANGE_DEFINITIONS, GOAL_CHANGE_POINTS, PAPER, _compressed_changes, bolt_head_joint, lumped_condensed, moment_sensitivity, paper_comparison, run_contact_test, table_ii_dome)
+from designlab.sensors.fingertip.contact import (CHANGE_DEFINITIONS, PAPER, _compressed_changes, bolt_head_joint, lumped_condensed, moment_sensitivity, run_contact_test)
+from designlab.sensors.fingertip.paper import (GOAL_CHANGE_POINTS, paper_comparison, table_ii_dome)
 from designlab.sensors.fingertip.model import ContactSettings
 from designlab.sensors.protocols import HangingWeightTest
 

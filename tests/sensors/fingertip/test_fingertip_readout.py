@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from designlab.sensors.fingertip.model import ContactSettings
-from designlab.sensors.fingertip.contact import readings_noise, repeatability_sigma_V
+from designlab.sensors.fingertip.readout import readings_noise, repeatability_sigma_V
 from designlab.sensors.fingertip.model import FSS015_V_PER_N
 from designlab.sensors.protocols import FSS015_RANGE_N
 

@@ -12,7 +12,8 @@ import pytest
 from designlab.geometry.fingertip import CantileverFingertip
 from designlab.geometry.parts import make_part
 from designlab.sensors.fingertip.model import ContactSettings
-from designlab.sensors.fingertip.contact import (condense_fingertip, moment_sensitivity, paper_design, table_ii_dome)
+from designlab.sensors.fingertip.contact import (condense_fingertip, moment_sensitivity)
+from designlab.sensors.fingertip.paper import (paper_design, table_ii_dome)
 from designlab.sensors.fingertip.model import (FingertipModelSettings, check_locations,
                                                mesh_fingertip)
 from designlab.sensors.protocols import HangingWeightTest
