@@ -300,7 +300,7 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
     mats, records = measured_materials(part, measured)
     if mats:
         kw["materials"] = mats
-    side, side_out, design, prefetched = None, None, None, None
+    side, side_out, design = None, None, None
     if pictures is not None:
         try:
             design = pictures.painter.submit(_design_png, name, _portable(part))
@@ -312,10 +312,6 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
 
             ensure_display()
         side = _Side(None)
-        if sensor.prefetch is not None:
-            # the FEM stages finish() needs beyond the design's own, first: they are ready
-            # when the design's run ends (the coarse mesh is wanted only after finish)
-            prefetched = side.submit(_prefetch_job, sensor.name, part, proto, sett, kw)
         side.first = side.submit(_side_work, sensor.name, part, proto, sett, kw,
                                  pictures is None)
         if pictures is not None:        # then it draws the plots: import matplotlib meanwhile
@@ -329,8 +325,6 @@ def predict(name: Any, overrides: dict[str, Any] | None = None, *,
             early = _early_plots(sensor, pictures, name, result, report, model_path)
             cases = _early_deformed(sensor, pictures, part, proto, sett, result, cache, report)
             if sensor.finish is not None:
-                for key, arrays in (prefetched.get() or []) if prefetched is not None else []:
-                    cache.keep(key, arrays)
                 sensor.finish(report, result, part, proto)
             side_out = side.first.get() if side is not None else None
             if side_out is None or side_out.get("coarse") is None:
@@ -424,13 +418,6 @@ def _side_work(name: str, part, protocol, settings, kw, render: bool = True) -> 
     except Exception as exc:  # noqa: BLE001 - a render is a convenience (as in-process)
         out["design_png"] = f"{type(exc).__name__}: {exc}"
     return out
-
-
-def _prefetch_job(name: str, part, protocol, settings, kw) -> list[tuple[str, dict]]:
-    """The sensor's ``prefetch`` in the side process: ``[(FEM cache key, arrays)]`` that
-    ``predict`` keeps in its cache's memory before ``finish``."""
-    _serial_occ()
-    return get_sensor(name).prefetch(part, protocol, settings, kw)
 
 
 def _portable(part):
