@@ -1,9 +1,10 @@
-"""Shared fixtures: paths to ../shared and a guard for external tools."""
+"""Shared fixtures (paths to ../shared, a guard for external tools) and the fast tier's timer."""
 
 from __future__ import annotations
 
 import os
 import shutil
+import time
 from pathlib import Path
 
 import pytest
@@ -28,3 +29,39 @@ def shared() -> Path:
     if not SHARED.is_dir():
         pytest.fail(f"../shared not found beside the project at {SHARED}")
     return SHARED
+
+
+FAST_TEST_LIMIT_ENV = "DESIGNLAB_FAST_TEST_LIMIT_S"
+FAST_TEST_LIMIT_DEFAULT_S = 3.0
+
+
+# Wall-time limit of a fast-tier test's call phase, in s, read once per session so a test that
+# sets the variable for a nested pytest run does not change its own limit.
+FAST_TEST_LIMIT_S = float(os.environ.get(FAST_TEST_LIMIT_ENV, FAST_TEST_LIMIT_DEFAULT_S))
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_call(item: pytest.Item):
+    """Time the call phase of every test not marked slow; the report hook fails one over the limit."""
+    start_s = time.perf_counter()
+    yield
+    item.stash[_CALL_WALL_S] = time.perf_counter() - start_s
+
+
+_CALL_WALL_S = pytest.StashKey[float]()
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
+    outcome = yield
+    report = outcome.get_result()
+    if call.when != "call" or not report.passed or item.get_closest_marker("slow"):
+        return
+    wall_s = item.stash.get(_CALL_WALL_S, 0.0)
+    limit_s = FAST_TEST_LIMIT_S
+    if wall_s > limit_s:
+        report.outcome = "failed"
+        report.longrepr = (
+            f"{item.nodeid} took {wall_s:.1f} s, over the fast tier's {limit_s:g} s limit: "
+            f"mark it @pytest.mark.slow (or set {FAST_TEST_LIMIT_ENV} on a loaded machine)"
+        )

@@ -25,6 +25,7 @@ def test_part_api():
         dl.no_such_name
 
 
+@pytest.mark.slow
 def test_facade_names_are_the_part_classes_with_their_api():
     """``dl.Fingertip``/``dl.Strap``/``dl.Flexure`` are the geometry modules' classes (looked up
     by class, not by sensor name), the same as ``dl.PARTS`` holds, and carry ``params()`` even

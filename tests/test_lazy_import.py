@@ -4,6 +4,8 @@ uses it), and the stand-in behaves as the module once used."""
 import subprocess
 import sys
 
+import pytest
+
 SCRIPT = r"""
 import sys
 import designlab.geometry.parts                       # imports build123d
@@ -30,6 +32,7 @@ print("ok")
 """
 
 
+@pytest.mark.slow
 def test_sympy_is_loaded_on_first_use_and_then_is_the_module():
     for script in (SCRIPT, DEFER_AFTER):
         out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,

@@ -53,6 +53,7 @@ def _keys(out: Path) -> set[str]:
     return set(pd.read_parquet(out / "results.parquet")["key"])
 
 
+@pytest.mark.slow
 def test_sweep_refuses_another_config_and_resumes_its_own(cheap_sweeps, tmp_path, capsys):
     a, b = cheap_sweeps
     out = tmp_path / "out"
@@ -92,6 +93,7 @@ def test_other_commands_refuse_a_sweep_folder(cheap_sweeps, tmp_path, capsys):
     assert sorted(p.name for p in out.iterdir()) == listing
 
 
+@pytest.mark.slow
 def test_export_writes_run_json_and_says_what_to_open(tmp_path, capsys):
     out = tmp_path / "e"
     rc, so, _ = _run(["export", "flexure", "--format", "3mf", "--out", out], capsys)
@@ -120,6 +122,7 @@ def test_a_folder_without_run_json_is_used_as_it_is(tmp_path, capsys):
     assert rc == 0 and (out / "notes.txt").read_text() == "mine"
 
 
+@pytest.mark.slow
 def test_shell_completion_offers_the_sensors(tmp_path):
     """The real completion protocol (bash), as the shell calls it."""
     from designlab.sensors.registry import SENSORS
@@ -201,6 +204,7 @@ def test_flexure_reports_the_wire_stress_and_what_next(tmp_path, capsys):
     assert json.loads((tmp_path / "k.json").read_text())["stress"]["min_safety_factor"] > 2
 
 
+@pytest.mark.slow
 def test_flexure_with_friction_in_the_chain(tmp_path, capsys):
     """``--mu``: the beam chain's frictional 6x6 (a secant, stiffer than frictionless at the
     working load); outside 0..2 one line naming the option, exit 2."""
@@ -298,6 +302,7 @@ def test_usage_errors_are_one_line_exit_2(argv, text, capsys):
     assert text in err and "internal error" not in err and len(err.splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_console_script_exit_runs_handlers_flushes_and_keeps_the_code():
     """``designlab`` (main() without argv) ends without the interpreter's teardown: the exit
     handlers still run, the output is complete, and the exit code is the command's."""

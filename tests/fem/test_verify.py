@@ -42,6 +42,7 @@ def test_cantilever_within_one_percent_of_timoshenko():
         eb + 5.0 * 100 / (5 / 6 * 1000.0 * 100))
 
 
+@pytest.mark.slow
 def test_convergence_orders():
     cases = verify.convergence_rates()
     _assert_passed(cases)

@@ -441,6 +441,7 @@ def test_thin_area_is_measured_over_the_area():
     assert sliver.min_wall == pytest.approx(0.05, abs=1e-3) and sliver.thin_wall_area == 0.0
 
 
+@pytest.mark.slow
 def test_default_parts_slice(prepared_parts, default_parts, tmp_path):
     """Every default part slices; the strap (0.1 mm layers, two extruders) prints its traces with
     the second tool, in the trace layers, whole (their full extent) and inside the strap."""
@@ -521,6 +522,7 @@ def test_show_bad_input(tmp_path, capsys):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_cli_export_and_show(tmp_path, capsys):
     out = tmp_path / "out"
     code, stdout, _ = _run(["export", "strap", "--out", str(out), "--set", "strap_width=14"],

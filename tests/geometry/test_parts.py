@@ -116,6 +116,7 @@ def flexures(draw):
 # ------------------------------------------------------------------------------- strap
 @SETTINGS
 @given(straps())
+@pytest.mark.slow
 def test_strap_builds_and_fills_the_slotted_outline(p):
     bodies = check_bodies(p)
     filled = sum(bodies[n].shape.volume for n in ("strap", "trace_left", "trace_right"))
@@ -210,6 +211,7 @@ def _outline_volume(R: float, h: float, r: float) -> float:
 
 @SETTINGS
 @given(fingertips())
+@pytest.mark.slow
 def test_fingertip_builds(p):
     b = check_bodies(p)
     R, h, r, rb, t = p.fingertip_radius, p.h, p.r, p.ball_radius, p.skin_thickness
@@ -342,6 +344,7 @@ def test_fingertip_rejects(kw, name):
 # ------------------------------------------------------------------------------- flexure
 @SETTINGS
 @given(flexures())
+@pytest.mark.slow
 def test_flexure_builds(p):
     # the discs are the slabs z < 0 and z > length: the spring must stay between them (checked on
     # its vertices and tessellation instead of slow B-spline booleans)

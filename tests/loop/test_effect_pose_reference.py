@@ -155,6 +155,7 @@ def _example():
     return mod
 
 
+@pytest.mark.slow
 def test_measured_kc_offsets(tmp_path):
     """Seed 002's measured K_c, 92 training poses (seed 0), the default flexure's compliance
     with the wrench in the camera frame: the numbers of docs/loop.md."""

@@ -295,6 +295,7 @@ def test_parameters_are_recovered():
 
 @pytest.mark.parametrize("seed", [1, *(pytest.param(k, marks=pytest.mark.slow)
                                        for k in (2, 3, 4, 5))])
+@pytest.mark.slow
 def test_pure_noise_adds_nothing(seed):
     ds, base = case("noise", seed)
     res = run_loop(ds, base)
@@ -307,6 +308,7 @@ def test_pure_noise_adds_nothing(seed):
     assert out["verdict_kind"] == "noise"
 
 
+@pytest.mark.slow
 def test_mechanism_outside_the_library_is_reported_missing():
     """A dead zone (no output change while |x - 5| < 2 mm) is no library effect: the NARX peer
     learns it, the physics model does not get close, and the verdict says so."""
@@ -520,6 +522,7 @@ def test_report_model_and_continuation(tmp_path):
     assert all(x["name"] != "nonlinearity" for x in res2.report["effects"])
 
 
+@pytest.mark.slow
 def test_unexplained_residual_is_reported():
     """A truth outside the library (a periodic disturbance, 50 s period) is not forced into
     the model: what remains and what it correlates with is reported."""

@@ -77,6 +77,7 @@ def test_force_beside_the_peer(result):
     assert force["error_after"] <= 1.3 * force["peer"]["error"]
 
 
+@pytest.mark.slow
 def test_two_runs_find_the_resistance_hysteresis(shared):
     """Selection across two runs of the specimen (leave-one-run-out): rate-independent
     hysteresis of the resistance carries over from the multisine to the sawtooth and back, and
@@ -100,6 +101,7 @@ def _cli(base: str, out: Path) -> subprocess.CompletedProcess:
                           env={"OMP_NUM_THREADS": "1", "PATH": "/usr/bin:/bin"})
 
 
+@pytest.mark.slow
 def test_cli_loop_writes_outputs_and_continues(shared, tmp_path):
     out = tmp_path / "loop"
     run = _cli("stretch-fem", out)

@@ -109,6 +109,7 @@ def stretch_card(shared):
     return Path(__file__).resolve().parents[2] / "examples" / "cards" / "stretch_compensation.toml"
 
 
+@pytest.mark.slow
 def test_real_stretch_data_mpl_and_narx_beat_linear(stretch_card):
     """Force (N) from the 4-wire resistance of a carbon-black silicone strip: train on one
     multisine run, validate on another multisine run and a random sawtooth."""

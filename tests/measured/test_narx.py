@@ -31,6 +31,7 @@ def hysteretic(T=6000, dt=0.05, seed=0):
     return u, np.column_stack([fn, fx]), dt
 
 
+@pytest.mark.slow
 def test_narx_beats_linear_on_hysteretic_data():
     u, y, dt = hysteretic()
     tr, va = slice(0, 4000), slice(4000, None)

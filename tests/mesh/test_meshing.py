@@ -243,6 +243,7 @@ def test_not_a_solid_and_overlaps_are_refused():
 
 # ------------------------------------------------------------------ helpers
 
+@pytest.mark.slow
 def test_winding_number_fast_matches_exact():
     import trimesh
 
@@ -384,6 +385,7 @@ def test_gmsh_is_the_default_and_deterministic():
         {k: v.tolist() for k, v in b.mesh.facet_sets.items()}
 
 
+@pytest.mark.slow
 def test_gmsh_failure_falls_back_to_fTetWild(monkeypatch, tmp_path):
     """gmsh fails on every attempt -> fTetWild meshes it, the result says so, and nothing is
     written into the working directory."""
@@ -428,6 +430,7 @@ def _tetwild_dirs() -> set:
 
 
 @pytest.mark.parametrize("isolate", [True, False], ids=["child", "in-process"])
+@pytest.mark.slow
 def test_fTetWild_leaves_nothing_behind(tmp_path, monkeypatch, isolate):
     """fTetWild writes __tracked_surface.stl into its working directory: in a child process or
     in this one, that is a temporary directory that is gone afterwards, and the caller's working

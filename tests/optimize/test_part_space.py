@@ -145,9 +145,9 @@ def _test(name: str, n: int):
     return test
 
 
-test_strap_space = _test("strap", 30)
-test_fingertip_space = _test("fingertip", 30)
-test_flexure_space = _test("flexure", 30)
+test_strap_space = pytest.mark.slow(_test("strap", 30))
+test_fingertip_space = pytest.mark.slow(_test("fingertip", 30))
+test_flexure_space = pytest.mark.slow(_test("flexure", 30))
 # 300 per part: about an hour per part on 2 cores, so not part of the default (CI) run:
 # pytest -m exhaustive tests/optimize/test_part_space.py
 test_strap_space_exhaustive = pytest.mark.exhaustive(_test("strap", 300))

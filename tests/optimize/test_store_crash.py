@@ -101,6 +101,7 @@ FAST = {("after_temp", 2), ("before_rename", 25)}
 @pytest.mark.parametrize("point, n", [
     pytest.param(p, n, marks=() if (p, n) in FAST else pytest.mark.slow)
     for p in ("after_temp", "before_rename") for n in KILL_POINTS])
+@pytest.mark.slow
 def test_kill_9_at_a_write_point_then_resume(tmp_path, reference, point, n):
     proc = _spawn(tmp_path, point, n)
     assert proc.wait(timeout=120) == -signal.SIGKILL
@@ -135,6 +136,7 @@ def _alive(pid: int) -> bool:
                                   pytest.param(2, marks=pytest.mark.slow),
                                   pytest.param(3, marks=pytest.mark.slow),
                                   pytest.param(4, marks=pytest.mark.slow)])
+@pytest.mark.slow
 def test_kill_9_at_random_moments_with_a_pool_leaves_no_process(tmp_path, reference, seed):
     """kill -9 of a sweep running on 2 pool workers: the workers die with it (parent-death
     signal), and the resume completes the table exactly once."""

@@ -80,6 +80,7 @@ def test_process_pool_and_dask_give_identical_results(tmp_path):
     assert local.best_key == dask.best_key and local.pareto_keys == dask.pareto_keys
 
 
+@pytest.mark.slow
 def test_kill_9_then_resume(tmp_path):
     script = textwrap.dedent(f"""
         import sys; sys.path.insert(0, {str(__import__('pathlib').Path(__file__).parents[1])!r})

@@ -23,6 +23,7 @@ def sensor_model(pred, result):
     return _sensor_model(pred["design"]["part"], pred["design"], pred, result)
 
 
+@pytest.mark.slow
 def test_strap_prediction_becomes_a_loop_base(tmp_path):
     sensor_model(_strap_prediction(), None).save(tmp_path / "model.json")
     model = load_model(tmp_path / "model.json")
@@ -46,6 +47,7 @@ def test_strap_prediction_becomes_a_loop_base(tmp_path):
     assert rep["error_after"] < 0.5 * rep["error_before"]
 
 
+@pytest.mark.slow
 def test_loop_model_corrects_a_new_design_prediction(tmp_path):
     """loop -> predict: effects learned on a measured strap are added to another design's
     virtual-test channels and the metrics are evaluated again."""

@@ -126,6 +126,7 @@ def test_stop_kills_a_running_child():
     assert not multiprocessing.active_children()
 
 
+@pytest.mark.slow
 def test_a_stalled_child_is_killed_and_gives_none(monkeypatch):
     """A child that waits for ever (no CPU time) is given up on: None, and it is gone."""
     import multiprocessing
@@ -140,6 +141,7 @@ def test_a_stalled_child_is_killed_and_gives_none(monkeypatch):
     assert not multiprocessing.active_children()
 
 
+@pytest.mark.slow
 def test_jobs_sent_to_a_stuck_child_do_not_block_the_caller(monkeypatch):
     """A child that does not read its jobs (here: its first call never ends, and it reads jobs
     only after it; a child waiting in C on a lock copied from the parent, holding the
@@ -192,6 +194,7 @@ def test_forked_helpers_run_opencascade_serially():
     assert _fresh_python(code) == "[True, True, True] [False, False, False]"
 
 
+@pytest.mark.slow
 def test_meshing_leaves_sigpipe_ignored():
     """gmsh's initialize sets SIGPIPE back to its default (the process ends at a write to a
     pipe whose reader is gone, as a job sent to a helper that was just killed); after a mesh the

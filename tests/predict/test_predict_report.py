@@ -96,6 +96,7 @@ def test_prediction_report_sections(predicted):
     assert run["what"] == "predict fingertip" and run["designlab"] and run["date"]
 
 
+@pytest.mark.slow
 def test_prediction_report_in_chromium(predicted, tmp_path):
     shot = ARTIFACTS / "report_predict_fingertip.png"
     attrs = open_in_chromium(predicted / "report.html", tmp_path, shot)
@@ -114,6 +115,7 @@ def test_chromium_check_sees_a_broken_image(predicted, tmp_path):
     assert attrs["broken"] == "1"
 
 
+@pytest.mark.slow
 def test_sweep_report_in_chromium(tmp_path):
     """A sweep report from the cheap evaluator: designs with readable metric names, the
     chosen design, the tie, settings; loads in Chromium with its plots."""

@@ -143,6 +143,7 @@ def test_failed_build_is_recorded_and_counted():
     assert sum(s["failed_errors"].values()) == 1
 
 
+@pytest.mark.slow
 def test_build_noise_depends_on_its_index_not_its_batch():
     v = {"hysteresis_percent": 3.0, "pose_noise_mm": 0.025}
     a = run_batch(_flexure_task([v, v], [4, 5]))["rows"]
@@ -150,6 +151,7 @@ def test_build_noise_depends_on_its_index_not_its_batch():
     assert a[1]["metrics"] == b[0]["metrics"] and a[0]["metrics"] != a[1]["metrics"]
 
 
+@pytest.mark.slow
 def test_monte_carlo_resumes_and_summarises(tmp_path):
     from designlab.optimize.executors import LocalExecutor
     from designlab.optimize.montecarlo import monte_carlo
@@ -489,6 +491,7 @@ samples = 3
 
 
 @pytest.mark.parametrize("cmd", ["sweep", "optimize"])
+@pytest.mark.slow
 def test_cli_sweep_and_optimize_refuse_a_bad_uncertainty_table(tmp_path, cmd):
     f = tmp_path / "s.toml"
     f.write_text(_ROBUST_TOML.format(extra="pulp = { dist = 'fixed', value = 1.0 }"))

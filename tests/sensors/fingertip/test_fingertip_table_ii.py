@@ -54,6 +54,7 @@ def test_paper_design_keeps_the_designs_class_and_its_own_fields():
     assert plain == dataclasses.replace(CantileverFingertip(), base_radius=10.0)
 
 
+@pytest.mark.slow
 def test_the_tall_base_halves_the_moment_sensitivity(table_ii):
     """Frictionless, the sensors' answer to a moment about the ball per mm of arm falls with the
     longer bolt (FEM 0.052 against 0.104 per mm at the default mesh; the paper's 33.9 % implies
@@ -74,6 +75,7 @@ def test_table_ii_is_the_config(table_ii):
     assert CantileverFingertip.table_ii() == table_ii
 
 
+@pytest.mark.slow
 def test_a_prediction_compares_table_ii_on_the_tested_sensors_own_structure():
     """Whatever the design, ``paper_comparison``'s Table II goals are the tested sensor's (its
     25.43 mm base and 24.43 mm bolt): the same numbers as predicting that sensor itself."""

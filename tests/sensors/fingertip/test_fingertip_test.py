@@ -192,6 +192,7 @@ def test_load_only_parameters_leave_the_meshed_bodies_unchanged(tmp_path):
 
 
 @pytest.mark.parametrize("contact", [True, False], ids=["contact", "linear"])
+@pytest.mark.slow
 def test_designs_that_share_the_fem_solve_it_once(tmp_path, contact):
     """Two (h, r) designs: the second reuses the first one's FEM from the cache folder and its
     numbers equal an uncached run's exactly; a base parameter changes the key. Both models:
@@ -269,6 +270,7 @@ def test_contact_settings_are_model_settings_and_leave_the_fem_key():
         fem_key(part, prot, lin)
 
 
+@pytest.mark.slow
 def test_prediction_json_settings_are_the_model_settings_predict_used():
     """``settings`` of prediction.json (``Prediction.to_json``) holds every model setting the
     contact model ran with, the FEMSettings fields included; the contact model's own

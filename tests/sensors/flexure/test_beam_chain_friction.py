@@ -113,6 +113,7 @@ def test_single_contact_cyclic_tangential_load_gives_the_loop_width_2_mu_N(mu):
     assert st["reaction"][0] == pytest.approx(0.0, abs=1e-12)
 
 
+@pytest.mark.slow
 def test_loops_about_the_relaxed_spring_fit_like_the_paper():
     """Seed 002's fit (loops about the relaxed configuration, F = K X by least squares): with
     mu = 0 the loops have no width; with mu = 0.3 they do (the closed dead-turn contacts

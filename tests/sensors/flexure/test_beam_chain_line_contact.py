@@ -27,6 +27,7 @@ def _diag_errors(paper, **kw):
     return np.array(out)
 
 
+@pytest.mark.slow
 def test_working_load_state_converges_with_the_beams():
     """10 N diagonal error over 24 ... 144 beams per turn, measured 2026-11-25
     (bench_flexure_end_seats.py --discretisation): line contacts 12.34 / 12.72 / 12.86 / 12.96

@@ -31,6 +31,7 @@ def _row(table, base, tip, state):
 
 
 @pytest.mark.parametrize("seat", fr.END_SEATS)
+@pytest.mark.slow
 def test_same_condition_at_both_ends_is_the_symmetric_setting_bit_for_bit(seat):
     a = bc.chain_stiffness(VISIFLEX_CATALOG, cg.ChainSettings(seat=seat))
     b = bc.chain_stiffness(VISIFLEX_CATALOG, cg.ChainSettings(seat_base=seat, seat_tip=seat))
@@ -51,6 +52,7 @@ def test_one_end_overrides_the_common_setting_only_at_that_end():
     assert len(a.chain.base_bond) == 1 and len(a.chain.tip_bond) > 30
 
 
+@pytest.mark.slow
 def test_zero_coupling_point_moves_towards_the_rotationally_compliant_end():
     """Seated (contact) base and potted tip: the elastic centre moves towards the base; the
     mirrored assembly moves it as far towards the tip; symmetric ends keep it at the centre."""

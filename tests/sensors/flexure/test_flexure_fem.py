@@ -196,6 +196,7 @@ def test_solid_line_contacts_remove_the_node_contacts_scatter():
     assert kl[5] > 1.2 * free[5] and kl[3] > 1.1 * free[3]
 
 
+@pytest.mark.slow
 def test_helix_mesh_honours_the_edge_asked():
     """docs/flexure.md, "Solid FEM: contact discretisation": the edge length asked is the mesh's
     (before, every edge from 0.7 mm up gave one curvature-sized mesh, 67851 TET10 nodes: the
@@ -222,6 +223,7 @@ def test_helix_mesh_honours_the_edge_asked():
         helix_mesh(flex, 1.0, order=1)
 
 
+@pytest.mark.slow
 def test_helix_mesh_curved_by_projection_default_mesh():
     """docs/flexure.md, "Solid FEM: contact discretisation": the default mesh curved by
     projection (the default since 2026-11-26): the same corners and cells as straight, every

@@ -67,6 +67,7 @@ def test_beam_chain_stiffness_follows_the_wire(ctx_chain):
     assert K1 == pytest.approx(K1.T)
 
 
+@pytest.mark.slow
 def test_drivers_name_the_wire_diameter(tmp_path):
     """Monte Carlo with the default inputs: the built stiffness is driven by the wire
     diameter alone; the calibrated force error is not (the paper's calibration absorbs it)."""

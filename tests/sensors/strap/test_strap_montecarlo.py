@@ -121,6 +121,7 @@ def _cli(args, capsys):
     return rc, cap.out, cap.err
 
 
+@pytest.mark.slow
 def test_predict_strap_samples_runs_and_bad_input_is_one_line(tmp_path, capsys):
     cfg = tmp_path / "mc.toml"
     cfg.write_text('[uncertainty]\nseed = 3\n'

@@ -221,6 +221,7 @@ def test_wrap_kinematics_strain_is_bending_and_needs_large_rotations():
     assert w["small_strain_reading_max"] > 5 * w["strap_max_strain"]
 
 
+@pytest.mark.slow
 def test_wrap_equilibrium_relaxes_the_map_and_responds_like_the_worn_model_at_small_load():
     """Edge 3 mm, F_n 0.05 N in one increment: the wrap's equilibrium (Newton from the map,
     quadratic at the end: last residual < 1e-9) relaxes the gauges' stretch from the map's
