@@ -11,12 +11,11 @@ from typing import Any
 import numpy as np
 
 from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
+
 # the settings and their sourced defaults live with the fingertip's model settings (which derive
 # from ContactSettings, so that ``--setting friction_coefficient=...`` reaches this model)
-from designlab.sensors.fingertip.model import (
-    FSS015_V_PER_N, ContactSettings)
+from designlab.sensors.fingertip.model import FSS015_V_PER_N, ContactSettings
 from designlab.sensors.protocols import FSS015_RANGE_N
-
 
 
 def repeatability_sigma_V(percent_fs: float) -> float:
