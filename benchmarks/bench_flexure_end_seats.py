@@ -1,4 +1,4 @@
-"""Asymmetric ends of the beam chain against seed 002's measured K_c (docs/flexure.md).
+"""Asymmetric ends of the beam chain against seed 002's measured K_c (docs/notes/flexure_investigation.md).
 
     .venv/bin/python benchmarks/bench_flexure_end_seats.py [--discretisation]
 

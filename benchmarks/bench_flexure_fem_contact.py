@@ -1,4 +1,4 @@
-"""Solid FEM with contact: convergence in the contact stations and the mesh (docs/flexure.md,
+"""Solid FEM with contact: convergence in the contact stations and the mesh (docs/notes/flexure_investigation.md,
 "Solid FEM: contact discretisation").
 
     .venv/bin/python benchmarks/bench_flexure_fem_contact.py [--stations 18,36,72,144]
@@ -15,7 +15,7 @@ model / measured), unloaded and at the 10 N working load, the contact counts (no
 ``--stations`` per turn, and how many stations have no node on the top contact line; line
 contacts: ``--spacings`` mm between points along the wire), the condensed dofs, the spring-centre diagonal at 10 N, wall and CPU s.
 
-Mesh convergence (docs/flexure.md, "Solid FEM: contact discretisation"): ``--edges`` takes
+Mesh convergence (docs/notes/flexure_investigation.md, "Solid FEM: contact discretisation"): ``--edges`` takes
 ``default`` (the curvature-sized mesh of ``designlab flexure --fem``) or edge lengths in mm,
 honoured (``helix_fem.helix_mesh``); ``--json-out FILE`` appends one JSON line per run (one
 process per edge keeps ``/usr/bin/time`` peak memory per mesh), and
@@ -32,7 +32,7 @@ spring-centre diagonals over the three finest edges of FILE when their ratios ar
 with the wire surface's mid-edge nodes on the wire's surface, or on the chords (``helix_mesh(...,
 curved=...)``, the same corners and cells); ``--curve-by projection`` (default: onto the swept
 circle) or ``gmsh`` (gmsh's second-order nodes on the B-rep, a second gmsh run); the JSON lines
-carry ``curved`` and ``curve_by`` and the extrapolation groups the runs by them (docs/flexure.md,
+carry ``curved`` and ``curve_by`` and the extrapolation groups the runs by them (docs/notes/flexure_investigation.md,
 "Solid FEM: contact discretisation").
 
     .venv/bin/python benchmarks/bench_flexure_fem_contact.py --curving default,0.5

@@ -1,4 +1,4 @@
-"""Coulomb friction in the beam chain against seed 002's measured K_c (docs/flexure.md).
+"""Coulomb friction in the beam chain against seed 002's measured K_c (docs/notes/flexure_investigation.md).
 
     .venv/bin/python benchmarks/bench_flexure_friction.py [--quick | --end-conditions] [--line]
 
@@ -9,7 +9,7 @@ the camera frame at the paper's offset (11.09 mm) and with the fitted offset: me
 the measured diagonal and the coupling ratios model / measured. Prints wall and CPU seconds.
 
 The friction runs use the node contacts (``contact_spacing_mm=0``, the chain the friction
-section of docs/flexure.md was measured with); ``--line``: the default line contacts instead,
+section of docs/notes/flexure_investigation.md was measured with); ``--line``: the default line contacts instead,
 without mu = 1e4 (its preload does not converge with line contacts)."""
 
 from __future__ import annotations

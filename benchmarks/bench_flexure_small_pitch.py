@@ -1,4 +1,4 @@
-"""The small-pitch helix of docs/flexure.md "FEM 6x6" against the zero-pitch closed form, with
+"""The small-pitch helix of docs/notes/flexure_investigation.md "FEM 6x6" against the zero-pitch closed form, with
 straight-sided and curved TET10 (the default): FEM / closed form at the spring centre per
 diagonal term, the compliance's asymmetry and the CPU time of each.
 

@@ -5,7 +5,7 @@ model term and the readout term, the least-squares gains, the ceiling a least-sq
 on the ratio, an ideal sensor's errors, the x-y rotation error, the per-sensor coefficients the
 fitted A implies beside the paper's eq. 9, and two checks: the same protocol with every load
 moved to its arm-free point (lateral loads at the equator, axial at the pole: no moment about
-the ball) and the readout seed. docs/fingertip_contact.md, "Third investigation: the P_z error".
+the ball) and the readout seed. docs/notes/fingertip_contact_investigation.md, "Third investigation: the P_z error".
 
     .venv/bin/python examples/fingertip_pz_error.py
 """

@@ -1,5 +1,5 @@
 """Issue 12's Table II goals under the three readings of the tested sensor's geometry
-(docs/fingertip_contact.md, "Fourth investigation: the tested sensor's base"):
+(docs/notes/fingertip_contact_investigation.md, "Fourth investigation: the tested sensor's base"):
 
 - ``tall, on the 11 mm base``: ``CantileverFingertip.tested()``, the model's Table II sensor
   until 26 Nov 2026 (h 28.5, r 9 on the optimised sensor's base, 11 mm below the ball centre;

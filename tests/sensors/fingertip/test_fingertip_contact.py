@@ -507,7 +507,7 @@ def test_relaxing_structure_without_relaxation_is_the_quasi_static_protocol():
 def test_relaxing_hold_grid_agrees_with_every_sample(monkeypatch):
     """The relaxing solve steps through a hold on :func:`hold_times` (steps doubling before the
     read window); stepping every ``dt_s`` through the whole hold reads the same loops (the
-    Table II protocol on the meshed default: 2e-6 N of ~10 N, docs/fingertip_contact.md)."""
+    Table II protocol on the meshed default: 2e-6 N of ~10 N, docs/notes/fingertip_contact_investigation.md)."""
     import dataclasses
 
     from designlab.sensors.fingertip import contact as fc

@@ -2,7 +2,7 @@
 moving with the beams' shape functions, the beams refined where a contact can close. The 10 N
 working-load state converges with the wire discretisation (node contacts did not), the point
 loads are statically those of the contact, and the contact forces balance the load
-(docs/flexure.md, "Beam chain": line contacts)."""
+(docs/notes/flexure_investigation.md, "Beam chain": line contacts)."""
 
 import numpy as np
 import pytest

@@ -1,6 +1,6 @@
 """Per-end conditions of the beam chain (seat_base / seat_tip): the symmetric default unchanged,
 the zero-coupling point moving towards the rotationally compliant end, the offset-independent
-rocking stiffness, and issue 18's goals over every end combination (docs/flexure.md,
+rocking stiffness, and issue 18's goals over every end combination (docs/notes/flexure_investigation.md,
 "Asymmetric ends")."""
 
 import numpy as np

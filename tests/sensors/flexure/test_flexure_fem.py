@@ -97,7 +97,7 @@ def test_flexure_geometry_from_spring():
 def test_small_pitch_helix_axial_stiffness_matches_closed_form():
     """Meshed helix (5 plain coils, pitch angle 0.08 rad, spring index 5) vs the zero-pitch
     closed form: axial stiffness within 10 % (the flat end footprints clamped on the discs
-    shorten the free wire by ~0.35 turn, so the curved FEM is ~8 % stiffer; docs/flexure.md,
+    shorten the free wire by ~0.35 turn, so the curved FEM is ~8 % stiffer; docs/notes/flexure_investigation.md,
     benchmarks/bench_flexure_small_pitch.py); ~30 s."""
     from designlab.sensors.flexure.helix_fem import fem_stiffness
     from designlab.sensors.flexure.spring import HelicalSpring, stiffness_zero_pitch
@@ -164,7 +164,7 @@ def test_contact_spacing_is_checked_before_meshing():
 
 @pytest.mark.slow
 def test_solid_line_contacts_remove_the_node_contacts_scatter():
-    """docs/flexure.md, "Solid FEM: contact discretisation": at the 10 N working load the node
+    """docs/notes/flexure_investigation.md, "Solid FEM: contact discretisation": at the 10 N working load the node
     contacts (one node per station, 36 per turn, the scheme before 2026-11-25) rock the tip 21 %
     stiffer about y than about x (606 / 734 N*mm/rad) and their 10 N diagonal error scatters
     14.8-22.0 % over 18-144 stations; line contacts (points every 0.5 mm of wire interpolated
@@ -198,7 +198,7 @@ def test_solid_line_contacts_remove_the_node_contacts_scatter():
 
 @pytest.mark.slow
 def test_helix_mesh_honours_the_edge_asked():
-    """docs/flexure.md, "Solid FEM: contact discretisation": the edge length asked is the mesh's
+    """docs/notes/flexure_investigation.md, "Solid FEM: contact discretisation": the edge length asked is the mesh's
     (before, every edge from 0.7 mm up gave one curvature-sized mesh, 67851 TET10 nodes: the
     first try faceted the wire section below the 5 % volume check and the fallback sized the
     wire by its curvature); an edge too coarse for the section is a ParameterError, not that
@@ -225,7 +225,7 @@ def test_helix_mesh_honours_the_edge_asked():
 
 @pytest.mark.slow
 def test_helix_mesh_curved_by_projection_default_mesh():
-    """docs/flexure.md, "Solid FEM: contact discretisation": the default mesh curved by
+    """docs/notes/flexure_investigation.md, "Solid FEM: contact discretisation": the default mesh curved by
     projection (the default since 2026-11-26): the same corners and cells as straight, every
     moved mid-node on the wire surface (1e-6 mm) or, on the ground faces, on its plane; the
     wire volume within 0.5 % (straight: -3.4 %), no inverted cell, the same points twice."""
@@ -269,7 +269,7 @@ def test_helix_mesh_curved_by_projection_default_mesh():
 
 @pytest.mark.slow
 def test_helix_mesh_curved_by_projection_matches_gmsh():
-    """docs/flexure.md, "Solid FEM: contact discretisation": ``curve_by="gmsh"`` (gmsh's
+    """docs/notes/flexure_investigation.md, "Solid FEM: contact discretisation": ``curve_by="gmsh"`` (gmsh's
     second-order nodes on the B-rep, a second gmsh run) and the projection (the default) move
     the same mid-nodes, to within 0.01 mm (the part's spline centreline against the closed
     form one), and nothing else; both close the faceting volume loss (-4.6 % at 0.65 mm),

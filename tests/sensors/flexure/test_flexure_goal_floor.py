@@ -1,6 +1,6 @@
 """Issue 18's goal pair against what no camera offset changes: the lateral/rocking ratio at the
 elastic centre and the smallest diagonal error it allows with the couplings within 1.5x
-(``report.bending_invariants``, ``report.diagonal_error_floor``; docs/flexure.md, "Why the
+(``report.bending_invariants``, ``report.diagonal_error_floor``; docs/notes/flexure_investigation.md, "Why the
 couplings do not come within 1.5x")."""
 
 import itertools
