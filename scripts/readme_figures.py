@@ -19,8 +19,9 @@ Parts (``--only``, comma-separated; default all):
 Every number is written to the JSON (default ``out/readme_figures.json``). ``--check`` compares
 the README with them and exits 1 naming each disagreement: a README number agrees when it lies
 within the number's error bar, or within half a unit of its last printed digit when that is
-larger (a number without a mesh has only the rounding). Times and memory in the README depend on
-the machine and its load and are not compared.
+larger (a number without a mesh has only the rounding). The README's measured numbers are the
+main-job block and the one table under "## Measured numbers"; the README names the machine once
+and carries no timings.
 """
 
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """The README's figure and measured numbers come from ``scripts/readme_figures.py``: the
 committed figure is what the script draws, and the README's main-job table and the flexure's
-column of the predictions table agree with a fresh run within their error bars (slow: it runs
+column of its measured-numbers table agree with a fresh run within their error bars (slow: it runs
 the main job, ``designlab optimize examples/sweep_fingertip_quick.toml``, and ``designlab predict
 flexure``). The fingertip and strap columns are checked by the script's full run
-(``python scripts/readme_figures.py --check``), times and memory by nobody (machine-dependent)."""
+(``python scripts/readme_figures.py --check``)."""
 
 from __future__ import annotations
 
