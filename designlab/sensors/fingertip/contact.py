@@ -548,6 +548,176 @@ ZERO_SPAN_NOTE = (
     "rotations had such a sensor; robust_eq1_span10 leaves those sensors out")
 
 
+def _lift_off_warnings(res, runs, seq, n_steps: int, N_all: np.ndarray) -> list[str]:
+    """The lift-off messages of every run (the full list) and one warning per location and
+    sensor."""
+    warn_list = []
+    for b, j, k in res.lift_off:
+        g, name, rot, *_ = runs[b]
+        msg = (f"sensor_{k + 1} lifts off the ball at {name} (rotation {rot:g} deg), "
+               f"weight {seq[j % n_steps]:g} g")
+        warn_list.append(msg)
+    if np.any(N_all == 0):
+        for b, j, k in zip(*np.nonzero(N_all == 0)):
+            g, name, rot, *_ = runs[b]
+            msg = (f"sensor_{k + 1} is off the ball at {name} (rotation {rot:g} deg), weight "
+                   f"{seq[j % n_steps]:g} g")
+            if msg not in warn_list:
+                warn_list.append(msg)
+    # one warning per location and sensor (the full list is in the report)
+    summary: dict[tuple[str, int], list] = {}
+    for b, j, k in [*res.lift_off, *zip(*np.nonzero(N_all == 0))]:
+        name, rot = runs[b][1], runs[b][2]
+        e = summary.setdefault((name, int(k)), [set(), set()])
+        e[0].add(float(rot))
+        e[1].add(float(seq[j % n_steps]))
+    for (name, k), (rs, ws) in summary.items():
+        warnings.warn(f"sensor_{k + 1} lifts off the ball at {name} (rotations "
+                      f"{', '.join(f'{r:g}' for r in sorted(rs))} deg), weight "
+                      f"{min(ws):g} g and above", stacklevel=3)
+    return warn_list
+
+
+def _hysteresis_variants(seq, runs, variants) -> tuple[dict, dict]:
+    """Eq. (1) per location in each variant (mean over rotations) and, per variant and location,
+    the rotations whose loop had a zero-span sensor."""
+    hyst = {v: {} for v in variants}
+    zero_span = {v: {} for v in variants}       # rotations whose loop had a zero-span sensor
+    for v, (which, S) in variants.items():
+        per = {}
+        eq1 = _eq1(seq, S) if runs else ((), (), ())
+        for b, (group, name, rot, d, w) in enumerate(runs):
+            per.setdefault(name, []).append(float(eq1[which][b]))
+            zero_span[v][name] = zero_span[v].get(name, 0) + int(which == 0 and eq1[2][b])
+        hyst[v] = {n: float(np.nanmean(x)) for n, x in per.items()}
+    return hyst, zero_span
+
+
+def _first_rotation_loops(runs, rots, seq, S_read, S_true, N, N_first, kmax) -> tuple[dict, dict]:
+    """Each location's loop at the first rotation and its noise-free response at the heaviest
+    weight."""
+    loops, response = {}, {}
+    for b, (group, name, rot, d, w) in enumerate(runs):
+        if rot == rots[0]:
+            loops[name] = {"weights_g": seq.tolist(), "readings_V": S_read[b].tolist(),
+                           "readings_noise_free_V": S_true[b].tolist(),
+                           "sensor_force_N": N[b].tolist(),
+                           "sensor_force_first_loop_N": N_first[b].tolist()}
+            response[name] = (S_true[b, kmax] - S_true[b, 0]).tolist()
+    return loops, response
+
+
+def _calibrate(part, points, runs, dirs, P_max, S_read, S_true, loads, seq, kmax):
+    """The calibration matrix at the heaviest weight (as evaluate) and over every weight
+    (Fig. 9): ``(calibrated, A, fit, fit_all_weights, P_est, relative errors, sensitivity,
+    fig9)``; NaN when the protocol has fewer than 3 directions."""
+    S_max = S_read[:, kmax] - S_read[:, 0]
+    all_k = [j for j in range(len(seq)) if seq[j] > 0]
+    P_all = np.concatenate([dirs * (loads[j] - loads[0]) for j in all_k])
+    S_all = np.concatenate([S_read[:, j] - S_read[:, 0] for j in all_k])
+    calibrated = np.linalg.matrix_rank(P_max) == 3 and len(runs) >= 3
+    if calibrated:
+        A, fit = fit_calibration_matrix(S_max, P_max)
+        P_est = S_max @ A.T
+        A2, fit2 = fit_calibration_matrix(S_all, P_all)
+        E_all = S_all @ A2.T - P_all
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rel_err = {ax: float(np.sqrt((E_all[:, i] ** 2).mean())
+                                 / np.sqrt((P_all[:, i] ** 2).mean())) for i, ax in enumerate("xyz")}
+        sens = np.linalg.pinv(A)
+        normals = np.array([surface_normal(part, points[r[2]][r[1]][0]) for r in runs])
+        fig9 = fig9_errors(S_read, S_true, dirs, normals, loads, seq)
+    else:                         # a protocol too small to calibrate (fewer than 3 directions)
+        A = A2 = np.full((3, 3), np.nan)
+        fit = fit2 = None
+        P_est = np.full_like(P_max, np.nan)
+        rel_err = {ax: float("nan") for ax in "xyz"}
+        sens = np.full((3, 3), np.nan)
+        fig9 = None
+    return calibrated, A, fit, fit2, P_est, rel_err, sens, fig9
+
+
+def _group_stats(h, protocol) -> dict[str, dict[str, Any]]:
+    """Per group, the mean of the locations' hysteresis, its lowest and where."""
+    out = {}
+    for group, names in (("G1", protocol.g1_locations), ("G2", protocol.g2_locations)):
+        vals = [h[n] for n in names]
+        if vals:
+            out[group] = {"mean": float(np.mean(vals)), "lowest": float(np.min(vals)),
+                          "lowest_at": names[int(np.argmin(vals))]}
+    return out
+
+
+def _check_peak(N_all: np.ndarray, N_pre: np.ndarray, protocol, settings) -> float:
+    """The largest sensor force (preload included): an error over the FSS015 overforce, a
+    warning over its sensing range."""
+    peak = float(N_all.max())
+    if peak > protocol.sensor_overforce_N:
+        raise ParameterError("bolt_preload_N", settings.bolt_preload_N,
+                             f"a preload that with the load keeps every sensor under the FSS015 "
+                             f"overforce {protocol.sensor_overforce_N:g} N (sensor preload "
+                             f"{N_pre.max():.1f} N, peak with the load {peak:.1f} N)")
+    if peak > protocol.sensor_range_N:
+        warnings.warn(f"FSS015 sensor force {peak:.2f} N (preload included) exceeds its sensing "
+                      f"range {protocol.sensor_range_N:g} N", stacklevel=3)
+    return peak
+
+
+def _location_runs(part, protocol: HangingWeightTest, rotations_deg):
+    """Every (location, rotation) of the protocol: ``(rotations, runs, load points)`` with each
+    run ``(group, name, rotation, direction, wrench per N of hanging load)``."""
+    rots = (list(rotations_deg) if rotations_deg is not None
+            else [360.0 * i / protocol.rotations for i in range(protocol.rotations)])
+    runs = []                                   # (group, name, rot, point dir)
+    points = {rot: part.load_points(rot) for rot in rots}        # once per rotation
+    for group, names in (("G1", protocol.g1_locations), ("G2", protocol.g2_locations)):
+        for name in names:
+            for rot in rots:
+                p, d = points[rot][name]
+                runs.append((group, name, rot, d, wrench_at_ball(p, d)))
+    return rots, runs, points
+
+
+def _hysteresis_entries(seq, runs, variants, protocol) -> dict[str, Any]:
+    """The report's ``hysteresis_percent`` (robust eq. 1 with readout, by group and location)
+    and ``hysteresis_definitions`` (every variant, by location and group)."""
+    hyst, zero_span = _hysteresis_variants(seq, runs, variants)
+
+    by_loc = hyst["robust_eq1_span10"]
+    overall = float(np.mean(list(by_loc.values())))
+
+    def mean_of(v):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return float(np.nanmean(list(hyst[v].values())))
+
+    return {
+        "hysteresis_percent": {
+            "definition": "robust_eq1_span10 with the FSS015/DAQ readout errors (mean over "
+                          "the sensors whose span is >= 10 % of the largest, then rotations)",
+            "overall": overall,
+            "overall_noise_free": mean_of("robust_eq1_span10_noise_free"),
+            "overall_paper_definition": mean_of("paper_eq1_all_sensors"),
+            "by_group": {g: s["mean"] for g, s in _group_stats(by_loc, protocol).items()},
+            "by_group_noise_free": {g: s["mean"] for g, s in _group_stats(
+                hyst["robust_eq1_span10_noise_free"], protocol).items()},
+            "by_location": by_loc,
+            "by_location_noise_free": hyst["robust_eq1_span10_noise_free"]},
+        "hysteresis_definitions": {
+            v: {"by_location": h, "by_group": _group_stats(h, protocol),
+                **({"zero_span_rotations": zero_span[v], "note": ZERO_SPAN_NOTE}
+                   if variants[v][0] == 0 else {})} for v, h in hyst.items()}}
+
+
+def _readings(S_true: np.ndarray, runs, settings: ContactSettings) -> np.ndarray:
+    """The readings (V) with the readout errors, seeded per (seed, location, rotation): a run's
+    noise does not depend on which other locations the protocol has (designs of a sweep with
+    different load points stay comparable)."""
+    return np.concatenate([readings_noise(S_true[b:b + 1], settings, run_rng(settings.seed,
+                                                                              r[1], r[2]))
+                           for b, r in enumerate(runs)]) if runs else S_true.copy()
+
+
 def run_contact_test(part, protocol: HangingWeightTest | None = None,
                      settings: ContactSettings | None = None,
                      condensed: CondensedFingertip | None = None, *, mesh=None,
@@ -584,15 +754,7 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
 
     # every (location, rotation): wrench per N of hanging load
     t0 = time.perf_counter()
-    rots = (list(rotations_deg) if rotations_deg is not None
-            else [360.0 * i / protocol.rotations for i in range(protocol.rotations)])
-    runs = []                                   # (group, name, rot, point dir)
-    points = {rot: part.load_points(rot) for rot in rots}        # once per rotation
-    for group, names in (("G1", protocol.g1_locations), ("G2", protocol.g2_locations)):
-        for name in names:
-            for rot in rots:
-                p, d = points[rot][name]
-                runs.append((group, name, rot, d, wrench_at_ball(p, d)))
+    rots, runs, points = _location_runs(part, protocol, rotations_deg)
     W = np.array([r[4] for r in runs])                               # (B, 6)
     loads = protocol.loads_N                                         # (steps,)
     seq = protocol.sequence_g
@@ -613,47 +775,12 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
     timings["contact_solve"] = time.perf_counter() - t0
     t0 = time.perf_counter()
 
-    warn_list = []
-    for b, j, k in res.lift_off:
-        g, name, rot, *_ = runs[b]
-        msg = (f"sensor_{k + 1} lifts off the ball at {name} (rotation {rot:g} deg), "
-               f"weight {seq[j % n_steps]:g} g")
-        warn_list.append(msg)
-    if np.any(N_all == 0):
-        for b, j, k in zip(*np.nonzero(N_all == 0)):
-            g, name, rot, *_ = runs[b]
-            msg = (f"sensor_{k + 1} is off the ball at {name} (rotation {rot:g} deg), weight "
-                   f"{seq[j % n_steps]:g} g")
-            if msg not in warn_list:
-                warn_list.append(msg)
-    # one warning per location and sensor (the full list is in the report)
-    summary: dict[tuple[str, int], list] = {}
-    for b, j, k in [*res.lift_off, *zip(*np.nonzero(N_all == 0))]:
-        name, rot = runs[b][1], runs[b][2]
-        e = summary.setdefault((name, int(k)), [set(), set()])
-        e[0].add(float(rot))
-        e[1].add(float(seq[j % n_steps]))
-    for (name, k), (rs, ws) in summary.items():
-        warnings.warn(f"sensor_{k + 1} lifts off the ball at {name} (rotations "
-                      f"{', '.join(f'{r:g}' for r in sorted(rs))} deg), weight "
-                      f"{min(ws):g} g and above", stacklevel=2)
+    warn_list = _lift_off_warnings(res, runs, seq, n_steps, N_all)
 
     force = N - N_pre[None, None]                                    # tared, N
     S_true = FSS015_V_PER_N * force                                  # V
-    # seeded per (seed, location, rotation): a run's noise does not depend on which other
-    # locations the protocol has (designs of a sweep with different load points stay comparable)
-    S_read = np.concatenate([readings_noise(S_true[b:b + 1], settings, run_rng(settings.seed,
-                                                                                r[1], r[2]))
-                             for b, r in enumerate(runs)]) if runs else S_true.copy()
-    peak = float(N_all.max())
-    if peak > protocol.sensor_overforce_N:
-        raise ParameterError("bolt_preload_N", settings.bolt_preload_N,
-                             f"a preload that with the load keeps every sensor under the FSS015 "
-                             f"overforce {protocol.sensor_overforce_N:g} N (sensor preload "
-                             f"{N_pre.max():.1f} N, peak with the load {peak:.1f} N)")
-    if peak > protocol.sensor_range_N:
-        warnings.warn(f"FSS015 sensor force {peak:.2f} N (preload included) exceeds its sensing "
-                      f"range {protocol.sensor_range_N:g} N", stacklevel=2)
+    S_read = _readings(S_true, runs, settings)
+    peak = _check_peak(N_all, N_pre, protocol, settings)
 
     # hysteresis, per loop: 4 variants
     S_first = FSS015_V_PER_N * (N_first - N_pre[None, None])
@@ -661,89 +788,20 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
                 "paper_eq1_all_sensors_noise_free": (0, S_true),
                 "robust_eq1_span10_noise_free": (1, S_true),
                 "robust_eq1_span10_noise_free_first_loop": (1, S_first)}
-    hyst = {v: {} for v in variants}
-    zero_span = {v: {} for v in variants}       # rotations whose loop had a zero-span sensor
-    for v, (which, S) in variants.items():
-        per = {}
-        eq1 = _eq1(seq, S) if runs else ((), (), ())
-        for b, (group, name, rot, d, w) in enumerate(runs):
-            per.setdefault(name, []).append(float(eq1[which][b]))
-            zero_span[v][name] = zero_span[v].get(name, 0) + int(which == 0 and eq1[2][b])
-        hyst[v] = {n: float(np.nanmean(x)) for n, x in per.items()}
-
-    def group_stats(h):
-        out = {}
-        for group, names in (("G1", protocol.g1_locations), ("G2", protocol.g2_locations)):
-            vals = [h[n] for n in names]
-            if vals:
-                out[group] = {"mean": float(np.mean(vals)), "lowest": float(np.min(vals)),
-                              "lowest_at": names[int(np.argmin(vals))]}
-        return out
-
-    by_loc = hyst["robust_eq1_span10"]
-    overall = float(np.mean(list(by_loc.values())))
-
-    def mean_of(v):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            return float(np.nanmean(list(hyst[v].values())))
-
     # calibration: applied force vs reading change at the heaviest weight (as evaluate), and
     # over every weight (Fig. 9 plots every load set)
     kmax = int(np.argmax(seq))
     dirs = np.array([r[3] for r in runs])
     P_max = dirs * (loads[kmax] - loads[0])
-    S_max = S_read[:, kmax] - S_read[:, 0]
-    all_k = [j for j in range(len(seq)) if seq[j] > 0]
-    P_all = np.concatenate([dirs * (loads[j] - loads[0]) for j in all_k])
-    S_all = np.concatenate([S_read[:, j] - S_read[:, 0] for j in all_k])
-    calibrated = np.linalg.matrix_rank(P_max) == 3 and len(runs) >= 3
-    if calibrated:
-        A, fit = fit_calibration_matrix(S_max, P_max)
-        P_est = S_max @ A.T
-        A2, fit2 = fit_calibration_matrix(S_all, P_all)
-        E_all = S_all @ A2.T - P_all
-        with np.errstate(invalid="ignore", divide="ignore"):
-            rel_err = {ax: float(np.sqrt((E_all[:, i] ** 2).mean())
-                                 / np.sqrt((P_all[:, i] ** 2).mean())) for i, ax in enumerate("xyz")}
-        sens = np.linalg.pinv(A)
-        normals = np.array([surface_normal(part, points[r[2]][r[1]][0]) for r in runs])
-        fig9 = fig9_errors(S_read, S_true, dirs, normals, loads, seq)
-    else:                         # a protocol too small to calibrate (fewer than 3 directions)
-        A = A2 = np.full((3, 3), np.nan)
-        fit = fit2 = None
-        P_est = np.full_like(P_max, np.nan)
-        rel_err = {ax: float("nan") for ax in "xyz"}
-        sens = np.full((3, 3), np.nan)
-        fig9 = None
+    calibrated, A, fit, fit2, P_est, rel_err, sens, fig9 = _calibrate(
+        part, points, runs, dirs, P_max, S_read, S_true, loads, seq, kmax)
 
-    loops, response = {}, {}
-    for b, (group, name, rot, d, w) in enumerate(runs):
-        if rot == rots[0]:
-            loops[name] = {"weights_g": seq.tolist(), "readings_V": S_read[b].tolist(),
-                           "readings_noise_free_V": S_true[b].tolist(),
-                           "sensor_force_N": N[b].tolist(),
-                           "sensor_force_first_loop_N": N_first[b].tolist()}
-            response[name] = (S_true[b, kmax] - S_true[b, 0]).tolist()
+    loops, response = _first_rotation_loops(runs, rots, seq, S_read, S_true, N, N_first, kmax)
 
     report: dict[str, Any] = {
         "model": "contact (Hertz + Mindlin partial slip + Coulomb at the ball, bolt preload, "
                  "condensed FEM)",
-        "hysteresis_percent": {
-            "definition": "robust_eq1_span10 with the FSS015/DAQ readout errors (mean over "
-                          "the sensors whose span is >= 10 % of the largest, then rotations)",
-            "overall": overall,
-            "overall_noise_free": mean_of("robust_eq1_span10_noise_free"),
-            "overall_paper_definition": mean_of("paper_eq1_all_sensors"),
-            "by_group": {g: s["mean"] for g, s in group_stats(by_loc).items()},
-            "by_group_noise_free": {g: s["mean"] for g, s in group_stats(
-                hyst["robust_eq1_span10_noise_free"]).items()},
-            "by_location": by_loc,
-            "by_location_noise_free": hyst["robust_eq1_span10_noise_free"]},
-        "hysteresis_definitions": {
-            v: {"by_location": h, "by_group": group_stats(h),
-                **({"zero_span_rotations": zero_span[v], "note": ZERO_SPAN_NOTE}
-                   if variants[v][0] == 0 else {})} for v, h in hyst.items()},
+        **_hysteresis_entries(seq, runs, variants, protocol),
         "calibration_matrix": A.tolist(),
         "calibration_units": "N per V (P = A S)",
         "condition_number": condition_number(A) if calibrated else float("nan"),
