@@ -459,6 +459,7 @@ def _markup_inputs(tmp: Path) -> Path:
 
 
 @pytest.mark.parametrize("cmd", ["loop", "compensate"])
+@pytest.mark.slow
 def test_markup_in_a_valid_column_and_channel_is_printed_literally(cmd, tmp_path, capsys,
                                                                    monkeypatch):
     """A column named ``[/bold]`` and a channel ``a[red]b`` are data, not markup: the run

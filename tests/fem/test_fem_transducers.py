@@ -96,6 +96,7 @@ def test_button_pose_wrench_readings_static_and_history():
     assert fh[-1] > fh[0]          # the block relaxes, the stiff-ish button takes more load
 
 
+@pytest.mark.slow
 def test_vtu_and_png_written_atomically(tmp_path):
     import meshio
 

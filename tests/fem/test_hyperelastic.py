@@ -218,6 +218,7 @@ def test_bonded_block_at_30_percent_compression_matches_calculix(order):
 
 
 @needs_ccx
+@pytest.mark.slow
 def test_cantilever_under_a_large_tip_force_matches_calculix():
     """A 20 x 2 x 2 mm TET10 cantilever (neo-Hookean, E 1 MPa, nu 0.45) under 0.01 N at its
     tip nodes (dead load, downwards): tip deflection 59 % of the length, axial Green strain

@@ -33,6 +33,7 @@ def cross_data(seed: int = 0, n: int = 200):
                               **{w: "Nmm" if w[0] == "m" else "N" for w in WRENCH}})
 
 
+@pytest.mark.slow
 def test_a_wrong_cross_gain_is_input_gains_not_a_mechanism():
     res = run_loop(cross_data(), base_model(C0), outputs=["v_x"], folds=10, max_effects=3,
                    peer=False)

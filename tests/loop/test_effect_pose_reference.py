@@ -68,6 +68,7 @@ def test_the_rule_is_the_adjoint_of_designlab_frames():
 
 
 @pytest.mark.parametrize("e", [-11.09, 4.0])
+@pytest.mark.slow
 def test_a_planted_offset_is_found_first_with_its_size(e):
     res = run_loop(twist_data(e), base_model(C0), outputs=["v_x", "v_y"], folds=5,
                    max_effects=2, peer=False)

@@ -239,6 +239,7 @@ def square_effect():
     del fx.EFFECTS["square"]
 
 
+@pytest.mark.slow
 def test_a_new_effect_is_one_class(square_effect):
     assert fx.EFFECTS["square"] is square_effect
     ds, base = case("nonlinearity")
@@ -271,6 +272,7 @@ def test_registry_is_clean_after_the_new_effect():
 
 @pytest.mark.parametrize("name", [n if n in FAST else pytest.param(n, marks=pytest.mark.slow)
                                   for n in EFFECTS])
+@pytest.mark.slow
 def test_loop_finds_the_missing_effect(name):
     ds, base = case(name)
     res = run_loop(ds, base, max_effects=2, peer=False)
@@ -473,6 +475,7 @@ def nnls_failure():
     del fx.EFFECTS["stuck"]
 
 
+@pytest.mark.slow
 def test_an_nnls_failure_is_a_skipped_candidate(nnls_failure):
     ds, base = case("drift")
     out = run_loop(ds, base, max_effects=1, peer=False).report["outputs"]["force"]
@@ -497,6 +500,7 @@ def test_a_run_shorter_than_the_longest_lag_is_one_line():
         run_loop(shorter, base, peer=False)
 
 
+@pytest.mark.slow
 def test_report_model_and_continuation(tmp_path):
     ds, base = case("nonlinearity")
     res = run_loop(ds, base, max_effects=1, peer=False)
@@ -538,6 +542,7 @@ def test_unexplained_residual_is_reported():
     assert "correlates most with" in out["verdict"]
 
 
+@pytest.mark.slow
 def test_seed001_staircase_friction_times_moment_arm():
     """Seed 001's hanging-weight test: weights stepped up and down (a staircase, 4 s per step)
     at 7 heights of the load; the reading carries a friction hysteresis proportional to the
@@ -565,6 +570,7 @@ def test_seed001_staircase_friction_times_moment_arm():
     assert e["error_after"] < 0.5 * out["error_before"]
 
 
+@pytest.mark.slow
 def test_two_mechanisms_planted_together_are_both_found():
     """Friction hysteresis in the displacement and a temperature coefficient (TCR) in one truth
     (no single effect covers both): both are accepted (in either order), the hysteresis with
@@ -589,6 +595,7 @@ def test_two_mechanisms_planted_together_are_both_found():
         assert h["parameters"]["amplitude"] == pytest.approx(0.1, rel=0.3), h["parameters"]
 
 
+@pytest.mark.slow
 def test_gain_offset_of_a_loaded_model_goes_first():
     """A model not fitted on the data (a `predict` model.json: FEM gains) that is 8 % too
     stiff and off by 0.05 N, with a friction hysteresis it lacks: gain_offset is taken first

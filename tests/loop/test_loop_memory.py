@@ -79,6 +79,7 @@ def test_decimation_per_run_within_the_budget_and_deterministic():
         L.run_loop(ds, "linear", max_fit_samples=10, peer=False)
 
 
+@pytest.mark.slow
 def test_a_decimated_loop_finds_the_same_effect_and_validates_on_every_sample(monkeypatch):
     """12 000 samples (7201 training): fitted at full rate and within a budget of 2500
     (decimated by 3 to 2401): relaxation is accepted first both times, with time constants and

@@ -132,6 +132,7 @@ def write_csv(path, u, y, dt, names=("Ch1", "Ch2", "Fn", "Fx")):
     np.savetxt(path, data, delimiter=",", header=",".join(("t",) + names), comments="")
 
 
+@pytest.mark.slow
 def test_cli_writes_json_and_png(tmp_path):
     recs = records(2, T=1200)
     write_csv(tmp_path / "task1.csv", recs[0].u, recs[0].y, recs[0].dt)

@@ -124,6 +124,7 @@ def test_fit_recovers_one_cell_truth_in_physical_units():
     np.testing.assert_allclose(p.simulate(u, dt), y, atol=1e-7 * np.ptp(y))
 
 
+@pytest.mark.slow
 def test_fit_adds_cells_while_validation_improves():
     truth = mpl.MPLParams(w0=1.0, w=(-0.3, 0.2), V_b=0.0, P_T=(0.05, 0.1),
                           P_S=(0.05 / (2 * 0.5), 0.1 / (2 * 20.0)), g=(0.1, 2.0, -0.5, 0.3))

@@ -50,6 +50,7 @@ def test_narx_beats_linear_on_hysteretic_data():
     assert np.all(np.isfinite(fb.predict(u[va])))          # closed loop runs (accuracy varies)
 
 
+@pytest.mark.slow
 def test_open_and_closed_loop():
     u, y, dt = hysteretic(T=3000)
     net0, _ = narx.fit(u, y, narx.NARXParams(input_delays=20, output_delays=0, max_iter=50))

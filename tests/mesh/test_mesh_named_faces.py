@@ -33,6 +33,7 @@ class PredicatesOnly:
         return getattr(self.part, name)
 
 
+@pytest.mark.slow
 def test_named_sets_equal_the_predicate_sets_on_the_fingertip():
     from designlab.geometry.parts import make_part
 

@@ -125,6 +125,7 @@ def test_facet_sets_selected_on_the_boundary(strap_result):
     assert (n[:, 2] > 0).all()
 
 
+@pytest.mark.slow
 def test_empty_facet_set_names_it():
     with pytest.raises(MeshingError, match="'nowhere'"):
         mesh_bodies([_bodies()["trace"]], {"nowhere": lambda c, n: c[:, 0] > 1e3},
@@ -200,6 +201,7 @@ def test_fTetWild_failure_retries_then_one_line_error(monkeypatch):
     assert e1 < e0 and h2 < h0 and s2 != s0  # tighter envelope, then finer / other energy
 
 
+@pytest.mark.slow
 def test_lost_thin_body_is_detected(monkeypatch):
     """A mesh in which the trace has vanished (here: no cell tagged) fails the volume check."""
     monkeypatch.setattr(meshing, "_attempts", lambda h, eps, e: [(h, eps, e)])
@@ -216,6 +218,7 @@ def _abort(*args):
     os.abort()
 
 
+@pytest.mark.slow
 def test_fTetWild_abort_is_contained(monkeypatch):
     """fTetWild runs in a forked child: a C++ abort there is a MeshingError here."""
     import os
@@ -331,6 +334,7 @@ def test_save_mesh_writes_vtu_and_json(strap_result, tmp_path):
     assert read_vtu(vtu).n_cells == strap_result.mesh.n_cells
 
 
+@pytest.mark.slow
 def test_cli_rejects_unknown_part(tmp_path):
     out = subprocess.run([sys.executable, "-m", "designlab.cli", "mesh", "teapot", "--out",
                           str(tmp_path / "x")], capture_output=True, text=True)

@@ -163,6 +163,7 @@ def test_kill_9_at_random_moments_with_a_pool_leaves_no_process(tmp_path, refere
     _check_resumed(tmp_path, reference)
 
 
+@pytest.mark.slow
 def test_one_writer_per_out_and_a_killed_holder_is_taken_over(tmp_path, reference):
     proc = _spawn(tmp_path, fn="slow_quadratic")
     lock = tmp_path / ".designlab.lock"

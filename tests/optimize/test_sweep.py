@@ -66,6 +66,7 @@ def test_sweep_records_failures_caches_and_resumes(tmp_path):
     assert [r["key"] for r in r2.rows] == [r["key"] for r in r1.rows]
 
 
+@pytest.mark.slow
 def test_process_pool_and_dask_give_identical_results(tmp_path):
     from distributed import LocalCluster
 
@@ -138,6 +139,7 @@ def test_de_and_pareto(tmp_path):
     assert par.method == "pareto" and par.chosen["key"] in par.sweep.pareto_keys
 
 
+@pytest.mark.slow
 def test_report_writes_plots_and_html(tmp_path):
     from designlab.optimize.report import write_report
 

@@ -118,6 +118,7 @@ def _fingertip_dataset(cols):
                        quantities={"rotation": "angle"}, kinds={"location": "location"})
 
 
+@pytest.mark.slow
 def test_fingertip_friction_times_arm_goes_loop_to_predict(tmp_path):
     """Measured hanging-weight log with friction x moment arm planted -> load-arm base + loop
     finds friction_arm on every sensor (size within 25 %) -> applied to the design's linear
@@ -228,6 +229,7 @@ def test_flexure_offset_and_gain_go_loop_to_predict(tmp_path):
     assert after["uncorrected"]["condition_number"] == before["condition_number"]
 
 
+@pytest.mark.slow
 def test_the_committed_fingertip_example_log_is_todays(tmp_path):
     """docs/loop.md runs the loop on examples/data/fingertip_staircase.csv: it must be the log
     today's FEM gains give (a model change that moves them needs `python

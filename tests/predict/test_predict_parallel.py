@@ -178,6 +178,7 @@ def test_jobs_sent_to_a_stuck_child_do_not_block_the_caller(monkeypatch):
     assert not multiprocessing.active_children()
 
 
+@pytest.mark.slow
 def test_forked_helpers_run_opencascade_serially():
     """In a forked helper OpenCascade's thread pool is the parent's (its threads are not in the
     child): ``_serial_occ`` makes the Booleans build123d asks to run in parallel run on the

@@ -77,6 +77,7 @@ def _flexure():
     return p.K_true, p.K_design
 
 
+@pytest.mark.slow
 def test_flexure_force_error_within_1_5x_of_table_I_with_the_split():
     from designlab.sensors.flexure.force_error import run_force_test
 
@@ -90,6 +91,7 @@ def test_flexure_force_error_within_1_5x_of_table_I_with_the_split():
     assert r["within_1_5x_of_paper"]
 
 
+@pytest.mark.slow
 def test_flexure_mechanisms_alone():
     from designlab.sensors.flexure.force_error import FlexureForceTest, run_force_test
 
@@ -129,6 +131,7 @@ def _flexure_task(values, indices):
             "values": values}
 
 
+@pytest.mark.slow
 def test_failed_build_is_recorded_and_counted():
     spec = parse_uncertainty("flexure", {"samples": 3})
     good = {"hysteresis_percent": 3.0, "pose_noise_mm": 0.025}
@@ -364,6 +367,7 @@ def test_a_sensor_brings_its_own_monte_carlo_model(monkeypatch):
     assert s["paper"] == {"twice_gain": 3.0} and s["metrics"]["twice_gain"]["drivers"]["gain"] > 0.99
 
 
+@pytest.mark.slow
 def test_flexure_monte_carlo_summary_carries_the_papers_table_I(tmp_path):
     spec = parse_uncertainty("flexure", {"samples": 3})
     cols, V = draw(spec)

@@ -296,6 +296,7 @@ def test_condensed_structure_survives_the_cache_arrays():
         run_contact_test(PART, SHORT, s, cf)["hysteresis_percent"]
 
 
+@pytest.mark.slow
 def test_paper_designs_share_this_designs_fem_and_report_the_goals():
     """The paper's Table II / III fingertips are built on this design's structure (same FEM
     key); the comparison names every goal with its value and target, and a goal's verdict
@@ -504,6 +505,7 @@ def test_relaxing_structure_without_relaxation_is_the_quasi_static_protocol():
     assert "\n" not in str(e.value)
 
 
+@pytest.mark.slow
 def test_relaxing_hold_grid_agrees_with_every_sample(monkeypatch):
     """The relaxing solve steps through a hold on :func:`hold_times` (steps doubling before the
     read window); stepping every ``dt_s`` through the whole hold reads the same loops (the

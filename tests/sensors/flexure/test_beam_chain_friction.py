@@ -23,6 +23,7 @@ def frictionless():
     return bc.chain_stiffness(VISIFLEX_CATALOG)
 
 
+@pytest.mark.slow
 def test_zero_mu_is_the_frictionless_chain(frictionless):
     """mu = 0: the incremental frictional solve (10 force increments to the 10 N working load,
     then the perturbations from that state) gives the frictionless 6x6, unloaded and loaded:
@@ -141,6 +142,7 @@ def test_friction_bad_input():
         cf.loop_stiffness(VISIFLEX_CATALOG, amplitude_mm=0.0)
 
 
+@pytest.mark.slow
 def test_friction_same_input_same_output():
     """The frictional path (10 N preload in 10 increments, then a perturbation) is bit-identical
     run to run."""

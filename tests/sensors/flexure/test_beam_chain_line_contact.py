@@ -110,6 +110,7 @@ def test_contact_forces_balance_the_working_load():
     assert ch.unresolved(cl) == []
 
 
+@pytest.mark.slow
 def test_contacts_outside_the_windows_get_refined():
     """A working load that closes contacts beyond the windows meshed from the gaps at rest
     (30 N: the ramps touch too) rebuilds the chain with windows around them."""

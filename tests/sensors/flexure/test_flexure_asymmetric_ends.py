@@ -39,6 +39,7 @@ def test_same_condition_at_both_ends_is_the_symmetric_setting_bit_for_bit(seat):
     assert a.info["seats"] == {"base": seat, "tip": seat}
 
 
+@pytest.mark.slow
 def test_one_end_overrides_the_common_setting_only_at_that_end():
     s = cg.ChainSettings(seat="potted", seat_base="contact")
     assert s.end_seats == ("contact", "potted")

@@ -30,6 +30,7 @@ def test_part_gives_the_catalogue_spring():
     assert s.active_length == pytest.approx(VISIFLEX_CATALOG.active_length)
 
 
+@pytest.mark.slow
 def test_default_truth_is_the_chain_of_the_spring_as_built():
     """`predict flexure` (SpringFlexure defaults) and `designlab flexure` (catalogue preset)
     use the same spring as built: the chain's 6x6 at the 10 N working load, at the spring

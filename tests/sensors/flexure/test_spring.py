@@ -138,6 +138,7 @@ def test_report_json_is_written_atomically(tmp_path, paper):
         fr.write_json(tmp_path / "no" / "dir.json", rep)
 
 
+@pytest.mark.slow
 def test_cli_flexure_no_fem(tmp_path, shared):
     from designlab.cli import main
 

@@ -96,6 +96,7 @@ SHORT = {"n_steps": 2, "step_hold_s": 1.0, "dt_s": 0.25, "cycles": 1, "cycle_per
 CHEAP = {"edge_length": 2.0, "order": 1, "mesh_convergence": False}
 
 
+@pytest.mark.slow
 def test_predict_strap_reads_the_gauges_at_the_measured_resistance(tmp_path):
     """End to end: predict strap --measured with a resistivity record twice the back-
     calculated one -> the electrical report, the gauges' operating point and the sensitivity

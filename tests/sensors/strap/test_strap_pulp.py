@@ -59,6 +59,7 @@ def test_layer_compression_matches_closed_form(order):
         (1 - NU) / ((1 + NU) * (1 - 2 * NU)), rel=1e-12)
 
 
+@pytest.mark.slow
 def test_tet10_does_not_lock_at_nu_049_on_a_bonded_layer():
     """Uniform states cannot show locking (every element holds them): a layer bonded to the
     bone (far face fixed) under a uniform top traction has free edges and a non-uniform
@@ -111,6 +112,7 @@ def test_bad_settings_are_one_line_errors():
         StrapModelSettings(pulp_layers=1.5)
 
 
+@pytest.mark.slow
 def test_solid_pulp_changes_the_strap_prediction():
     """Coarse strap (2 mm TET4, elastic materials): the solid pulp replaces the springs (the
     prediction moves, the report says which finger and the pulp's strain), and a very soft

@@ -167,6 +167,7 @@ def test_flat_strap_has_no_membrane_path_for_normal_force(flat_mesh, prediction)
     assert flat["Ch1"]["F_x"] > 0 > flat["Ch2"]["F_x"]
 
 
+@pytest.mark.slow
 def test_viscoelastic_materials_give_hysteresis(flat_mesh):
     """With a Prony series in both TPUs the history is marched and the staircase loop opens."""
     from designlab.fem.materials import get_material
