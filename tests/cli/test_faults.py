@@ -12,6 +12,8 @@ import os
 import signal
 from pathlib import Path
 
+import pytest
+
 from designlab.optimize.executors import LocalExecutor
 
 KILLER = 2  # the task index whose worker dies
@@ -70,6 +72,7 @@ def sweep_kill_once(task):
     return quadratic(task)
 
 
+@pytest.mark.slow
 def test_a_sweep_survives_a_killed_worker_and_its_store_stays_consistent(tmp_path, monkeypatch):
     import pyarrow.parquet as pq
 
