@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import re
+import sys
 from pathlib import Path
 from typing import Iterator
 
@@ -99,7 +100,8 @@ def optimized(tmp_path_factory) -> Iterator[Path]:
 
 @pytest.mark.slow
 def test_optimize_report_in_chromium(optimized, tmp_path):
-    from test_report_html import ARTIFACTS, open_in_chromium
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "predict"))
+    from test_predict_report import ARTIFACTS, open_in_chromium
 
     html = (optimized / "report.html").read_text()
     assert "Why this design" in html and "closest to the ideal point" in html

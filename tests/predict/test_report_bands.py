@@ -83,7 +83,7 @@ def table(sec: Section, first: str) -> list[dict[str, str]]:
 
 def dom_of(page: Path, tmp: Path) -> str:
     """The page as headless Chromium renders it (its DOM after load)."""
-    from test_report_html import FLAGS, chromium
+    from test_predict_report import FLAGS, chromium
 
     return subprocess.run([chromium(), *FLAGS, f"--user-data-dir={tmp / 'profile'}",
                            "--virtual-time-budget=5000", "--dump-dom", page.as_uri()],

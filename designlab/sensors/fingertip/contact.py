@@ -24,8 +24,8 @@ compressed FSS sensor ... to increase"). This module adds that physics:
   ``bolt_preload_N`` is reached, with friction active; then the tray and weights follow.
 * **ABS relaxation kept** (default, ``structure_moduli="relaxing"``): the ABS Prony stand-in
   (4 %, tau 2 s) relaxes in the contact solve (:func:`relaxing_problem`: the protocol in time,
-  hold by hold, ~2.6x the time of a quasi-static solve); ``"long_time"`` (the default before
-  2026-11-26) takes the relaxed moduli throughout. The paper reads each weight from 7 to 10 s
+  hold by hold, ~2.6x the time of a quasi-static solve); ``"long_time"`` takes the relaxed
+  moduli throughout. The paper reads each weight from 7 to 10 s
   after it is hung, when that term has decayed to e^-3.5 = 3 % of its 4 %; without friction
   (the linear test) its whole hysteresis is 0.002-0.004 %, but with friction the structure
   creeping under a held weight moves the contacts and adds partial slip

@@ -78,13 +78,12 @@ class ContactSettings:
     microslip_elements: int = field(default=MICROSLIP_ELEMENTS, metadata=rng(
         0, 1000, doc="Mindlin's partial slip at each contact as this many Iwan elements "
         "(designlab.fem.contact.iwan_elements); 0: the contact sticks whole until it slides "
-        "(elastic-perfectly-plastic, the model before 2026-11-26)"))
+        "(elastic-perfectly-plastic)"))
     structure_moduli: str = field(default="relaxing", metadata=rng(
         choices=("long_time", "instantaneous", "relaxing"), doc="ABS moduli of the condensed "
         "structure: relaxing between the instantaneous and the relaxed ones through the "
-        "protocol's holds (the contact solve follows the time history; the default since "
-        "2026-11-26, ~2.6x the contact solve of the others), relaxed (long_time, the default "
-        "before) or instantaneous"))
+        "protocol's holds (the contact solve follows the time history, ~2.6x the contact "
+        "solve of the others), relaxed (long_time) or instantaneous"))
     increments_per_step: int = field(default=4, metadata=rng(1, 10000))
     preconditioning_cycles: int = field(default=1, metadata=rng(
         0, 100, doc="loops run at each location before the measured one: the first loop after "

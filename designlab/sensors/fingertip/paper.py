@@ -61,7 +61,7 @@ def table_ii_dome(part=None) -> dict[str, Any]:
 
 # ------------------------------------------------------------------ the paper's two designs
 
-#: the issue 12 goals (seed 001 numbers: ../shared/data/papers/fingertip_xu2014.json)
+#: the fingertip's design goals (seed 001 numbers: ../shared/data/papers/fingertip_xu2014.json)
 GOAL_G1_RATIO = 2.0            # G1 hysteresis h1 >= 2 x h9
 GOAL_LOWEST_FACTOR = 2.0       # lowest mean G1/G2 within a factor 2 of 0.98 % / 2.19 %
 GOAL_CHANGE_POINTS = 15.0      # h9 -> h1 compressed-sensor change within 15 points of 33.9 %
@@ -408,7 +408,7 @@ def paper_comparison(part, protocol: HangingWeightTest, settings: ContactSetting
     structure: cond(A) vs 34.92 and Fig. 9's applied-vs-estimated errors per axis). ``table_ii``:
     the tested sensor and its own condensed structure (``predict`` passes
     :meth:`CantileverFingertip.table_ii`'s); without it Table II's points run on this design's
-    structure (:func:`paper_design`). Each goal of issue 12 with its value, target and whether it
+    structure (:func:`paper_design`). Each design goal with its value, target and whether it
     is met; ``matches`` and ``does_not_match`` in words. A design that is one of the two (with
     the paper's protocol) reuses its own report."""
     from designlab.geometry.fingertip import CantileverFingertip  # noqa: F401

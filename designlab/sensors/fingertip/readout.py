@@ -24,8 +24,8 @@ def repeatability_sigma_V(percent_fs: float) -> float:
     applied consecutively ... approaching from the same direction" (FSS datasheet, Table 2 note
     9): the +-band bounds the difference of two readings, whose sigma is sqrt(2) x a reading's.
     Read as a 2-sigma band on that difference: sigma = band / (2 sqrt 2), 0.0707 % FS for the
-    FSS015's 0.2 % (seed 001 Table I). (Until 2026-11-26 the band was taken on one reading,
-    sigma = band / 2: sqrt 2 too wide.)"""
+    FSS015's 0.2 % (seed 001 Table I). Taking the band on one reading (sigma = band / 2) would be
+    sqrt 2 too wide."""
     return percent_fs / 100.0 * FSS015_RANGE_N * FSS015_V_PER_N / (2.0 * np.sqrt(2.0))
 
 

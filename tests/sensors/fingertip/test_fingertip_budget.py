@@ -62,8 +62,8 @@ def test_budget_is_cheap_and_reuses_the_fem(predicted, monkeypatch):
 
     monkeypatch.setattr(fcon, "condense_fingertip", boom)
     monkeypatch.setattr(fc, "condense_structure", boom)
-    for where in ("fingertip_model", "fingertip", "fingertip_contact"):   # wherever it is looked up
-        monkeypatch.setattr(f"designlab.sensors.{where}.mesh_fingertip", boom)
+    for where in ("model", "contact"):   # defined in model, imported by name in contact
+        monkeypatch.setattr(f"designlab.sensors.fingertip.{where}.mesh_fingertip", boom)
     from designlab.geometry.parts import make_part
 
     r = fc.prediction_force_error(make_part("fingertip", pred.params), pred.protocol, pred.result)
