@@ -113,7 +113,7 @@ def flexure(preset: str = typer.Option("visiflex-catalog", "--preset",
                                                   help="With --fem: TET10 mid-edge nodes on the wire's surface "
                                                        "(the default: the round section not faceted, no-contact "
                                                        "6x6 converged, 6.9 % stiffer than --straight; "
-                                                       "docs/flexure.md)."),
+                                                       "docs/validation/flexure.md)."),
             paper_json: Optional[Path] = typer.Option(None, "--paper-json",
                                                       help="Seed 002 paper data (JSON; default: the copy packaged with designlab, "
                                                            "designlab/data/papers/visiflex_flexure.json, the same file as "

@@ -1,6 +1,6 @@
 """Certified reduced-order march of a viscoelastic history: the full march's recursion
 projected on a K-orthonormal basis, every step's full-order residual checked (derivation:
-docs/notes/viscoelastic_march.md)."""
+docs/models/viscoelastic_march.md)."""
 
 from __future__ import annotations
 

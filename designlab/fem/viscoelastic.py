@@ -1,6 +1,6 @@
 """Linear viscoelasticity (generalized Maxwell / Prony series) under a load history: the full
 march, factored once per step size, with the certified reduced-order march as an option
-(derivation and accuracy: docs/notes/viscoelastic_march.md)."""
+(derivation and accuracy: docs/models/viscoelastic_march.md)."""
 
 from __future__ import annotations
 
@@ -286,7 +286,7 @@ def solve_history(model: Model, history: History, solver: str = "auto",
     The internal variables are carried as nodal forces, one vector per time constant; time
     constants whose moduli are proportional share one stiffness. Without internal forces,
     prescribed motions or rigid couplings the march runs on the free dofs alone
-    (docs/notes/viscoelastic_march.md).
+    (docs/models/viscoelastic_march.md).
 
     Args:
         model: the model; regions whose material has a ``prony`` relax.

@@ -1,7 +1,7 @@
 """Modules that build123d imports at its own import but uses inside a few functions only, put
 off until first used (``sympy``: one tangent-arc constructor no designlab part calls). A
 stand-in in ``sys.modules`` imports the real module on its first attribute lookup
-(docs/notes/lazy_imports.md)."""
+(docs/models/lazy_imports.md)."""
 
 from __future__ import annotations
 

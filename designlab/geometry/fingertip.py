@@ -112,8 +112,7 @@ class CantileverFingertip:
         fingertip h 16.70, r = fingertip_radius = 6.37, top 23.07 mm up), so the 48.5 mm leave
         25.43 mm under the ball (gap 0.5 + base 22.43 + cap 2.5), spanned by a 24.43 mm M2.5
         bolt, the paper's "extended cantilever-bolt" (Sec. II-B). The paper draws no base:
-        ``examples/fingertip_table_ii.toml``, docs/fingertip_contact.md ("Fourth
-        investigation")."""
+        ``examples/fingertip_table_ii.toml``, docs/validation/fingertip.md."""
         return cls(h=16.70, r=6.37, fingertip_radius=6.37, base_height=22.43, bolt_length=24.43,
                    load_table="II")
 

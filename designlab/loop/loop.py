@@ -4,7 +4,7 @@
 :mod:`designlab.loop.model`), tries every applicable mechanism of the effect library
 (:mod:`designlab.loop.effects`) on the residual of the training data and adds the best one
 that cross-validation shows to lower the held-out error by more than noise, until nothing
-helps. How the comparison is made is in ``docs/notes/loop_selection.md``; loop.json and the
+helps. How the comparison is made is in ``docs/models/loop_selection.md``; loop.json and the
 plots are :mod:`designlab.loop.report`.
 """
 

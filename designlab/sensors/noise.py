@@ -1,5 +1,5 @@
 """Noise and error sources of the three sensors, each with the value and the source it comes from.
-Details: docs/notes/sensors_shared.md.
+Details: docs/models/sensors_shared.md.
 """
 
 from __future__ import annotations

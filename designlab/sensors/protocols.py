@@ -1,5 +1,5 @@
 """Test protocols as data (TOML-configurable); the papers' values are the defaults. Details:
-docs/notes/sensors_shared.md.
+docs/models/sensors_shared.md.
 """
 
 from __future__ import annotations

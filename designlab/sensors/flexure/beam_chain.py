@@ -2,7 +2,7 @@
 contact with the next turn and the seats (line contacts), solved by an active set.
 
 The 6x6 comes from symmetric perturbations of the tip disc about the unloaded spring and the
-spring under the axial working load. Derivations and checks: docs/notes/flexure_beam_chain.md.
+spring under the axial working load. Derivations and checks: docs/models/flexure_beam_chain.md.
 """
 
 from __future__ import annotations

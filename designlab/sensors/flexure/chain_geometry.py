@@ -2,7 +2,7 @@
 
 :class:`ChainSettings` holds the chain's discretisation, end conditions and contact settings;
 :class:`Coil` the wire centreline ``z(u)`` and seats, made from a spring (:func:`as_built`) or
-from the meshed part (:func:`from_part`). Derivations: docs/notes/flexure_beam_chain.md.
+from the meshed part (:func:`from_part`). Derivations: docs/models/flexure_beam_chain.md.
 """
 
 from __future__ import annotations

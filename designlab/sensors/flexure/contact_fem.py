@@ -1,7 +1,7 @@
 """Solid FEM 6x6 of a closed-and-ground spring with unilateral coil and seat contact: the
 helix meshed as the part builds it, condensed on its contact lines and the tip master, solved by
 the beam chain's active set (the chain's reference). Scheme and numbers:
-docs/notes/flexure_contact_fem.md.
+docs/models/flexure_contact_fem.md.
 """
 
 from __future__ import annotations
@@ -89,7 +89,7 @@ def contact_candidates(mesh: TetMesh, flexure, stations_per_turn: int = 36,
 
 
 #: share of the contact FEM's wall time per stage (progress units of 1/1000 of the run), so the
-#: progress bar's ETA is a time estimate (the measured split: docs/notes/flexure_contact_fem.md)
+#: progress bar's ETA is a time estimate (the measured split: docs/models/flexure_contact_fem.md)
 _STAGES = (("mesh", 80), ("assemble", 30), ("factorise", 30), ("condense", 450),
            ("contact", 410))
 _PROGRESS_TOTAL = sum(w for _, w in _STAGES)
@@ -97,7 +97,7 @@ _PROGRESS_TOTAL = sum(w for _, w in _STAGES)
 #: whole factor once more)
 _CHUNKS = 4
 #: largest dense right-hand-side block of one back-substitution call, bytes: finer meshes take
-#: more calls (docs/notes/flexure_contact_fem.md)
+#: more calls (docs/models/flexure_contact_fem.md)
 _RHS_BYTES = 1 << 30
 
 
@@ -399,7 +399,7 @@ def fem_contact_stiffness(spring, edge_length: float | None = None, order: int =
 
     Returns:
         a :class:`ContactFEM` (N mm/rad, N/mm, N). The contact scheme in full:
-        docs/notes/flexure_contact_fem.md.
+        docs/models/flexure_contact_fem.md.
     """
     cs = settings or ChainSettings()
     step = progress or (lambda text, done, total: None)

@@ -1,5 +1,5 @@
 """Seed 002's force-sensing test, run virtually with its noise and hysteresis (Table I). Details:
-docs/notes/flexure_modules.md.
+docs/models/flexure_modules.md.
 """
 
 from __future__ import annotations

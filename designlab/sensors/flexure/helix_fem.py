@@ -131,8 +131,7 @@ def spring_material(spring: HelicalSpring) -> Material:
 
 #: curved (isoparametric) TET10 for the helix by default (:func:`helix_mesh` ``curved``,
 #: :func:`fem_stiffness`, :func:`fem_contact_stiffness`): the wire surface's mid-edge nodes
-#: projected onto the swept circle; docs/flexure.md, "Solid FEM:
-#: contact discretisation"
+#: projected onto the swept circle (docs/validation/flexure.md, the solid FEM)
 CURVED_DEFAULT = True
 
 
@@ -150,7 +149,7 @@ def fem_stiffness(spring, edge_length: float | None = None, order: int = 2,
     curved:      TET10 (``order`` 2) with the wire surface's mid-edge nodes on the swept circle
                  (:func:`helix_mesh` ``curved``, by projection; cells it inverts straightened):
                  the round section not faceted, 6.9 % stiffer in k_wx than straight on the
-                 Visiflex default mesh (docs/flexure.md, "Solid FEM: contact discretisation").
+                 Visiflex default mesh (docs/validation/flexure.md, the solid FEM).
     The master sits on the axis at the tip face (``z = length``); :attr:`FlexureFEM.K_centre` is
     at the spring centre ``(0, 0, length / 2)``, the closed form's frame.
     """
@@ -195,7 +194,7 @@ def helix_mesh(flexure, edge_length: float | None = None, order: int = 2,
     radius; gmsh's first try at that size facets the wire section and loses more than 5 % of
     its volume, so the mesher's fallback sizes the wire from its curvature, 12 edges per 2 pi
     of radius: median corner edge 0.54 mm on the Visiflex wire, r = 1.015 mm, for every edge
-    asked from 0.7 mm up; docs/flexure.md, "Solid FEM: contact discretisation"). ``edge_length``
+    asked from 0.7 mm up; docs/validation/flexure.md, the solid FEM). ``edge_length``
     given (mm): that size, honoured (the mesher's first try, whatever the volume), and a mesh
     whose wire volume is off the B-rep's by more than :data:`WIRE_VOLUME_RTOL` (the section
     too coarse to carry it: 0.7 mm and up on the Visiflex wire; 0.65 mm passes) is a
@@ -307,7 +306,7 @@ CURVE_PLANE_TOL = 1e-6
 #: largest distance of a wire-surface corner of the mesh (on the B-rep) from :func:`wire_surface`,
 #: as a fraction of the wire radius: the part sweeps the wire along a spline through 24 points
 #: per turn of :meth:`SpringFlexure.centerline_z`, within 2.5e-3 mm of it on the Visiflex helix
-#: (docs/flexure.md, "Solid FEM: contact discretisation")
+#: (docs/validation/flexure.md, the solid FEM)
 CURVE_SURFACE_RTOL = 0.02
 
 

@@ -1,5 +1,5 @@
 """The loop, both ways, for seed 002's spring flexure (wrench at the fingertip -> pose). Details:
-docs/notes/flexure_modules.md.
+docs/models/flexure_modules.md.
 """
 
 from __future__ import annotations

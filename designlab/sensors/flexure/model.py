@@ -1,7 +1,7 @@
 """The seed 002 spring flexure's model below its sensor record: the virtual wrench test, wrench ->
 pose -> estimated wrench, with the settings (:class:`FlexureModelSettings`), the spring as built
 (:func:`helical_spring`, :func:`spring_as_built`, :func:`chain_truth`), :func:`run` and its
-metrics (:func:`evaluate`). What the truth and the estimate are: docs/notes/flexure_model.md.
+metrics (:func:`evaluate`). What the truth and the estimate are: docs/models/flexure_model.md.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ K_F_UNITS = ("SI: N*m/rad (rotational), N/m (translational), N (couplings); rows
 class FlexureModelSettings(FEMSettings):
     """Settings of the flexure test (mm, s). ``truth="chain"`` (default) is the beam chain of
     the spring as built, ``"timoshenko"`` the column closed form, ``"fem"`` the meshed helix
-    (its mesh defaults: docs/notes/flexure_model.md)."""
+    (its mesh defaults: docs/models/flexure_model.md)."""
 
     truth: str = field(default="chain", metadata=rng(choices=("chain", "fem", "timoshenko"),
                        doc="stiffness of the built flexure"))

@@ -1,7 +1,7 @@
 """The flexure's Monte Carlo model (``Sensor.uncertainty``): its uncertain inputs, the FEM stage
 (the built flexure's stiffness, once per design) and one virtual build (seed 002's force test
 with the build's hysteresis and pose noise, :func:`designlab.sensors.flexure.force_error.
-run_force_test`). Details: docs/notes/flexure_modules.md.
+run_force_test`). Details: docs/models/flexure_modules.md.
 """
 
 from __future__ import annotations

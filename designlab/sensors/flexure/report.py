@@ -521,7 +521,7 @@ def offset_free_note(invariants: dict) -> str:
             f"{min(models):.0f}-{max(models):.0f} in the models here: the measured spring rocks "
             f"{min(models) / max(meas.values()):.2f}-{max(models) / min(meas.values()):.2f}x "
             "stiffer for its lateral stiffness; no camera offset or pose point changes this "
-            "(docs/flexure.md, 'Why the couplings do not come within 1.5x')")
+            "(docs/validation/flexure.md)")
 
 
 def end_condition_table(spring: HelicalSpring, paper: dict | None = None,

@@ -1,5 +1,5 @@
 """Closed-form 6x6 stiffness of a helical compression spring (seed 002), mm/N/MPa inside. Details:
-docs/notes/flexure_modules.md.
+docs/models/flexure_modules.md.
 """
 
 from __future__ import annotations
@@ -93,7 +93,7 @@ class HelicalSpring:
 
 
 #: seed 002 as printed: "wire radius of 2.03 mm, mean diameter 27.73 mm, pitch angle 0.1029 rad,
-#: 3.75 coils", all taken as active. Its closed form is ~7.47x the paper's K_f (docs/flexure.md).
+#: 3.75 coils", all taken as active. Its closed form is ~7.47x the paper's K_f (docs/validation/flexure.md).
 VISIFLEX_AS_PRINTED = HelicalSpring()
 #: the reading that reproduces the paper's numbers: 2.03 mm is the wire *diameter* (0.080 in
 #: catalogue wire) and 2 of the 3.75 turns are closed ends (1.75 active). Then the free length is

@@ -1,5 +1,5 @@
 """Wire stress and safety factor of the spring flexure under the virtual test's load cases.
-Details: docs/notes/flexure_modules.md.
+Details: docs/models/flexure_modules.md.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Electrical design of the seed 000 strap from its geometry: trace resistance, divider, self-
-heating, noise and resolution. Details: docs/notes/strap_modules.md.
+heating, noise and resolution. Details: docs/models/strap_modules.md.
 """
 
 from __future__ import annotations

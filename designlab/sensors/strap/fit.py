@@ -1,5 +1,5 @@
 """The worn strap's initial strain and a strap sized to one finger (seed 000 Sec. V-E). Details:
-docs/notes/strap_modules.md.
+docs/models/strap_modules.md.
 """
 
 from __future__ import annotations

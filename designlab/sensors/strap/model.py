@@ -3,7 +3,7 @@
 The strap's model below its sensor record: the settings (:class:`StrapModelSettings`), the
 channels and load cases, the wrap geometry, the mesh and the FEM model, the FEM stage and its
 key, the readout, :func:`run` and its metrics (:func:`evaluate`). The FEM model, why the strap
-is modelled worn and how the history is marched: docs/notes/strap_model.md.
+is modelled worn and how the history is marched: docs/models/strap_model.md.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ CASES = ("F_n", "F_x")
 @dataclass(frozen=True)
 class StrapModelSettings(FEMSettings):
     """FEM settings of the strap test (mm). Why these mesh and tissue defaults:
-    docs/notes/strap_model.md."""
+    docs/models/strap_model.md."""
 
     edge_length: float = field(default=1.5, metadata=rng(0.2, 5, unit="mm"))
     refinement_edge: float = field(default=0.0, metadata=rng(0, 5, unit="mm",

@@ -3,7 +3,7 @@
 virtual build (the readout of seed 000 through the build's divider, gauge factor and
 resistance, then the paper's sum/difference calibration with its electrical noise,
 :func:`designlab.sensors.strap.noise.run_strap_force_test`). Details:
-docs/notes/strap_modules.md.
+docs/models/strap_modules.md.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The strap's noise and error budget (seed 000): divider, Johnson and ADC noise -> force error
 per axis, in the shape of the flexure's (:mod:`designlab.sensors.flexure.force_error`) and the
 fingertip's (:mod:`designlab.sensors.fingertip.calibration`) budgets. Details:
-docs/notes/strap_modules.md.
+docs/models/strap_modules.md.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The worn strap's initial strain and what it puts on the linear sensitivity (seed 000 Sec. V-E):
 the wrap's path, the neo-Hookean stand-in, the gauge's operating point and the paper's slots on
-one finger. Details: docs/notes/strap_modules.md.
+one finger. Details: docs/models/strap_modules.md.
 """
 
 from __future__ import annotations

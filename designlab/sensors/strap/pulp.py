@@ -1,6 +1,6 @@
 """Studies of the finger pulp under the strap as a solid layer (``finger_model = "solid"``):
 Winkler against solid pulp (:func:`comparison`), the nonlinear strap and the wrap. Details:
-docs/notes/strap_modules.md.
+docs/models/strap_modules.md.
 """
 
 from __future__ import annotations

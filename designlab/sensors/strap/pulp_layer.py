@@ -1,6 +1,6 @@
 """The finger pulp under the strap as a solid layer (``finger_model = "solid"``): its mesh, its
 material and its principal strain, below the strap's model. Details:
-docs/notes/strap_modules.md.
+docs/models/strap_modules.md.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The seed 000 arch strap as a sensor: its record :data:`SENSOR` (the registry's) and the hooks
 that run on the virtual test's result (plots, the loop's gains, the stress load cases, the
 force-error test); the model itself is :mod:`designlab.sensors.strap.model`. Details:
-docs/notes/strap_modules.md.
+docs/models/strap_modules.md.
 """
 
 from __future__ import annotations

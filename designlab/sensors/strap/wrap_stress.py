@@ -12,7 +12,7 @@ def wrap_stress(region_materials, mesh, eps0: float) -> dict[str, Any]:
     of :func:`designlab.sensors.strap.prestrain.neo_hooke` (``E eps0`` at small strain) with each
     material's instantaneous modulus (when the strap is put on; it relaxes to the long-time
     value while worn). Uniaxial: von Mises = |sigma|. The FEM carries no prestress (linear
-    increments on the worn state, docs/notes/strap_model.md): under a load the von Mises stress is at
+    increments on the worn state, docs/models/strap_model.md): under a load the von Mises stress is at
     most this plus the load case's (von Mises is a seminorm: triangle inequality)."""
     from designlab.fem.stress import WARN_SAFETY_FACTOR, relaxed
     from designlab.sensors.strap.prestrain import neo_hooke
