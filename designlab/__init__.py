@@ -16,8 +16,14 @@ from typing import TYPE_CHECKING, Any
 
 from designlab.version import __version__
 
+#: the public sensor definition (designlab.sensors.definition)
+_DEFINITION = ("SensorDefinition", "param", "Solid", "Face", "Region", "Clamped", "ElasticSupport",
+               "ElasticInterface", "ForceSensor", "StrainGauge", "DisplacementProbe",
+               "RotationProbe", "CapacitiveGap", "Magnet", "LoadPoint", "LoadState", "Staircase",
+               "Wrenches")
+
 __all__ = ["__version__", "Fingertip", "Strap", "Flexure", "PARTS", "SENSORS", "Prediction",
-           "predict", "write_prediction", "get_material", "MATERIALS"]
+           "predict", "write_prediction", "get_material", "MATERIALS", *_DEFINITION]
 
 if TYPE_CHECKING:
     from designlab.fem.materials import MATERIALS, get_material
@@ -60,6 +66,10 @@ def __getattr__(name: str) -> Any:
         from designlab.sensors.registry import SENSORS
 
         return SENSORS
+    if name in _DEFINITION:
+        from designlab.sensors import definition as _d
+
+        return getattr(_d, name)
     if name in ("get_material", "MATERIALS"):
         from designlab.fem import materials as _m
 

@@ -1,0 +1,1 @@
+"""The generic virtual test behind :class:`designlab.sensors.definition.SensorDefinition`."""

@@ -1,0 +1,296 @@
+"""The generic virtual test of a :class:`~designlab.sensors.definition.SensorDefinition`: the FEM
+stage once per distinct model, the protocol's held loads through the viscoelastic history, the
+transducers' readings, and the report every built-in sensor gives (calibration, condition
+number, sensitivity, cross-talk, hysteresis, noise budget, force error, stress)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from designlab.fem.settings import FEMSettings
+from designlab.params import as_dict, rng
+from designlab.sensors import definition as d
+from designlab.sensors.generic import metrics
+from designlab.sensors.generic.fem import COMPONENTS, UNITS, fem_stage
+
+
+@dataclass(frozen=True)
+class DefinitionProtocol:
+    """How the generic virtual test runs the definition's protocol."""
+
+    hold_s: float = field(default=0.0, metadata=rng(0, 3600, unit="s", doc=(
+        "hold of each load; 0: the definition's protocol's own")))
+    steps_per_hold: int = field(default=4, metadata=rng(1, 200, doc=(
+        "time steps of the viscoelastic march in each hold")))
+    noise_repeats: int = field(default=20, metadata=rng(2, 10000, doc=(
+        "noisy calibrations drawn for the force error and its spread")))
+    seed: int = field(default=0, metadata=rng(0, 2**31 - 1, doc="seed of the noise draws"))
+
+
+@dataclass(frozen=True)
+class DefinitionSettings(FEMSettings):
+    """Mesh and solver settings of a definition's virtual test."""
+
+    viscoelastic: bool = field(default=True, metadata=rng(doc=(
+        "march the protocol through the materials' Prony series (hysteresis); false: "
+        "instantaneous elastic readings")))
+
+
+def settings_class(cls: type) -> type:
+    """The settings class of definition ``cls``: its own default edge length."""
+    return dataclasses.make_dataclass(
+        f"{cls.__name__}Settings",
+        [("edge_length", float, field(default=float(cls.edge_length), metadata=rng(
+            0.05, 50, unit="mm", doc="ideal tetrahedron edge length")))],
+        bases=(DefinitionSettings,), frozen=True)
+
+
+@dataclass
+class GenericResult:
+    """A definition's virtual test: the report and what plots, VTU and stress need."""
+
+    report: dict[str, Any]
+    mesh: Any
+    displacement: np.ndarray
+    loads: np.ndarray
+    load_names: list[str]
+    readings: np.ndarray
+    channels: list
+    stage: dict = field(repr=False, default_factory=dict)
+    state_U: np.ndarray | None = field(repr=False, default=None)
+
+
+_STAGES: "OrderedDict[str, dict]" = OrderedDict()
+_KEEP = 4
+
+
+def stage_key(defn, settings) -> str:
+    """What the FEM stage depends on: the definition's class, its parameters but those that
+    only move loads, and the mesh and solver settings."""
+    from designlab.fem.cache import fem_key
+
+    params = {k: v for k, v in as_dict(defn).items() if k not in defn.load_only()}
+    sett = {k: v for k, v in as_dict(settings).items()
+            if k not in ("mesh_convergence", "coarse_factor", "viscoelastic")}
+    cls = type(defn)
+    return fem_key("definition", cls=f"{cls.__module__}:{cls.__qualname__}",
+                   file=getattr(cls, "_designlab_spec", ""), params=params, settings=sett)
+
+
+def _stage(defn, settings, progress) -> tuple[dict, bool]:
+    key = stage_key(defn, settings)
+    if key in _STAGES:
+        _STAGES.move_to_end(key)
+        return _STAGES[key], True
+    st = fem_stage(defn, settings, progress)
+    _STAGES[key] = st
+    while len(_STAGES) > _KEEP:
+        _STAGES.popitem(last=False)
+    return st, False
+
+
+def _unit_wrenches(defn, stage, states) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """(W (n_states, n_cases) in the unit cases at the faces' centroids, P (n_states, 6 n_loads)
+    the loads at the load points as the protocol states them, their names)."""
+    points = {lp.name: lp for lp in defn.loads()}
+    cases = stage["cases"]
+    names = [f"{lp}.{c}" for lp in points for c in COMPONENTS]
+    W = np.zeros((len(states), len(cases)))
+    P = np.zeros((len(states), len(names)))
+    for i, s in enumerate(states):
+        if s.load not in points:
+            from designlab.errors import ParameterError
+
+            raise ParameterError("protocol.load", s.load, "a load point: " + ", ".join(points))
+        c = stage["centroids"][s.load]
+        at = c if points[s.load].at is None else np.asarray(points[s.load].at, float)
+        F, M = np.asarray(s.force_N, float), np.asarray(s.moment_Nmm, float)
+        Mc = M + np.cross(at - c, F)
+        for j, v in enumerate(np.r_[F, Mc]):
+            W[i, cases.index(f"{s.load}.{COMPONENTS[j]}")] = v
+        k = list(points).index(s.load) * 6
+        P[i, k:k + 6] = np.r_[F, M]
+    return W, P, names
+
+
+def _history(stage, W: np.ndarray, hold: float, steps: int, solver: str):
+    """Readings (n_states, n_channels) at the end of each hold of the viscoelastic march, and
+    the displacement columns there."""
+    from designlab.fem.history import History
+    from designlab.fem.viscoelastic import solve_history
+
+    n = len(W)
+    t, rows, ends = [], [], []
+    for k in range(n):
+        ts = k * hold + np.linspace(0.0, hold, steps + 1)
+        t += list(ts)
+        rows += [W[k]] * len(ts)
+        ends.append(len(t) - 1)
+    A = np.asarray(rows)
+    hist = History(np.asarray(t), {c: A[:, j] for j, c in enumerate(stage["cases"])})
+    res = solve_history(stage["model"], hist, solver=solver, forces=False)
+    U = np.asarray(res.U)[:, ends]
+    return np.asarray(stage["read"] @ U).T, U
+
+
+def _relaxes(model) -> bool:
+    return any(m.prony is not None for m in model.region_materials.values())
+
+
+def run(part, protocol: DefinitionProtocol | None = None, settings=None, progress=None
+        ) -> GenericResult:
+    """The virtual test of definition ``part`` (an instance of a SensorDefinition subclass)."""
+    protocol = protocol or DefinitionProtocol()
+    settings = settings or settings_class(type(part))()
+    say = progress or (lambda s: None)
+    stage, reused = _stage(part, settings, say)
+    proto = part.protocol()
+    hold = protocol.hold_s or proto.hold_s
+    states = proto.states()
+    W, P_all, names = _unit_wrenches(part, stage, states)
+    visco = bool(settings.viscoelastic and _relaxes(stage["model"]))
+    if visco:
+        say(f"viscoelastic march: {len(states)} holds of {hold:g} s")
+        S, U_states = _history(stage, W, hold, protocol.steps_per_hold, settings.solver)
+    else:
+        S, U_states = W @ stage["R"].T, stage["U"] @ W.T
+    report = _report(part, stage, states, S, P_all, names, protocol, settings, visco, hold, reused)
+    peak = int(np.argmax(np.abs(P_all).max(axis=1)))
+    n3 = 3 * stage["mesh"].n_points
+    return GenericResult(report, stage["mesh"], U_states[:n3, peak].reshape(-1, 3), P_all, names,
+                         S, stage["channels"], stage, U_states)
+
+
+def _report(defn, stage, states, S, P_all, names, protocol, settings, visco, hold, reused
+            ) -> dict[str, Any]:
+    P, active = metrics.active_loads(P_all, names)
+    chans = stage["channels"]
+    noise = np.array([c.noise for c in chans], float)
+    moment_cols = [i for i, n in enumerate(active) if n.split(".")[-1].startswith("M")]
+    cal = metrics.calibration(S, P, moment_cols, getattr(defn, "moment_scale_mm", None))
+    K = metrics.sensitivity(S, P)
+    C = np.asarray(cal["matrix"])
+    unit_of = dict(zip(names, UNITS * (len(names) // 6)))
+    proto = defn.protocol()
+    loops = proto.loops() if isinstance(proto, d.Staircase) else []
+    hyst = metrics.hysteresis(loops, S) if visco else None
+    return {
+        "sensor": defn.name,
+        "channels": [{"name": c.name, "unit": c.unit, "noise": c.noise} for c in chans],
+        "loads": [{"name": n, "unit": unit_of[n]} for n in active],
+        "n_load_states": len(states),
+        "hold_s": hold,
+        "viscoelastic": visco,
+        "calibration_matrix": cal["matrix"],
+        "condition_number": cal["condition_number"],
+        **({"condition_number_scaled": cal["condition_number_scaled"],
+            "moment_scale_mm": cal["moment_scale_mm"]} if "moment_scale_mm" in cal else {}),
+        "calibration_fit_rms": dict(zip(active, cal["fit_rms"])),
+        "cross_talk_percent": dict(zip(active, cal["cross_talk_percent"])),
+        "sensitivity": {c.name: dict(zip(active, map(float, K[i]))) for i, c in enumerate(chans)},
+        "sensitivity_units": {c.name: {n: f"{c.unit}/{unit_of[n]}" for n in active}
+                              for c in chans},
+        "sensitivity_norm": float(np.linalg.norm(K)),
+        "noise_budget": dict(zip(active, map(float, metrics.noise_budget(C, noise)))),
+        "force_error": _force_error(S, P, noise, protocol, active),
+        "hysteresis_percent": hyst if hyst is not None else {
+            "overall": None, "why": "no hysteresis: " + (
+                "the protocol is not a staircase" if not loops else
+                "no material of the sensor relaxes (no Prony terms) or the march is off")},
+        "mesh": stage["mesh_result"].report() | {"fem_reused": reused},
+        "timings_s": dict(stage["timings_s"]),
+    }
+
+
+def _force_error(S, P, noise, protocol, active) -> dict[str, Any]:
+    fe = metrics.force_error(S, P, noise, protocol.noise_repeats, protocol.seed)
+    return {"method": "calibrate on one noise draw of the protocol's readings, estimate the "
+                      "loads of another; RMS over the load states, mean and spread over draws",
+            "rms": dict(zip(active, fe["rms"])), "rms_std": dict(zip(active, fe["rms_std"])),
+            "rms_percent_of_range": dict(zip(active, fe["rms_percent_of_range"])),
+            "repeats": fe["repeats"], "seed": fe["seed"]}
+
+
+# ----------------------------------------------------------------------------- record hooks
+
+def gains(report: dict[str, Any], result: GenericResult) -> tuple[dict, dict]:
+    """The virtual test as a linear model: each channel's reading per unit load."""
+    units = {c["name"]: c["unit"] for c in report["channels"]}
+    return {ch: dict(g) for ch, g in report["sensitivity"].items()}, units
+
+
+def load_cases(part, protocol, settings, result: GenericResult, cache=None) -> list:
+    """The protocol's largest load state and the largest of each load component as stress load
+    cases."""
+    from designlab.sensors.sensor import LoadCase
+
+    P = result.loads
+    picks: list[int] = []
+    for j in range(P.shape[1]):
+        if np.ptp(P[:, j]) > 0:
+            k = int(np.argmax(np.abs(P[:, j])))
+            if k not in picks:
+                picks.append(k)
+    n3 = 3 * result.mesh.n_points
+    states = part.protocol().states()
+    out = []
+    for k in picks[:8]:
+        s = states[k]
+        desc = (f"{s.label or k}: F = {np.round(s.force_N, 3).tolist()} N, M = "
+                f"{np.round(s.moment_Nmm, 1).tolist()} N mm at {s.load}")
+        out.append(LoadCase(f"state {k}", desc, result.state_U[:n3, k].reshape(-1, 3),
+                            vtu=len(out) < 3))
+    return out
+
+
+def plots(result: GenericResult, report: dict | None, out_dir: str | Path, only=None
+          ) -> list[Path]:
+    """calibration_matrix.png (C with its loads and channels) and readings.png (each
+    channel's reading over the protocol's load states)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    report = report or result.report
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    C = np.asarray(report["calibration_matrix"])
+    loads = [f"{x['name']} ({x['unit']})" for x in report["loads"]]
+    chans = [f"{c['name']} ({c['unit']})" for c in report["channels"]]
+    fig, ax = plt.subplots(figsize=(1.2 + 0.6 * len(loads), 1.2 + 0.4 * len(chans)))
+    lim = float(np.abs(C).max()) or 1.0
+    im = ax.imshow(C, cmap="RdBu_r", vmin=-lim, vmax=lim, aspect="auto")
+    ax.set_xticks(range(len(loads)), loads, rotation=45, ha="right")
+    ax.set_yticks(range(len(chans)), chans)
+    ax.set_title(f"calibration matrix (load per reading), cond {report['condition_number']:.3g}")
+    fig.colorbar(im, ax=ax, label="load unit per reading unit")
+    fig.tight_layout()
+    files = [out / "calibration_matrix.png"]
+    fig.savefig(files[0], dpi=110)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for i, c in enumerate(report["channels"]):
+        ax.plot(result.readings[:, i], marker=".", label=f"{c['name']} ({c['unit']})")
+    ax.set_xlabel("load state (protocol order)")
+    ax.set_ylabel("reading (each channel in its unit)")
+    ax.set_title(f"{report['sensor']}: readings over the protocol")
+    if len(report["channels"]) <= 12:
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    files.append(out / "readings.png")
+    fig.savefig(files[1], dpi=110)
+    plt.close(fig)
+    return files
+
+
+def report_json(result: GenericResult) -> str:
+    """The report as JSON text."""
+    return json.dumps(result.report, indent=1, default=float)
