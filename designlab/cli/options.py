@@ -18,6 +18,14 @@ def sensor_names(incomplete: str = "") -> list[str]:
     return [n for n in SENSORS if n.startswith(incomplete)]
 
 
+def part_arg(value: str) -> str:
+    """A PART argument: a sensor's name, or a sensor definition ``FILE.py[:Class]`` /
+    ``module:Class`` (loaded and registered; its name is returned)."""
+    from designlab.sensors.registry import looks_like_definition, resolve
+
+    return resolve(value) if looks_like_definition(value) else value
+
+
 def export_names(incomplete: str = "") -> list[str]:
     return [n for n in (*sensor_names(), "all") if n.startswith(incomplete)]
 

@@ -12,7 +12,7 @@ import typer
 from rich.table import Table
 
 from designlab.cli.app import app, console, err_console, next_step, progress_bar
-from designlab.cli.options import (check_options, config_file, export_names, sensor_names,
+from designlab.cli.options import (check_options, config_file, export_names, part_arg, sensor_names,
                                    short)
 from designlab.cli.runs import check_out, write_run
 from designlab.errors import ParameterError
@@ -34,7 +34,7 @@ def _check_ranges(specs, unit: str) -> None:
 
 
 @app.command()
-def export(part: str = typer.Argument(..., help="strap | fingertip | flexure | all", autocompletion=export_names),
+def export(part: str = typer.Argument(..., help="strap | fingertip | flexure | all, or a sensor definition FILE.py[:Class]", autocompletion=export_names, callback=part_arg),
            out: Path = typer.Option(..., "--out", help="Output directory (one folder per part)."),
            set_: Optional[List[str]] = typer.Option(None, "--set", metavar="NAME=VALUE",
                                                     help="Override a part parameter (mm); with 'all' "
@@ -94,7 +94,7 @@ def _open_next_export(files) -> str:
 
 
 @app.command()
-def show(part: str = typer.Argument(..., help="strap | fingertip | flexure", autocompletion=sensor_names),
+def show(part: str = typer.Argument(..., help="strap | fingertip | flexure, or a sensor definition FILE.py[:Class]", autocompletion=sensor_names, callback=part_arg),
          out: Path = typer.Option(..., "--out", help="PNG file to write."),
          set_: Optional[List[str]] = typer.Option(None, "--set", metavar="NAME=VALUE",
                                                   help="Override a part parameter (mm)."),
@@ -154,8 +154,9 @@ def _mesh_table(part: str, order: int, rep: dict) -> Table:
 
 @app.command("mesh")
 def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure, or a closed "
-                                                  "surface FILE.stl (a scan, a part from elsewhere)",
-                                         autocompletion=sensor_names),
+                                                  "surface FILE.stl (a scan, a part from elsewhere), "
+                                                  "or a sensor definition FILE.py[:Class]",
+                                         autocompletion=sensor_names, callback=part_arg),
              out: Path = typer.Option(..., "--out", help="Output directory (mesh.vtu, mesh.json)."),
              set_: Optional[List[str]] = typer.Option(None, "--set", metavar="NAME=VALUE",
                                                       help="Override a part parameter (mm)."),
@@ -192,8 +193,9 @@ def mesh_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure, 
 
 
 @app.command("params")
-def params_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure",
-                                          autocompletion=sensor_names)):
+def params_cmd(part: str = typer.Argument(..., help="strap | fingertip | flexure, or a sensor "
+                                          "definition FILE.py[:Class]",
+                                          autocompletion=sensor_names, callback=part_arg)):
     """A part's parameters: name, default, allowed range, unit, meaning (from the code)."""
     from designlab.geometry.api import field_rows
     from designlab.sensors.registry import get_sensor

@@ -10,7 +10,7 @@ import typer
 from rich.table import Table
 
 from designlab.cli.app import app, console, next_step, progress_bar, warn
-from designlab.cli.options import check_options, make_executor, part_config, sensor_names
+from designlab.cli.options import check_options, make_executor, part_arg, part_config, sensor_names
 from designlab.cli.runs import check_out
 from designlab.errors import ParameterError
 from designlab.params import load_toml, parse_sets
@@ -148,7 +148,7 @@ def _predict_once(part: str, out: Path, overrides: dict, settings: dict, protoco
 
 
 @app.command()
-def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure", autocompletion=sensor_names),
+def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure, or a sensor definition FILE.py[:Class]", autocompletion=sensor_names, callback=part_arg),
             set_: Optional[List[str]] = typer.Option(None, "--set", help="Design parameter NAME=VALUE (repeatable)."),
             config: Optional[Path] = typer.Option(None, "--config", help="TOML with the part's parameters."),
             protocol: Optional[Path] = typer.Option(None, "--protocol", help="Protocol TOML (defaults: the papers')."),

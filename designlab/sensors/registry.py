@@ -72,7 +72,21 @@ def register(cls: type, spec: str = "") -> str:
 
 def looks_like_definition(value: str) -> bool:
     """A file (``x.py``, ``x.py:Class``) or ``module:Class`` rather than a sensor name."""
-    return isinstance(value, str) and (".py" in value or ":" in value or "/" in value)
+    return isinstance(value, str) and bool(
+        value.endswith(".py") or ".py:" in value or re.fullmatch(r"[\w.]+:[A-Za-z_]\w*", value))
+
+
+def canonical(spec: str, base: str | Path | None = None) -> str:
+    """A definition spec that any process resolves the same way: a file's absolute path
+    (relative ones taken from ``base``, default the working directory), ``:Class`` kept;
+    names and ``module:Class`` unchanged."""
+    m = _SPEC.match(spec.strip()) if isinstance(spec, str) else None
+    if not m or not m["target"].endswith(".py"):
+        return spec
+    path = Path(m["target"]).expanduser()
+    if not path.is_absolute():
+        path = Path(base or Path.cwd()) / path
+    return str(path.resolve()) + (f":{m['cls']}" if m["cls"] else "")
 
 
 def resolve(value: str) -> str:
@@ -83,6 +97,8 @@ def resolve(value: str) -> str:
         raise ParameterError("part", value, "a sensor name or FILE.py[:Class]")
     if value in SENSORS:
         return value
+    if looks_like_definition(value):
+        value = canonical(value)
     if value in _LOADED:
         return _LOADED[value]
     eps = _entry_points()
