@@ -371,8 +371,12 @@ class SensorDefinition(PartAPI):
 
     # ---- the part interface every command uses ----
     def build(self) -> dict[str, Body]:
+        """The bodies as designlab's parts give them, checked: each a solid with a library
+        material, no two overlapping."""
+        bodies = self.bodies()
+        check_bodies(bodies)
         out = {}
-        for k, (name, s) in enumerate(self.bodies().items()):
+        for k, (name, s) in enumerate(bodies.items()):
             color = s.color or _PALETTE[k % len(_PALETTE)]
             out[name] = Body(name, s.shape, s.material, color=color, printed=s.printed)
         return out
@@ -390,6 +394,41 @@ class SensorDefinition(PartAPI):
 
 _PALETTE = ((0.85, 0.55, 0.2), (0.3, 0.55, 0.8), (0.5, 0.7, 0.4), (0.75, 0.75, 0.75),
             (0.7, 0.4, 0.6), (0.9, 0.8, 0.3))
+
+
+def check_bodies(bodies: Any) -> None:
+    """Named Solids with library materials and a volume, no two overlapping (bodies may touch:
+    the mesh bonds them); else a one-line error naming the body."""
+    from designlab.fem.materials import MATERIALS
+    from designlab.params import did_you_mean
+
+    if not isinstance(bodies, dict) or not bodies:
+        raise ParameterError("bodies", type(bodies).__name__, "a dict {name: Solid} with at "
+                             "least one body")
+    vols = {}
+    for name, s in bodies.items():
+        if not isinstance(s, Solid):
+            raise ParameterError(f"bodies.{name}", type(s).__name__, "a designlab Solid(shape, "
+                                 "material)")
+        if s.material not in MATERIALS:
+            raise ParameterError(f"bodies.{name}.material", s.material, "a material of the "
+                                 "library: " + ", ".join(MATERIALS)
+                                 + did_you_mean(str(s.material), MATERIALS))
+        try:
+            vols[name] = float(s.shape.volume)
+        except AttributeError:
+            raise ParameterError(f"bodies.{name}.shape", type(s.shape).__name__,
+                                 "a build123d solid") from None
+        if not vols[name] > 0:
+            raise ParameterError(f"bodies.{name}.shape", f"{vols[name]:g} mm^3", "a solid with "
+                                 "a volume")
+    names = list(bodies)
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            common = (bodies[a].shape & bodies[b].shape).volume
+            if common > 1e-6 * min(vols[a], vols[b]):
+                raise ParameterError(f"bodies.{a}", f"overlaps {b} by {common:.3g} mm^3",
+                                     "bodies that touch (bonded by the mesh) but do not overlap")
 
 
 def is_definition(obj: Any) -> bool:

@@ -18,8 +18,7 @@ class LoadCell(dl.SensorDefinition):
     width: float = dl.param(12.0, 3, 60, unit="mm", doc="beam width")
     thickness: float = dl.param(4.0, 1, 20, unit="mm", doc="beam thickness")
     gauge_at: float = dl.param(12.0, 2, 150, unit="mm", doc="clamp to the gauge grid's centre")
-    load_at: float = dl.param(75.0, 5, 300, unit="mm", moves_load=True,
-                              doc="clamp to where the weights hang")
+    load_at: float = dl.param(75.0, 5, 300, unit="mm", doc="clamp to where the weights hang")
     material: str = dl.param("PLA", choices=("PLA", "ABS", "PETG", "PA12"),
                              doc="the beam's printed material")
 
@@ -39,8 +38,10 @@ class LoadCell(dl.SensorDefinition):
                                gauge_factor=2.0)]
 
     def loads(self):
-        return [dl.LoadPoint("tip", dl.Face("beam", normal=(0, 0, 1)),
-                             at=(self.load_at, 0, self.thickness))]
+        # the weights hang from a 3 mm pad of the top face centred at load_at
+        x, w, t = self.load_at, self.width, self.thickness
+        pad = dl.Face("beam", normal=(0, 0, 1), box=((x - 1.5, -w, t - 0.1), (x + 1.5, w, t + 0.1)))
+        return [dl.LoadPoint("tip", pad, at=(x, 0, t))]
 
     def protocol(self):
         return dl.Staircase("tip", weights_g=(50, 100, 150, 200, 250, 300), hold_s=10.0)

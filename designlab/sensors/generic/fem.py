@@ -103,8 +103,30 @@ def _perpendicular(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return u, np.cross(axis, u)
 
 
+def check_load_points(defn, mesh: TetMesh) -> None:
+    """Every load point inside the part's bounding box (a load acting elsewhere is a wrench
+    about a point of the part); unique names."""
+    lo, hi = mesh.points.min(0), mesh.points.max(0)
+    tol = 1e-6 * float(np.linalg.norm(hi - lo))
+    seen = set()
+    for k, lp in enumerate(defn.loads()):
+        if not isinstance(lp, d.LoadPoint):
+            raise ParameterError(f"loads[{k}]", type(lp).__name__, "a LoadPoint")
+        if lp.name in seen:
+            raise ParameterError(f"loads[{k}].name", lp.name, "a name no other load point has")
+        seen.add(lp.name)
+        if lp.at is not None:
+            at = np.asarray(lp.at, float)
+            if at.shape != (3,) or np.any(at < lo - tol) or np.any(at > hi + tol):
+                raise ParameterError(f"loads[{k}] ({lp.name}).at", tuple(lp.at),
+                                     "a point inside the part's bounding box "
+                                     f"{np.round(lo, 3).tolist()}..{np.round(hi, 3).tolist()} mm "
+                                     "(a load acting elsewhere is a wrench about it)")
+
+
 def load_couplings(model: Model, defn) -> dict[str, np.ndarray]:
     """Distributing couplings of the load points at their faces' centroids; {name: centroid}."""
+    check_load_points(defn, model.mesh)
     out = {}
     for k, lp in enumerate(defn.loads()):
         ref = _coupled(model, f"load_{lp.name}", lp.face, f"loads[{k}] ({lp.name}).face")

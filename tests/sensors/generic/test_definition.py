@@ -1,0 +1,184 @@
+"""The public sensor definition: registration, bad definitions (one line naming the item), the
+transducers' read-out against closed forms, and every command on a fresh ``designlab new``
+file."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import designlab as dl
+from designlab.errors import ParameterError
+
+ROOT = Path(__file__).resolve().parents[3]
+LOAD_CELL = ROOT / "examples" / "sensors" / "load_cell.py"
+
+
+def _cell(**kw):
+    from designlab.geometry.parts import make_part
+    from designlab.sensors.registry import resolve
+
+    return make_part(resolve(str(LOAD_CELL)), kw)
+
+
+def _run(part, edge=3.0, **sett):
+    from designlab.sensors.generic.virtual import run, settings_class
+
+    return run(part, settings=settings_class(type(part))(edge_length=edge, **sett))
+
+
+def test_registered_from_a_file_and_from_module_class():
+    from designlab.sensors.registry import SENSORS, resolve
+
+    name = resolve(str(LOAD_CELL))
+    assert name == "load_cell" and SENSORS[name].paper
+    assert resolve(f"{LOAD_CELL}:LoadCell") == name
+    with pytest.raises(ParameterError, match="NoSuch"):
+        resolve(f"{LOAD_CELL}:NoSuch")
+    with pytest.raises(ParameterError, match="existing Python file"):
+        resolve("no/such/file.py")
+
+
+def test_a_definition_cannot_take_a_built_in_name():
+    from designlab.sensors.registry import register
+
+    class Strap(dl.SensorDefinition):
+        name = "strap"
+
+    with pytest.raises(ParameterError, match="not a built-in"):
+        register(Strap)
+
+
+def test_parameters_are_checked_like_the_built_in_parts():
+    with pytest.raises(ParameterError, match="thickness"):
+        _cell(thickness=0.1)
+
+
+def test_a_body_without_a_library_material_is_named():
+    from build123d import Box
+
+    with pytest.raises(ParameterError, match=r"bodies\.b\.material"):
+        dl.SensorDefinition.build.__get__(_Bodies({"b": dl.Solid(Box(1, 1, 1), "wood")}))()
+
+
+def test_overlapping_bodies_are_named():
+    from build123d import Box, Pos
+
+    bodies = {"a": dl.Solid(Box(4, 4, 4), "PLA"), "b": dl.Solid(Pos(2, 0, 0) * Box(4, 4, 4), "PLA")}
+    with pytest.raises(ParameterError, match="overlaps b by 32"):
+        dl.SensorDefinition.build.__get__(_Bodies(bodies))()
+    touching = {"a": bodies["a"], "b": dl.Solid(Pos(4, 0, 0) * Box(4, 4, 4), "PLA")}
+    assert set(dl.SensorDefinition.build.__get__(_Bodies(touching))()) == {"a", "b"}
+
+
+class _Bodies:
+    def __init__(self, bodies):
+        self._b = bodies
+
+    def bodies(self):
+        return self._b
+
+
+def test_staircase_loops_pair_each_weight_up_and_down():
+    st = dl.Staircase("tip", weights_g=(10, 20, 30), cycles=2)
+    states = st.states()
+    assert len(states) == 2 * 6
+    for loads_up, up, loads_down, down in st.loops():
+        fz = lambda i: 0.0 if i < 0 else -states[i].force_N[2] / 9.81e-3   # back to grams
+        assert np.allclose([fz(i) for i in up], loads_up)
+        assert np.allclose([fz(i) for i in down], loads_down)
+
+
+def test_wrenches_from_masses_take_moments_about_the_point():
+    w = dl.Wrenches.from_masses("jig", [1.0], [(0.0, 0.0, 100.0)], [(1, 0, 0)])
+    F, M = np.array(w.wrenches[0][:3]), np.array(w.wrenches[0][3:])
+    assert np.allclose(F, (9.81, 0, 0)) and np.allclose(M, (0, 981.0, 0))   # r x F, N mm
+
+
+def test_dipole_field_on_its_axis_matches_the_closed_form():
+    from designlab.sensors.generic.fem import dipole_field_uT, dipole_jacobian
+
+    m = np.array([0.0, 0.0, 0.1])                         # A m^2
+    B = dipole_field_uT(np.zeros(3), m, np.array([0.0, 0.0, 20.0]))
+    assert B[2] == pytest.approx(1e-7 * 2 * 0.1 / 0.02 ** 3 * 1e6, rel=1e-12)   # 2500 uT
+    J = dipole_jacobian(np.zeros(3), m, np.array([0.0, 0.0, 20.0]))
+    # moving the magnet 1 mm towards the sensor: dB/dz = 3 B / r
+    assert J[2, 2] == pytest.approx(3 * B[2] / 20.0, rel=1e-6)
+
+
+@pytest.mark.parametrize("edit, item", [
+    (("top = dl.Face(\"beam\", normal=(0, 0, 1))", "top = dl.Face(\"bam\", normal=(0, 0, 1))"),
+     r"transducers\[0\] \(gauge\)\.face\.body"),
+    (("at=(x, 0, t))]", "at=(x, 0, 50.0))]"),
+     r"loads\[0\] \(tip\)\.at"),
+    (('return [dl.Clamped(dl.Face("beam", normal=(-1, 0, 0)))]', "return []"), "supports"),
+])
+def test_bad_definitions_name_the_item(tmp_path, edit, item):
+    from designlab.geometry.parts import make_part
+    from designlab.sensors.registry import load_class
+
+    text = LOAD_CELL.read_text()
+    assert edit[0] in text
+    f = tmp_path / "bad.py"
+    f.write_text(text.replace(*edit))
+    part = load_class(str(f))()
+    with pytest.raises(ParameterError, match=item):
+        _run(part, edge=4.0)
+    del make_part
+
+
+def test_load_only_parameters_share_the_fem():
+    """A parameter that only moves the load point reuses the FEM, and the reading is exactly
+    linear in where the load acts (the same face, a shifted point)."""
+    from dataclasses import field
+
+    class Moving(dl.SensorDefinition):
+        name = "moving_load"
+        at_x: float = dl.param(40.0, 10, 70, unit="mm", moves_load=True)
+
+        def bodies(self):
+            from build123d import Box, Pos
+
+            return {"beam": dl.Solid(Pos(40, 0, 2) * Box(80, 12, 4), "PLA")}
+
+        def supports(self):
+            return [dl.Clamped(dl.Face("beam", normal=(-1, 0, 0)))]
+
+        def transducers(self):
+            return [dl.StrainGauge("gauge", dl.Face("beam", normal=(0, 0, 1)), (12, 0, 4),
+                                   (1, 0, 0), 3.0, 1.6)]
+
+        def loads(self):
+            return [dl.LoadPoint("top", dl.Face("beam", normal=(0, 0, 1)), at=(self.at_x, 0, 4))]
+
+        def protocol(self):
+            return dl.Staircase("top", weights_g=(10, 20, 30))
+
+    r = [_run(Moving(at_x=x), edge=4.0, viscoelastic=False) for x in (20.0, 40.0, 60.0)]
+    assert not r[0].report["mesh"]["fem_reused"]
+    assert r[1].report["mesh"]["fem_reused"] and r[2].report["mesh"]["fem_reused"]
+    k = [x.report["sensitivity"]["gauge"]["top.Fz"] for x in r]
+    assert k[2] - k[1] == pytest.approx(k[1] - k[0], rel=1e-9)
+    assert abs(k[2]) > abs(k[0])
+    del field
+
+
+@pytest.mark.slow
+def test_every_command_runs_on_a_fresh_new_file(tmp_path, monkeypatch):
+    from designlab.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    main(["new", "my_beam"])
+    f = str(tmp_path / "my_beam.py")
+    for args in (["params", f], ["show", f, "--out", "s.png"], ["mesh", f, "--out", "m"],
+                 ["export", f, "--out", "e"], ["predict", f, "--out", "p"]):
+        main(args)
+    pred = json.loads((tmp_path / "p" / "prediction.json").read_text())
+    assert pred["sensitivity"]["gauge"]["tip.Fz"] < 0 and pred["mesh_convergence"]
+    assert (tmp_path / "s.png").stat().st_size and list((tmp_path / "e").rglob("*.3mf"))
+    with pytest.raises(SystemExit) as exc:
+        main(["new", "my_beam"])
+    assert exc.value.code == 2
