@@ -31,7 +31,8 @@ class Sensor:
                report is finished
     gains:     ``gains(report, result) -> ({output: {input: gain}}, {output: unit})``: the virtual
                test as a linear model from the loads to the outputs (the loop's base)
-    finish:    ``finish(report, result, part, protocol)``: paper comparison and extra keys, in place
+    finish:    ``finish(report, result, part, protocol)``: the report's extra keys (load paths,
+               the force-error test), in place
     design_protocol: ``(protocol, design, overrides) -> protocol``: defaults that depend on the
                design (the fingertip's load table), applied when no protocol file is given
     apply_model: ``(report, result, model_path, protocol, settings, part=) -> report``: the effects a
@@ -45,12 +46,12 @@ class Sensor:
     load_cases: ``load_cases(part, protocol, settings, result, cache) -> [LoadCase]``: the
                virtual test's load cases as displacements of ``result.mesh`` (stress and
                safety factor of each); None: the one case of ``result.displacement``
-    prefetch:  ``prefetch(part, protocol, settings, kw) -> [(key, arrays)]``: FEM stages that
-               ``finish`` will need beyond the design's own (the fingertip's: the Table II
-               sensor's for the paper comparison), computed by ``predict``'s side process while
-               the design runs and kept in the FEM cache's memory; None: none
     uncertainty: its Monte Carlo model (:class:`designlab.sensors.distributions.MonteCarloModel`:
                uncertain inputs, metrics, FEM stage, one virtual build); None: no Monte Carlo
+    validate:  ``validate(details, out=None, progress=None) -> [Goal]``: the sensor beside its
+               paper at the paper's design and protocol (``designlab validate``): one
+               :class:`Goal` per compared number; ``details`` (a dict) receives the detailed
+               comparison (JSON-able), ``out`` (a folder, or None) its figures; None: none
     """
 
     name: str
@@ -70,7 +71,7 @@ class Sensor:
     uncertainty: Any = None
     plot_groups: tuple[tuple[str, ...], ...] = ()
     plots_before_finish: frozenset[str] = frozenset()
-    prefetch: Callable[[Any, Any, Any, dict], list] | None = None
+    validate: Callable[..., list["Goal"]] | None = None
 
     @property
     def part(self) -> type:
@@ -92,6 +93,26 @@ def settings_from(cls: type, values: dict[str, Any] | None):
         return with_overrides(cls, values)
     except ParameterError as exc:
         raise ParameterError(f"settings.{exc.name}", exc.value, exc.allowed) from None
+
+
+@dataclass(frozen=True)
+class Goal:
+    """One number of a sensor beside its paper (a row of ``designlab validate``).
+
+    name:   what is compared, its unit in parentheses, e.g. ``"lowest mean G1 hysteresis (%)"``
+    value:  the model's number (or True/False for a yes/no goal; None: not computed)
+    paper:  the paper's number in the same unit (None: the paper prints none)
+    target: the goal in words, e.g. ``"within a factor 2 of 0.98 %"``
+    met:    whether the value meets the target (None: no target, shown for reference)
+    why:    one sentence: what the number rests on or why it misses
+    """
+
+    name: str
+    value: float | bool | None
+    paper: float | bool | str | None
+    target: str
+    met: bool | None
+    why: str
 
 
 @dataclass

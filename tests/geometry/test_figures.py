@@ -126,7 +126,7 @@ def test_fingertip_paper_comparison_figure_has_the_shared_look():
     legends right of the data with black text."""
     import matplotlib.pyplot as plt
 
-    from designlab.sensors.fingertip.virtual import paper_comparison_figure
+    from designlab.sensors.fingertip.validation import paper_comparison_figure
 
     loc = {f"h{i}": 0.5 / i for i in range(1, 4)}
     rad = {f"r{i}": 0.1 * i for i in range(1, 4)}

@@ -309,95 +309,32 @@ def evaluate(part, protocol: HangingWeightTest, settings: FingertipModelSettings
     }
 
 
-# ------------------------------------------------------------------ prediction: paper, plots, loop
+# ------------------------------------------------------------------ prediction: finish, plots, loop
 
-#: seed 001: measured condition number of A_opt (../shared/data/papers/fingertip_xu2014.json)
-PAPER_CONDITION_NUMBER = 34.92
+def load_paths(prediction: FingertipPrediction, part) -> dict[str, Any]:
+    """What drives the condition number (seed 001 Section IV): the share of each applied force
+    component carried by the three sensors (the rest: the bolt and the cap) and the sensor
+    forces per unit wrench, from the FEM's long-time unit readings."""
+    unit = prediction.unit_readings[-1]                       # (6 wrench, 3 sensors), N per N
+    axes, _ = part.sensor_axes()
+    share = {ax: float(np.abs(axes[:, i] @ (-unit[i]))) for i, ax in enumerate("xyz")}
+    return {"share_through_sensors": share,
+            "share_through_bolt_and_cap": {k: 1.0 - v for k, v in share.items()},
+            "unit_wrench_sensor_forces_N": {w: unit[i].tolist() for i, w in enumerate(WRENCH)}}
 
 
 def finish(report: dict[str, Any], prediction: FingertipPrediction, part,
            protocol: HangingWeightTest) -> None:
-    """Paper comparison and what drives the condition number (seed 001 Section IV); the
-    calibration error budget (``force_error_test``: the FSS015/DAQ readout noise through the
-    paper's calibration, force error per axis on held-out points beside Fig. 9, on the FEM
-    this prediction solved: :func:`designlab.sensors.fingertip.calibration.
-    prediction_force_error`); the table's load points this design lacks."""
-    own = report.get("paper_comparison")         # the contact run's, for this design
-    unit = prediction.unit_readings[-1]                       # (6 wrench, 3 sensors), N per N
-    axes, _ = part.sensor_axes()
-    # share of each applied force component carried by the three sensors (rest: bolt + cap)
-    share = {ax: float(np.abs(axes[:, i] @ (-unit[i]))) for i, ax in enumerate("xyz")}
-    cond = report["condition_number"]
-    report["load_paths"] = {
-        "share_through_sensors": share,
-        "share_through_bolt_and_cap": {k: 1.0 - v for k, v in share.items()},
-        "unit_wrench_sensor_forces_N": {w: unit[i].tolist() for i, w in enumerate(WRENCH)},
-    }
-    report["paper_comparison"] = {
-        "condition_number_paper": PAPER_CONDITION_NUMBER,
-        "condition_number_predicted": cond,
-        "geometric_condition_number": report["geometric_condition_number"],
-        "explanation": (
-            f"The ideal rigid geometry of eq. 8 gives {report['geometric_condition_number']:.3f}. "
-            f"In the model only {100 * share['z']:.1f} % of an axial force P_z reaches the sensors "
-            f"(radial: {100 * share['x']:.0f} % / {100 * share['y']:.0f} %); the rest goes through "
-            "the preloaded M2.5 bolt and the printed bottom cap in parallel, so the axial "
-            f"sensitivity is {share['x'] / max(share['z'], 1e-12):.0f}x lower than the radial one "
-            f"and cond(A) rises to {cond:.1f} (paper: {PAPER_CONDITION_NUMBER}). The paper blames "
-            "the same path (the bolt pushed out by P_z, the elastic bottom cap). What the model "
-            "leaves out: contact compliance and friction at the ball/sensor contacts, the bolt's "
-            "preload state, printing anisotropy; the cap support (setting cap_support) moves the "
-            "share of P_z most."),
-    }
-    if prediction.condensed is not None:
-        from designlab.sensors.fingertip.paper import paper_comparison
-
-        pc = report["paper_comparison"]
-        pc["explanation"] = (
-            f"The ideal rigid geometry of eq. 8 gives {report['geometric_condition_number']:.3f}. "
-            f"Of an axial force P_z {100 * share['z']:.1f} % reaches the sensors (radial "
-            f"{100 * share['x']:.0f} % / {100 * share['y']:.0f} %, linear load paths at the "
-            "structure's moduli); the rest goes through the M2.5 bolt and the printed cap in "
-            "parallel. The contact model adds Hertz compliance, friction (Mindlin's partial "
-            "slip and Coulomb sliding) at the three contacts, the bolt preload and the "
-            "FSS015/DAQ readout errors; cond(A) here "
-            f"is {cond:.1f} for this design and protocol (the paper's 34.92 is the Table III "
-            "design's: see contact.table_III_design).")
-        t0 = time.perf_counter()
-        cs = contact_settings(prediction.settings)
-
-        tested, tested_key = table_ii_sensor(part, prediction)
-
-        def compute():
-            from designlab.atomic import jsonable
-
-            out = paper_comparison(part, protocol, cs, prediction.condensed,
-                                   {**report, "paper_comparison": own},
-                                   prediction.settings.rotations_deg,
-                                   prediction.settings.mesh_fingertip,
-                                   table_ii=tested())
-            return {"json": np.array(json.dumps(jsonable(out)))}
-
-        if prediction.fem_key is not None and not prediction.settings.mesh_fingertip:
-            # the paper's two designs depend on this design's FEM and the contact settings
-            # only: a sweep runs them once (same numbers: the noise is seeded per run)
-            from designlab.fem.cache import FEMCache, fem_key as key_of
-            from designlab.params import as_dict
-
-            cache = prediction.cache if prediction.cache is not None else FEMCache()
-            # fig9: the P_z-error goal in the paper's definition (eq. 3 normal components):
-            # comparisons stored before it lack fig9_errors
-            ckey = key_of("fingertip-paper-comparison", fem=prediction.fem_key,
-                          contact=as_dict(cs), rotations=list(prediction.settings.rotations_deg),
-                          fig9="paper_eq3_normal_component", table_ii_fem=tested_key)
-            stored = cache.get_or_compute(ckey, compute)
-        else:
-            stored = compute()
-        pc["contact"] = json.loads(str(stored["json"]))
-        pc["contact"]["this_design"] = own
-        report.setdefault("timings_s", {})["paper_comparison"] = time.perf_counter() - t0
-        # the range and overforce checks (preload included) were the contact run's
-    else:
+    """The load paths (:func:`load_paths`); the calibration error budget
+    (``force_error_test``: the FSS015/DAQ readout noise through the paper's calibration, force
+    error per axis on held-out points beside Fig. 9, on the FEM this prediction solved:
+    :func:`designlab.sensors.fingertip.calibration.prediction_force_error`); the table's load
+    points this design lacks. The paper comparison is ``designlab validate fingertip``'s
+    (:func:`validate`): the contact run's own is left out of the prediction."""
+    report.pop("paper_comparison", None)
+    report["load_paths"] = load_paths(prediction, part)
+    if prediction.condensed is None:
+        # the contact run checked the range and overforce (preload included) itself
         protocol.check_sensor_range(report.get("peak_sensor_force_N", 0.0), "FSS015 sensor")
     t0 = time.perf_counter()
     from designlab.sensors.fingertip.calibration import prediction_force_error
@@ -410,48 +347,63 @@ def finish(report: dict[str, Any], prediction: FingertipPrediction, part,
         if n not in (*protocol.g1_locations, *protocol.g2_locations)]
 
 
-def _table_ii_stage(settings: FingertipModelSettings, materials):
-    """The paper's tested sensor (:meth:`CantileverFingertip.table_ii`), its FEM stage's key
-    and the function that computes it."""
-    from designlab.geometry.fingertip import CantileverFingertip
-
-    tested, proto = CantileverFingertip.table_ii(), HangingWeightTest()
-    return (tested, fem_key(tested, proto, settings, materials),
-            lambda: solve_fem(tested, proto, settings, materials))
-
-
 def table_ii_sensor(part, prediction: FingertipPrediction):
     """The paper's tested sensor (:meth:`CantileverFingertip.table_ii`) with its own condensed
-    structure, at this prediction's model settings and materials: ``(get, key)``, ``get()``
-    returning ``(design, CondensedFingertip)`` (its FEM from ``prediction.cache`` under ``key``,
-    computed once: a sweep shares it; ``predict`` may have had it computed beside the design's
-    run, :func:`prefetch`). The prediction's own when the design is that sensor."""
+    structure, at this prediction's model settings and materials: a function returning
+    ``(design, CondensedFingertip)`` (its FEM from ``prediction.cache``, computed once). The
+    prediction's own when the design is that sensor."""
     from designlab.fem.cache import FEMCache, timed_stage
+    from designlab.geometry.fingertip import CantileverFingertip
     from designlab.sensors.fingertip.contact import CondensedFingertip
 
-    tested, key, compute = _table_ii_stage(prediction.settings, prediction.materials)
+    tested, proto = CantileverFingertip.table_ii(), HangingWeightTest()
     if tested == part and prediction.condensed is not None:
-        return (lambda: (tested, prediction.condensed)), prediction.fem_key
+        return lambda: (tested, prediction.condensed)
+    settings, materials = prediction.settings, prediction.materials
 
     def get():
         cache = prediction.cache if prediction.cache is not None else FEMCache()
-        fem, _, _ = timed_stage(compute, key, cache)
+        fem, _, _ = timed_stage(lambda: solve_fem(tested, proto, settings, materials),
+                                fem_key(tested, proto, settings, materials), cache)
         return tested, CondensedFingertip.from_arrays(fem)
 
-    return get, key
+    return get
 
 
-def prefetch(part, protocol, settings: FingertipModelSettings, kw: dict) -> list:
-    """What :func:`finish` needs beyond the design's FEM, for ``predict``'s side process: the
-    Table II sensor's FEM stage ``[(key, arrays)]`` (none when the design is that sensor, the
-    paper comparison is not run, or the cache's folder already holds it)."""
-    if not settings.contact or settings.mesh_fingertip:
-        return []
-    tested, key, compute = _table_ii_stage(settings, kw.get("materials"))
-    cache = kw.get("cache")
-    if tested == part or (cache is not None and cache.get(key) is not None):
-        return []
-    return [(key, compute())]
+def paper_comparison_of(part=None, settings: FingertipModelSettings | None = None,
+                        progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """A design's virtual test beside seed 001 (default: the paper's Table III design at the
+    default model settings): its own run (the protocol its load table gives), its load paths,
+    then :func:`designlab.sensors.fingertip.validation.comparison` with the Table II sensor on
+    its own structure. Returns ``{"paper_comparison": ..., "load_paths": ...}``."""
+    from designlab.fem.cache import FEMCache
+    from designlab.geometry.fingertip import CantileverFingertip
+    from designlab.sensors.fingertip.validation import comparison
+
+    part = part if part is not None else CantileverFingertip()
+    settings = settings or FingertipModelSettings()
+    protocol = design_protocol(HangingWeightTest(), part, None)
+    prediction = run(part, protocol, settings, progress=progress, cache=FEMCache())
+    report = dict(prediction.report)
+    report["load_paths"] = load_paths(prediction, part)
+    if progress:
+        progress("the paper's Table II sensor and Table III design")
+    tested = None if settings.mesh_fingertip else table_ii_sensor(part, prediction)
+    return {"paper_comparison": comparison(part, protocol, prediction, report, tested),
+            "load_paths": report["load_paths"]}
+
+
+def validate(details: dict[str, Any], out: str | Path | None = None,
+             progress: Callable[[str], None] | None = None) -> list:
+    """``designlab validate fingertip``: the goal rows of :func:`paper_comparison_of` at the
+    defaults (:func:`designlab.sensors.fingertip.validation.goal_rows`); ``details`` gets the
+    comparison and the load paths, ``out`` the figure ``paper_comparison.png``."""
+    from designlab.sensors.fingertip.validation import draw, goal_rows
+
+    details.update(paper_comparison_of(progress=progress))
+    if out is not None:
+        details["figures"] = [draw(details["paper_comparison"], out).name]
+    return goal_rows(details["paper_comparison"], details["load_paths"])
 
 
 def gains(report: dict[str, Any], prediction: FingertipPrediction) -> tuple[dict, dict]:
@@ -496,19 +448,14 @@ def plots(prediction: FingertipPrediction, report: dict[str, Any], out: Path,
         files.append(save(_by_location_figure(report, names), "hysteresis_by_location.png"))
     if want("applied_vs_estimated.png"):
         files.append(save(_applied_figure(report), "applied_vs_estimated.png"))
-    contact = report.get("paper_comparison", {}).get("contact")
-    if contact and "goals" in contact and want("paper_comparison.png"):
-        files.append(save(paper_comparison_figure(contact, plt), "paper_comparison.png"))
     return files
 
 
 #: the fingertip's plots in groups that ``designlab predict``'s two drawing processes draw
-#: (:func:`plots`'s ``only``): the first two from the run's report while the report is finished,
-#: one by each; the paper comparison, the longest to draw, after, by the process with fewer
-#: groups (the painter also renders deformed.png)
+#: (:func:`plots`'s ``only``), one group each, while the report is finished: both read only
+#: the run's report
 PLOT_GROUPS = (("hysteresis_loops.png", "hysteresis_by_location.png"),
-               ("applied_vs_estimated.png",), ("paper_comparison.png",))
-#: the plots drawn from the run's report alone (``paper_comparison.png`` needs :func:`finish`)
+               ("applied_vs_estimated.png",))
 PLOTS_BEFORE_FINISH = frozenset(PLOT_GROUPS[0] + PLOT_GROUPS[1])
 
 
@@ -579,101 +526,6 @@ def _applied_figure(report: dict[str, Any]):
     return fig
 
 
-def paper_comparison_figure(contact: dict[str, Any], plt):
-    """Seed 001 beside the contact model: G1/G2 hysteresis by location (Fig. 6's trend and
-    lowest means), the compressed-sensor changes (Sec. III), Fig. 9's errors per axis. The
-    shared look (:mod:`designlab.sensors.plotstyle`): a colour and marker per series, legends
-    beside the data with black text; a fixed grid whose margins and gaps hold the labels and
-    the legends (saved without ``bbox_inches="tight"``: one draw; constrained layout and the
-    tight box drew it four times, ~1.2 s CPU), the log axes labelled in plain numbers (no
-    mathtext). (``plt`` is unused, kept for the caller.)"""
-    from matplotlib.ticker import FuncFormatter, NullFormatter
-
-    from designlab.sensors.plotstyle import figure, legend_outside, series_style
-
-    fig, axes = figure(2, 2, width=14.0, height=9.0, fixed=True, top=0.9, wspace=0.7,
-                       hspace=0.32)
-    fig.subplots_adjust(left=0.065, right=0.85, bottom=0.07)
-    t2 = contact.get("table_II_design", {})
-    paper = contact["paper"]
-    labels = {"robust_eq1_span10": "model, robust eq. 1,\nwith readout",
-              "paper_eq1_all_sensors": "model, paper's eq. 1\n(all sensors), with readout",
-              "robust_eq1_span10_noise_free": "model, robust eq. 1,\nfriction alone"}
-    for ax, grp, xs, xlabel, lo in (
-            (axes[0, 0], "G1", t2.get("heights_mm"), "load height above the ball centre "
-             "(h9 ... h1), mm", paper["lowest_mean_G1_pct"]),
-            (axes[0, 1], "G2", t2.get("radii_mm"), "load radius (r1 ... r5), mm",
-             paper["lowest_mean_G2_pct"])):
-        hp = t2.get("hysteresis_percent", {})
-        for i, (key, lab) in enumerate(labels.items()):
-            if key not in hp:
-                continue
-            vals = np.array(list(hp[key][f"{grp}_by_location"].values()), float)
-            ax.semilogy(xs, np.maximum(vals, 1e-6), ls="-", ms=5, label=lab, **series_style(i))
-        dr = (t2.get("readout_draws") or {}).get(f"{grp}_by_location")
-        if dr and xs is not None and len(dr) == len(xs):
-            m = np.array([v["mean"] for v in dr.values()])
-            sd = np.array([v["sd"] for v in dr.values()])
-            st = series_style(len(labels))
-            ax.errorbar(xs, m, yerr=[np.minimum(sd, 0.9 * m), sd], ls=":", capsize=3,
-                        color=st["color"], marker=st.get("marker", "o"), ms=4,
-                        label=f"model, robust, readout\nmean +- sd, "
-                              f"{t2['readout_draws']['draws']} draws")
-        ax.axhline(lo, color="k", ls="--", lw=1, label=f"paper: lowest mean\n{grp} {lo} %")
-        ax.set_xlabel(xlabel)
-        ax.set_ylabel(f"{grp} hysteresis, % of span (eq. 1)")
-        ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-        ax.yaxis.set_minor_formatter(NullFormatter())
-        ax.grid(alpha=0.3, which="both")
-        legend_outside(ax, fontsize=7)
-    axes[0, 0].set_title("G1 (Table II design); paper, Fig. 6: falls exponentially\ntoward "
-                         "the base", fontsize=9)
-    axes[0, 1].set_title("G2 (Table II design)", fontsize=9)
-    ax = axes[1, 0]
-    g = contact.get("goals", {})
-    ch = [("h9 -> h1", g.get("compressed_change_h9_to_h1", {}).get("value_pct"),
-           paper["compressed_change_h9_to_h1_pct"]),
-          ("r1 -> r5", contact.get("compressed_change_r1_to_r5", {}).get("value_pct"),
-           paper["compressed_change_r1_to_r5_pct"])]
-    x = np.arange(len(ch))
-    ax.bar(x - 0.18, [c[1] if c[1] is not None else np.nan for c in ch], 0.36, label="model",
-           color=series_style(0)["color"])
-    ax.bar(x + 0.18, [c[2] for c in ch], 0.36, label="paper (Sec. III)", color="0.35",
-           hatch="//", edgecolor="white")
-    ax.set_xticks(x, [c[0] for c in ch])
-    ax.set_xlabel("load moved (Table II design)")
-    ax.set_ylabel("change of the compressed sensor's reading, %")
-    legend_outside(ax)
-    ax.grid(alpha=0.3, axis="y")
-    ax = axes[1, 1]
-    t3 = contact.get("table_III_design", {})
-    f9 = t3.get("fig9_errors", {})
-    # the P_z goal's two readings side by side: the paper's eq. 3 (normal components, what
-    # Fig. 9 plots; the goal's value) and the full hanging force
-    bars = [(f"paper's eq. 3\n(normal components):\nP_z / max(x, y) "
-             f"{f9[k]['Pz_over_xy']:.2f}", f9[k]["relative_error_per_axis"])
-            for k in ("paper_eq3_normal_component",) if k in f9]
-    e = t3.get("relative_error_per_axis_all_weights")
-    if e:
-        ratio = e["z"] / max(e["x"], e["y"])
-        bars.append((f"full force:\nP_z / max(x, y) {ratio:.2f}", e))
-    x = np.arange(3)
-    width = 0.8 / max(len(bars), 1)
-    for i, (label, err) in enumerate(bars):
-        ax.bar(x + (i - (len(bars) - 1) / 2) * width, [err["x"], err["y"], err["z"]], width,
-               label=label, color=series_style(i)["color"])
-    if bars:
-        ax.set_title(f"Table III design: cond(A) {t3['condition_number']:.1f} (paper 34.92); "
-                     "Fig. 9: P_z worst (goal >= 3x)", fontsize=9)
-        legend_outside(ax, fontsize=7)
-    ax.set_xticks(x, ["P_x", "P_y", "P_z"])
-    ax.set_xlabel("force component (calibration over every weight and location)")
-    ax.set_ylabel("relative RMS error, applied vs estimated (-)")
-    ax.grid(alpha=0.3, axis="y")
-    fig.suptitle("seed 001 beside the contact model (friction, Hertz, preload at the ball)")
-    return fig
-
-
 def apply_model(*args, **kw):
     """loop -> predict: :func:`designlab.sensors.fingertip.loop.apply_model`."""
     from designlab.sensors.fingertip.loop import apply_model as apply
@@ -694,7 +546,7 @@ SENSOR = Sensor(
     plot_groups=PLOT_GROUPS, plots_before_finish=PLOTS_BEFORE_FINISH, gains=gains, finish=finish,
     design_protocol=design_protocol,
     cached=True, apply_model=apply_model, load_cases=load_cases, uncertainty=MONTE_CARLO,
-    prefetch=prefetch,
+    validate=validate,
     convergence=("condition_number", "hysteresis_percent.overall",
                  "hysteresis_percent.overall_noise_free",
                  "hysteresis_percent.by_group_noise_free.G1"))

@@ -15,6 +15,7 @@ from designlab.sensors.protocols import FlexureWrenchTest
 from designlab.sensors.flexure.montecarlo import MONTE_CARLO
 from designlab.sensors.flexure.model import (FlexureModelSettings, FlexurePrediction, run)
 from designlab.sensors.flexure.spring import TWIST, WRENCH
+from designlab.sensors.flexure.validation import validate
 from designlab.sensors.sensor import Sensor
 
 
@@ -87,4 +88,4 @@ SENSOR = Sensor(
     name="flexure", paper="seed 002 (fingertip on a helical spring flexure, Visiflex)",
     protocol=FlexureWrenchTest, settings=FlexureModelSettings, run=run, plots=plots,
     gains=gains, finish=finish, meshed=lambda settings: settings.truth == "fem",
-    apply_model=apply_model, uncertainty=MONTE_CARLO)
+    apply_model=apply_model, uncertainty=MONTE_CARLO, validate=validate)

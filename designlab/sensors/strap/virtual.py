@@ -14,6 +14,7 @@ import numpy as np
 from designlab.atomic import atomic_savefig
 from designlab.errors import ParameterError
 from designlab.sensors.strap.montecarlo import MONTE_CARLO
+from designlab.sensors.strap.validation import validate
 from designlab.sensors.protocols import StrapLoadTest
 from designlab.sensors.sensor import Sensor, linear_sensor_model
 from designlab.sensors.strap.model import (
@@ -220,4 +221,4 @@ SENSOR = Sensor(
     name="strap", paper="seed 000 (TPU arch strap with two printed strain-gauge traces)",
     protocol=StrapLoadTest, settings=StrapModelSettings, run=run, plots=plots, gains=gains,
     apply_model=apply_model, finish=finish, cached=True, load_cases=load_cases,
-    uncertainty=MONTE_CARLO)
+    uncertainty=MONTE_CARLO, validate=validate)

@@ -133,21 +133,16 @@ def test_predict_fingertip_end_to_end(tmp_path):
     assert share["z"] < 0.5 * min(share["x"], share["y"])
     assert 1.5 < pred["condition_number"] < 200
     assert abs(pred["geometric_condition_number"] - 1.41421) < 1e-4
-    for f in ("hysteresis_loops.png", "applied_vs_estimated.png", "deformed.vtu",
-              "paper_comparison.png"):
+    for f in ("hysteresis_loops.png", "applied_vs_estimated.png", "deformed.vtu"):
         assert (tmp_path / f).stat().st_size > 1000
+    # the paper comparison is designlab validate's (tests/predict/test_validate.py)
+    assert "paper_comparison" not in pred and not (tmp_path / "paper_comparison.png").exists()
     # the contact model (default): both eq. 1 definitions, preload, the paper's two designs
     hp = pred["hysteresis_percent"]
     assert hp["overall"] > hp["overall_noise_free"] > 0         # readout errors add to friction
     assert {"paper_eq1_all_sensors", "robust_eq1_span10", "robust_eq1_span10_noise_free"} <= \
         set(pred["hysteresis_definitions"])
     assert abs(pred["preload"]["bolt_tension_N"] - 20.0) < 1e-6
-    pc = pred["paper_comparison"]["contact"]
-    assert set(pc["goals"]) == {"G1_falls_monotonically_h1_to_h9", "lowest_mean_G1",
-                                "lowest_mean_G2", "compressed_change_h9_to_h1",
-                                "Pz_error_over_xy"}
-    assert pc["table_III_design"]["condition_number_paper"] == 34.92
-    assert pc["matches"] or pc["does_not_match"]
     assert "hysteresis_percent.overall_noise_free" in pred["mesh_convergence"]
     from designlab.loop.model import load_model
 
