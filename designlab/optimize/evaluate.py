@@ -28,12 +28,19 @@ def geometry_metrics(part_name: str, part) -> dict[str, Any]:
             "printability_problems": [f"{r.body}: {p}" for r in reports for p in r.problems]}
 
 
+#: metrics of the generic virtual test (sensor definitions) that a sweep row carries
+GENERIC_METRICS = ("sensitivity_norm", "condition_number_scaled", "force_error", "noise_budget",
+                   "cross_talk_percent")
+
+
 def evaluate_design(task: dict[str, Any]) -> dict[str, Any]:
     """One design of a sweep -> flat-ish metrics dict (see module docstring)."""
     from designlab.predict.run import predict
     from designlab.geometry.parts import make_part
 
-    part_name, params = task["part"], task["params"]
+    from designlab.sensors.registry import resolve
+
+    part_name, params = resolve(task["part"]), task["params"]   # a definition: loaded here too
     settings = dict(task.get("settings") or {})
     part = make_part(part_name, params)
     out = geometry_metrics(part_name, part)
@@ -52,6 +59,9 @@ def evaluate_design(task: dict[str, Any]) -> dict[str, Any]:
     out.update({k: v for k, v in sections.items() if k in always or v is not None})
     if pred.stress is not None:
         out["min_safety_factor"] = pred.min_safety_factor
+    for key in GENERIC_METRICS:     # what a sensor definition's virtual test reports
+        if key in pred.metrics:
+            out[key] = pred.metrics[key]
     if pred.K_f is not None:
         K = pred.K_f
         out["K_f"] = K.tolist()
@@ -74,7 +84,10 @@ def export_design(part_name: str, params: dict[str, Any], out: str | Path, *,
     from designlab.geometry.export import export_parts
     from designlab.geometry.parts import make_part
 
+    from designlab.sensors.registry import resolve
+
     out = Path(out)
+    part_name = resolve(part_name)
     part = make_part(part_name, params)
     res = export_parts({part_name: part}, out, formats=formats, png=True)
     pred = predict(part_name, params, protocol=protocol or None,

@@ -2,7 +2,8 @@
 
 A sweep config (TOML)::
 
-    part = "NAME"                 # a sensor of designlab.sensors.SENSORS
+    part = "NAME"                 # a sensor name, or a definition "FILE.py[:Class]" (relative
+                                  # to the config's folder) or "module:Class"
     method = "grid"               # grid | lhs | sobol
     samples = 16                  # lhs/sobol: number of designs (sobol rounds up to 2^m)
     seed = 0
@@ -96,9 +97,10 @@ MAX_LEVELS = 10_000        # grid levels or listed values of one parameter
 METRICS = ("printed_volume_mm3", "printable", "min_wall_mm", "condition_number",
            "geometric_condition_number", "linearity_percent_span", "k_x_N_per_m",
            "k_y_N_per_m", "k_z_N_per_m", "K_f_target_error", "axial_share_through_sensors",
-           "min_safety_factor")
+           "min_safety_factor", "sensitivity_norm", "condition_number_scaled")
 METRIC_FAMILIES = ("hysteresis_percent.", "sensitivity.", "timings_s.",
-                   "linearity_percent_span.", "electrical.", "mesh_convergence.")
+                   "linearity_percent_span.", "electrical.", "mesh_convergence.", "force_error.",
+                   "noise_budget.", "cross_talk_percent.")
 SETTINGS = ("model", "K_f_target_N_per_m")
 
 
@@ -206,12 +208,15 @@ def sweep_config(data: dict[str, Any]) -> SweepConfig:
     check_keys(data, known)
     check_tree(data, "config")
     from designlab.geometry.parts import PARTS
-    from designlab.sensors.registry import get_sensor
+    from designlab.sensors.registry import canonical, get_sensor, looks_like_definition
 
     part = data.get("part")
     if not isinstance(part, str):
-        raise ParameterError("part", _short(part), "a part name: " + ", ".join(PARTS))
-    get_sensor(part)
+        raise ParameterError("part", _short(part), "a part name: " + ", ".join(PARTS)
+                             + " or a sensor definition FILE.py[:Class]")
+    if looks_like_definition(part):
+        part = canonical(part)      # a spec every worker process resolves the same way
+    name = get_sensor(part).name
     method = data.get("method", "grid")
     if method not in METHODS:
         raise ParameterError("method", _short(method), "one of " + ", ".join(METHODS)
@@ -222,7 +227,7 @@ def sweep_config(data: dict[str, Any]) -> SweepConfig:
     if not isinstance(params, dict) or not params:
         raise ParameterError("parameters", _short(params),
                              "a table with at least one swept parameter")
-    fields = {f.name: f for f in dataclasses.fields(PARTS[part])}
+    fields = {f.name: f for f in dataclasses.fields(PARTS[name])}
     check_keys(params, fields, "parameters")
     dims = tuple(_dimension(k, v, fields[k].metadata or None) for k, v in params.items())
     if method == "grid":
@@ -240,7 +245,7 @@ def sweep_config(data: dict[str, Any]) -> SweepConfig:
         raise ParameterError(f"fixed.{name}", _short(fixed[name]), "not also a swept parameter")
     check_keys(fixed, fields, "fixed")
     try:
-        with_overrides(PARTS[part], fixed)
+        with_overrides(PARTS[name], fixed)
     except ParameterError as exc:
         raise ParameterError(f"fixed.{exc.name}", exc.value, exc.allowed) from None
     settings = dict(_table("settings", data.get("settings", {})))
@@ -272,7 +277,14 @@ def sweep_config(data: dict[str, Any]) -> SweepConfig:
 
 
 def load_sweep_config(path: str | Path) -> SweepConfig:
-    return sweep_config(load_toml(path, "config"))
+    """A sweep config from a TOML file; a sensor definition file named by ``part`` is taken
+    relative to the config's folder."""
+    from designlab.sensors.registry import canonical, looks_like_definition
+
+    data = load_toml(path, "config")
+    if isinstance(data.get("part"), str) and looks_like_definition(data["part"]):
+        data["part"] = canonical(data["part"], Path(path).resolve().parent)
+    return sweep_config(data)
 
 
 def objective_value(value: float, spec: Any) -> float:

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import hashlib
 import importlib
+import json
+import os
 import importlib.util
 import re
 import sys
@@ -25,6 +27,9 @@ SENSORS: dict[str, Sensor] = {s.name: s for s in (
 )}
 BUILT_IN = tuple(SENSORS)
 ENTRY_POINT_GROUP = "designlab.sensors"
+#: environment variable carrying {name: spec} of the definitions this process loaded, so that
+#: worker processes it starts (sweeps, Monte Carlo) find them by name
+ENV = "DESIGNLAB_DEFINITIONS"
 #: {spec as given: registered name}
 _LOADED: dict[str, str] = {}
 _SPEC = re.compile(r"^(?P<target>[^:]+?)(?::(?P<cls>[A-Za-z_]\w*))?$")
@@ -36,8 +41,11 @@ def get_sensor(name: str) -> Sensor:
         return SENSORS[name]
     except (KeyError, TypeError):
         pass
-    if isinstance(name, str) and _entry_points().get(name):
+    if isinstance(name, str) and (_entry_points().get(name) or looks_like_definition(name)):
         return SENSORS[resolve(name)]
+    inherited = _inherited().get(name) if isinstance(name, str) else None
+    if inherited:
+        return SENSORS[resolve(inherited)]
     raise ParameterError("part", name, "one of " + ", ".join(known_names())
                          + " (or a sensor definition: FILE.py[:Class] or module:Class)"
                          + did_you_mean(str(name), known_names()))
@@ -67,7 +75,17 @@ def register(cls: type, spec: str = "") -> str:
     cls._designlab_spec = spec
     SENSORS[name] = sensor_record(cls)
     PARTS[name] = cls
+    if spec and not spec.startswith("entry point"):
+        os.environ[ENV] = json.dumps({**_inherited(), name: spec})
     return name
+
+
+def _inherited() -> dict[str, str]:
+    try:
+        data = json.loads(os.environ.get(ENV, "{}"))
+    except ValueError:
+        return {}
+    return data if isinstance(data, dict) else {}
 
 
 def looks_like_definition(value: str) -> bool:

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from designlab.sensors.generic import virtual as g
+from designlab.sensors.generic.montecarlo import monte_carlo_model
 from designlab.sensors.sensor import Sensor
 
 
@@ -23,4 +24,5 @@ def sensor_record(cls: type) -> Sensor:
         gains=g.gains,
         load_cases=g.load_cases,
         convergence=("condition_number", "sensitivity_norm"),
+        uncertainty=monte_carlo_model(cls),
     )
