@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from designlab.sensors.generic import virtual as g
+from designlab.sensors.generic.loop import apply_model
 from designlab.sensors.generic.montecarlo import monte_carlo_model
 from designlab.sensors.sensor import Sensor
 
@@ -25,4 +26,5 @@ def sensor_record(cls: type) -> Sensor:
         load_cases=g.load_cases,
         convergence=("condition_number", "sensitivity_norm"),
         uncertainty=monte_carlo_model(cls),
+        apply_model=apply_model,
     )

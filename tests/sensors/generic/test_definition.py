@@ -160,7 +160,7 @@ def test_load_only_parameters_share_the_fem():
     r = [_run(Moving(at_x=x), edge=4.0, viscoelastic=False) for x in (20.0, 40.0, 60.0)]
     assert not r[0].report["mesh"]["fem_reused"]
     assert r[1].report["mesh"]["fem_reused"] and r[2].report["mesh"]["fem_reused"]
-    k = [x.report["sensitivity"]["gauge"]["top.Fz"] for x in r]
+    k = [x.report["sensitivity"]["gauge"]["top_Fz"] for x in r]
     assert k[2] - k[1] == pytest.approx(k[1] - k[0], rel=1e-9)
     assert abs(k[2]) > abs(k[0])
     del field
@@ -177,8 +177,44 @@ def test_every_command_runs_on_a_fresh_new_file(tmp_path, monkeypatch):
                  ["export", f, "--out", "e"], ["predict", f, "--out", "p"]):
         main(args)
     pred = json.loads((tmp_path / "p" / "prediction.json").read_text())
-    assert pred["sensitivity"]["gauge"]["tip.Fz"] < 0 and pred["mesh_convergence"]
+    assert pred["sensitivity"]["gauge"]["tip_Fz"] < 0 and pred["mesh_convergence"]
     assert (tmp_path / "s.png").stat().st_size and list((tmp_path / "e").rglob("*.3mf"))
     with pytest.raises(SystemExit) as exc:
         main(["new", "my_beam"])
     assert exc.value.code == 2
+
+
+def _drift_model(path, beta):
+    from designlab.loop.effects.base import Fitted
+    from designlab.loop.effects.drift import Drift
+    from designlab.sensors.sensor import linear_sensor_model
+
+    m = linear_sensor_model({"gauge": {"tip_Fz": -0.28}}, {"gauge": "mV/V"}, {"source": "test"})
+    m.effects["gauge"] = [Fitted(Drift(), {"variant": "polynomial", "order": 1,
+                                           "duration_s": 120.0}, (beta,), (), ())]
+    m.save(path)
+    return path
+
+
+def test_a_learned_model_is_applied_back_to_a_definition(tmp_path):
+    """loop -> predict: a drift of zero changes nothing; a drift adds hysteresis (the readings
+    going down come later than going up)."""
+    from designlab.sensors.generic.loop import apply_model
+    from designlab.sensors.generic.virtual import DefinitionProtocol
+
+    part = _cell()
+    res = _run(part, edge=4.0)
+    proto = DefinitionProtocol()
+    zero = apply_model(res.report, res, _drift_model(tmp_path / "z.json", 0.0), proto, None, part)
+    assert zero["condition_number"] == pytest.approx(res.report["condition_number"], rel=1e-9)
+    assert zero["hysteresis_percent"]["overall"] == pytest.approx(
+        res.report["hysteresis_percent"]["overall"], rel=1e-9)
+    drift = apply_model(res.report, res, _drift_model(tmp_path / "d.json", 0.01), proto, None,
+                        part)
+    assert drift["learned_effects"] == {"gauge": ["drift"]}
+    assert drift["hysteresis_percent"]["overall"] > 10 * res.report["hysteresis_percent"]["overall"]
+    with pytest.raises(ParameterError, match="--model"):
+        bad = _drift_model(tmp_path / "b.json", 0.01)
+        text = bad.read_text().replace('"gauge"', '"other"')
+        bad.write_text(text)
+        apply_model(res.report, res, bad, proto, None, part)
