@@ -23,7 +23,9 @@ import numpy as np
 
 from designlab.geometry.fingertip import CantileverFingertip
 from designlab.sensors.fingertip.model import FingertipModelSettings, mesh_fingertip
-from designlab.sensors.fingertip.contact import (PAPER, condense_fingertip, moment_sensitivity, run_contact_test)
+from designlab.sensors.fingertip.contact import condense_fingertip, run_contact_test
+from designlab.sensors.fingertip.joint import moment_sensitivity
+from designlab.sensors.fingertip.paper_readings import PAPER
 from designlab.sensors.fingertip.model import ContactSettings
 from designlab.sensors.protocols import HangingWeightTest
 
@@ -42,7 +44,7 @@ def lowest(rep, key="robust_eq1_span10"):
 
 def print_moment_sensitivity(part, cf, s) -> None:
     """The moment sensitivity of the condensed FEM beside the hand estimate
-    (:func:`designlab.sensors.fingertip.contact.moment_sensitivity`)."""
+    (:func:`designlab.sensors.fingertip.joint.moment_sensitivity`)."""
     ms = moment_sensitivity(part, cf, s)
     print(f"\nmoment sensitivity (linear, preload {s.bolt_preload_N:g} N: k_n "
           f"{ms['k_n_N_per_mm']:.0f} N/mm Hertz + sensor, Mindlin k_t {ms['k_t_N_per_mm']:.0f} "

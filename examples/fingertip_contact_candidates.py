@@ -25,7 +25,8 @@ from designlab.calibration.calibration_matrix import condition_number, fit_calib
 from designlab.geometry.fingertip import TABLE_II_HEIGHTS, CantileverFingertip
 from designlab.sensors.fingertip.model import (FSS015_V_PER_N, FingertipModelSettings, mesh_fingertip)
 from designlab.sensors.fingertip.model import ContactSettings
-from designlab.sensors.fingertip.contact import (bolt_head_joint, condense_fingertip, run_contact_test)
+from designlab.sensors.fingertip.contact import condense_fingertip, run_contact_test
+from designlab.sensors.fingertip.joint import bolt_head_joint
 from designlab.sensors.fingertip.paper import (paper_design, table_ii_dome)
 from designlab.sensors.protocols import HangingWeightTest
 

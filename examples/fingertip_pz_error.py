@@ -21,7 +21,8 @@ import numpy as np
 from designlab.calibration.calibration_matrix import fit_calibration_matrix
 from designlab.geometry.fingertip import CantileverFingertip
 from designlab.sensors.fingertip.model import FingertipModelSettings, mesh_fingertip
-from designlab.sensors.fingertip.contact import (FIG9_DEFINITIONS, condense_fingertip, run_contact_test)
+from designlab.sensors.fingertip.contact import condense_fingertip, run_contact_test
+from designlab.sensors.fingertip.paper_readings import FIG9_DEFINITIONS
 from designlab.sensors.fingertip.paper import paper_design
 from designlab.sensors.fingertip.model import ContactSettings
 from designlab.sensors.protocols import HangingWeightTest

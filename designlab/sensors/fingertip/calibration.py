@@ -285,16 +285,12 @@ def load_sets(part, protocol: HangingWeightTest, rotations_deg) -> tuple[np.ndar
 
 def _load_sets(part, protocol, rotations_deg):
     from designlab.sensors.fingertip.model import check_locations, wrench_at_ball
+    from designlab.sensors.fingertip.runs import location_rotations
 
     check_locations(part, protocol)
-    W, D = [], []
-    points = {rot: part.load_points(rot) for rot in rotations_deg}   # once per rotation
-    for name in (*protocol.g1_locations, *protocol.g2_locations):
-        for rot in rotations_deg:
-            p, d = points[rot][name]
-            W.append(wrench_at_ball(p, d))
-            D.append(np.asarray(d, float))
-    return np.array(W), np.array(D)
+    sets = list(location_rotations(part, protocol, rotations_deg))
+    return (np.array([wrench_at_ball(p, d) for *_, p, d in sets]),
+            np.array([np.asarray(d, float) for *_, d in sets]))
 
 
 def _read(S_true: np.ndarray, build: FingertipBuild, rng_: np.random.Generator,

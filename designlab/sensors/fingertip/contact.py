@@ -1,52 +1,19 @@
 """Seed 001 fingertip with contact mechanics at the ball: friction, Hertz, preload -> hysteresis.
 
-The linear virtual test (:mod:`designlab.sensors.fingertip.virtual`) models the three FSS015 sensors as
-bilateral springs and predicts hysteresis from the ABS relaxation stand-in alone (0.002-0.004 %,
-the paper measures 0.98-2.19 %). The paper attributes its hysteresis to friction at the plated
-ball/sensor-ball contacts (Sec. III: "the induced friction could still cause the reading of a
-compressed FSS sensor ... to increase"). This module adds that physics:
-
-* **Condensed linear structure.** The printed base and cap, the M2.5 bolt (Timoshenko beam) and
-  the robot support of :func:`designlab.sensors.fingertip.model.build_model` stay linear and are
-  condensed (:func:`designlab.fem.contact.condense`) to 24 master dofs: the ball (6) and the
-  three well floors (6 each, their distributing couplings). The linear model's sensor springs
-  (between the ball contact point and the well) are subtracted exactly from the condensed
-  stiffness, so the same FEM serves the linear and the contact model.
-* **Contacts** (:mod:`designlab.fem.contact`): at each ball/sensor-button contact, a unilateral
-  normal law (Hertz sphere-on-sphere, ball 9.4 mm on the FSS015 button, in series with the
-  sensor's 500 N/mm), Mindlin's tangential law with partial slip (the Hertz circle's rim slips
-  before the contact slides: Cattaneo-Mindlin, Masing unloading, as 24 Iwan elements) and
-  Coulomb sliding at mu N, the state carried through the whole history. The sensor reads the
-  normal force (its axis passes through both sphere centres). The sensor body is taken as
-  rigid laterally (it sits in its well; the tangential force goes to the well floor through it).
-* **Bolt preload** as an assembly step: the bolt is tightened (an initial shortening, i.e. an
-  equal and opposite force pair on the ball and under the bolt head) until the bolt tension
-  ``bolt_preload_N`` is reached, with friction active; then the tray and weights follow.
-* **ABS relaxation kept** (default, ``structure_moduli="relaxing"``): the ABS Prony stand-in
-  (4 %, tau 2 s) relaxes in the contact solve (:func:`relaxing_problem`: the protocol in time,
-  hold by hold, ~2.6x the time of a quasi-static solve); ``"long_time"`` takes the relaxed
-  moduli throughout. The paper reads each weight from 7 to 10 s
-  after it is hung, when that term has decayed to e^-3.5 = 3 % of its 4 %; without friction
-  (the linear test) its whole hysteresis is 0.002-0.004 %, but with friction the structure
-  creeping under a held weight moves the contacts and adds partial slip
-  (docs/fingertip_contact.md: +0.3 points at h9). Friction is rate independent, so the path
-  of a weight change is a straight load ramp in ``increments_per_step`` instantaneous
-  increments.
-* **Readout as the paper's**: axial force minus the tare after tightening, x 0.06 V/N (Table I),
-  plus the FSS015 repeatability (+-0.2 % of 15 N between two readings: sigma 0.0707 % FS a
-  reading, :func:`repeatability_sigma_V`), an optional zero drift and the DAQ
-  quantisation (NI PCI-6229, 16 bit); eq. (1) per location in the paper's definition (all three
-  sensors) and in the robust one of the linear test (sensors whose span is >= 10 % of the
-  largest), with and without the readout errors.
-
-Entry point: :func:`run_contact_test` (``condense_fingertip`` once per mesh, then < 2 s per
-protocol). Units mm, N, MPa, s; readings V.
+The linear structure (base, cap, bolt, support of
+:func:`designlab.sensors.fingertip.model.build_model`) is condensed to the ball and the three
+well floors (:func:`condense_fingertip`, :class:`CondensedFingertip`); at each ball/sensor-button
+contact a unilateral Hertz law in series with the FSS015, Mindlin's partial slip and Coulomb
+sliding (:mod:`designlab.fem.contact`); the bolt is tightened to its preload, then every location
+and rotation of the hanging-weight test runs through its loading/unloading sequence with the ABS
+relaxation in time (:func:`run_contact_test`), read out as the paper's (FSS015 x 0.06 V/N,
+repeatability, DAQ). The model and its numbers: docs/notes/fingertip_contact_investigation.md.
+Units mm, N, MPa, s; readings V.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 import threading
 import time
 import warnings
@@ -66,14 +33,11 @@ from designlab.sensors.fingertip.model import (
     BALL_E_MPA, BALL_NU, BUTTON_E_MPA, BUTTON_NU, FSS015_STIFFNESS_N_PER_MM,
     FSS015_V_PER_N, WRENCH, ContactSettings, FingertipModelSettings, build_model,
     check_locations, mesh_fingertip, wrench_at_ball)
-from designlab.sensors.protocols import HangingWeightTest
+from designlab.sensors.fingertip.paper_readings import (branch_linearity, compare_with_paper,
+                                                       fig9_errors, surface_normal)
 from designlab.sensors.fingertip.readout import (_eq1, readings_noise, readout_draws, run_rng)
-
-#: seed 001 numbers the contact model is compared with (../shared/data/papers/fingertip_xu2014.json)
-PAPER = {"lowest_mean_G1_pct": 0.98, "lowest_mean_G2_pct": 2.19,
-         "compressed_change_h9_to_h1_pct": 33.9, "compressed_change_r1_to_r5_pct": 9.6,
-         "trend_G1": "decreases exponentially as the load moves toward the base (h1 -> h9)",
-         "fig9": "radial P_x, P_y estimated well, axial P_z poorly", "condition_number": 34.92}
+from designlab.sensors.fingertip.runs import location_rotations
+from designlab.sensors.protocols import HangingWeightTest
 
 
 # ------------------------------------------------------------------------------ condensation
@@ -625,7 +589,7 @@ def _calibrate(part, points, runs, dirs, P_max, S_read, S_true, loads, seq, kmax
             rel_err = {ax: float(np.sqrt((E_all[:, i] ** 2).mean())
                                  / np.sqrt((P_all[:, i] ** 2).mean())) for i, ax in enumerate("xyz")}
         sens = np.linalg.pinv(A)
-        normals = np.array([surface_normal(part, points[r[2]][r[1]][0]) for r in runs])
+        normals = np.array([surface_normal(part, p) for p in points])
         fig9 = fig9_errors(S_read, S_true, dirs, normals, loads, seq)
     else:                         # a protocol too small to calibrate (fewer than 3 directions)
         A = A2 = np.full((3, 3), np.nan)
@@ -665,17 +629,12 @@ def _check_peak(N_all: np.ndarray, N_pre: np.ndarray, protocol, settings) -> flo
 
 def _location_runs(part, protocol: HangingWeightTest, rotations_deg):
     """Every (location, rotation) of the protocol: ``(rotations, runs, load points)`` with each
-    run ``(group, name, rotation, direction, wrench per N of hanging load)``."""
+    run ``(group, name, rotation, direction, wrench per N of hanging load)`` and its point."""
     rots = (list(rotations_deg) if rotations_deg is not None
             else [360.0 * i / protocol.rotations for i in range(protocol.rotations)])
-    runs = []                                   # (group, name, rot, point dir)
-    points = {rot: part.load_points(rot) for rot in rots}        # once per rotation
-    for group, names in (("G1", protocol.g1_locations), ("G2", protocol.g2_locations)):
-        for name in names:
-            for rot in rots:
-                p, d = points[rot][name]
-                runs.append((group, name, rot, d, wrench_at_ball(p, d)))
-    return rots, runs, points
+    sets = list(location_rotations(part, protocol, rots))
+    runs = [(group, name, rot, d, wrench_at_ball(p, d)) for group, name, rot, p, d in sets]
+    return rots, runs, [p for *_, p, _d in sets]
 
 
 def _hysteresis_entries(seq, runs, variants, protocol) -> dict[str, Any]:
@@ -815,7 +774,7 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
                                     for i, ax in enumerate("xyz")},
                         "matrix_V_per_N": sens.tolist()},
         "cross_talk_percent": cross_talk_percent(P_max, P_est).tolist() if calibrated else None,
-        "linearity_percent_span": _linearity(seq, S_true, runs, rots[0]),
+        "linearity_percent_span": branch_linearity(seq, S_true, runs, rots[0]),
         "loops": loops,
         "response_at_max_V": response,
         "peak_sensor_force_N": peak,
@@ -836,423 +795,3 @@ def run_contact_test(part, protocol: HangingWeightTest | None = None,
     timings["metrics"] = time.perf_counter() - t0
     report["timings_s"] = timings
     return report
-
-
-# ------------------------------------------------------- Fig. 9: applied vs estimated, per axis
-
-#: the calibration targets of Fig. 9's applied-vs-estimated comparison (docs/fingertip_contact.md,
-#: "Third investigation: the P_z error"); the errors of each are in ``fig9_errors``
-FIG9_DEFINITIONS = {
-    "paper_eq3_normal_component": (
-        "the paper's (Sec. IV, eq. 3; Fig. 9 plots 'applied and measured normal forces'): the "
-        "target of each load set is the applied force's component along the fingertip's "
-        "surface normal at the load point (frictionless hard finger), split into P_x, P_y, P_z"),
-    "full_force": (
-        "the full applied force (the hanging weight along its string) as the target: the "
-        "sensors see the full force, the eq. 3 projection is left out"),
-}
-#: how each definition's error is measured (the same for both)
-FIG9_ERROR = (
-    "A fitted by least squares (P ~ S A^T, eq. 7) on every weight, loading and unloading, of "
-    "every location and rotation (each weight's reading minus the empty tray's), and tested on "
-    "the same sets (Fig. 9 shows the calibration's own load sets); relative error per axis = "
-    "RMS(estimated - applied) / RMS(applied) over all sets. A least-squares fit tested on its "
-    "own sets has a relative error <= 1 on every axis (A = 0 gives 1), so P_z / max(P_x, P_y) "
-    "can be at most 1 / max(relative error x, y): 'ceiling'")
-
-
-def surface_normal(part, p) -> np.ndarray:
-    """Outward unit normal of the fingertip's outer surface at the surface point ``p``: radial
-    on the cylindrical side (z <= h), the edge round's normal above it, +z on a flat top."""
-    p = np.asarray(p, float)
-    rho = math.hypot(p[0], p[1])
-    e = np.array([p[0] / rho, p[1] / rho, 0.0]) if rho > 1e-9 else np.zeros(3)
-    if p[2] <= part.h + 1e-9:
-        return e
-    c = part.outer_radius - (part.r + part.skin_thickness)      # the round's centre radius
-    if rho <= c + 1e-9:
-        return np.array([0.0, 0.0, 1.0])
-    n = (rho - c) * e + np.array([0.0, 0.0, p[2] - part.h])
-    return n / np.linalg.norm(n)
-
-
-def paper_eq9_k_ratio() -> dict[str, Any]:
-    """Seed 001 eq. 9's A_opt read as Matlab's ``S \\ P`` (rows the sensors r, g, b; columns
-    P_x, P_y, P_z: the only reading with eq. 8's sign pattern), divided by eq. 8's geometry:
-    the per-sensor coefficient k each axis's row implies, and mean |k| of the P_z row over
-    mean |k| of the P_x, P_y rows (1 for a bolt-free ball read without noise)."""
-    import json
-    from importlib import resources
-
-    doc = json.loads((resources.files("designlab") / "data" / "papers"
-                      / "fingertip_xu2014.json").read_text("utf-8"))
-    A = np.asarray(doc["calibration"]["A_opt_eq_9"], float).T           # rows P_x, P_y, P_z
-    G = np.asarray(doc["geometry_matrix_eq_8_unit_k"], float)
-    k = _implied_k(A, G)
-    return {"implied_k_per_axis": k, "k_z_over_xy": k["z"] / (0.5 * (k["x"] + k["y"])),
-            "reading": "A_opt of eq. 9 transposed (Matlab S\\P): rows P_x, P_y, P_z"}
-
-
-def _implied_k(A: np.ndarray, G: np.ndarray) -> dict[str, float]:
-    """Mean |A_ij / G_ij| over the entries where eq. 8's geometry is not ~0, per row (axis)."""
-    on = np.abs(G) > 0.1
-    return {ax: float(np.mean(np.abs(A[i, on[i]] / G[i, on[i]]))) for i, ax in enumerate("xyz")}
-
-
-def fig9_errors(S_read: np.ndarray, S_true: np.ndarray, dirs: np.ndarray, normals: np.ndarray,
-                loads: np.ndarray, seq: np.ndarray) -> dict[str, Any]:
-    """Fig. 9's applied-vs-estimated errors per axis in each of :data:`FIG9_DEFINITIONS`, with
-    and without the readout errors. ``S_read``, ``S_true`` (B, steps, 3) V; ``dirs`` (B, 3) the
-    loads' unit directions; ``normals`` (B, 3) the surface normals at the load points. Per
-    definition: relative error per axis (with readout and noise free), the absolute RMS error
-    (N) split into the model term (noise-free readings through the fitted A) and the readout
-    term (the readout errors through it), the least-squares gain (estimated / applied, the
-    regression slope through 0; < 1: the estimate shrinks toward 0), P_z / max(P_x, P_y), the
-    ceiling (see :data:`FIG9_ERROR`), an ideal sensor's errors (readings = the full applied
-    force, noise free), the rotation (azimuth) error of the in-plane estimate, and the per-sensor
-    coefficients k the fitted A implies (as :func:`paper_eq9_k_ratio`, beside the paper's)."""
-    ks = [j for j in range(len(seq)) if seq[j] > 0]
-    kmax = int(np.argmax(seq))
-    dP = np.array([loads[j] - loads[0] for j in ks])
-    S_r = np.concatenate([S_read[:, j] - S_read[:, 0] for j in ks])
-    S_t = np.concatenate([S_true[:, j] - S_true[:, 0] for j in ks])
-    heavy = np.concatenate([np.full(len(dirs), j == kmax) for j in ks])
-    F = np.concatenate([dirs * d for d in dP])                 # the applied forces (N)
-    targets = {"paper_eq3_normal_component": np.einsum("bi,bi->b", dirs, normals)[:, None]
-               * normals, "full_force": dirs}
-    G = geometric_matrix()
-    paper = paper_eq9_k_ratio()
-
-    def rel(E, P):          # as relative_error_per_axis_all_weights; nan: an axis never loaded
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return {ax: float(np.sqrt((E[:, i] ** 2).mean()) / np.sqrt((P[:, i] ** 2).mean()))
-                    for i, ax in enumerate("xyz")}
-
-    def ratio(e):
-        return e["z"] / max(e["x"], e["y"])
-
-    out: dict[str, Any] = {"definitions": FIG9_DEFINITIONS, "error": FIG9_ERROR,
-                           "paper_eq9": paper}
-    for name, T in targets.items():
-        P = np.concatenate([T * d for d in dP])
-        A, _ = fit_calibration_matrix(S_r, P)
-        A0, _ = fit_calibration_matrix(S_t, P)
-        E = S_r @ A.T - P
-        E0 = S_t @ A0.T - P
-        model = S_t @ A.T - P
-        readout = (S_r - S_t) @ A.T
-        Pe = S_r @ A.T
-        e, e0 = rel(E, P), rel(E0, P)
-        Ai, _ = fit_calibration_matrix(F, P)
-        ideal = rel(F @ Ai.T - P, P)
-        # the rotation of the external force in the x-y plane (Sec. IV): the sets whose applied
-        # force has an in-plane part (the lateral, G1 loads)
-        on = np.hypot(F[:, 0], F[:, 1]) > 1e-9 * np.abs(F).max()
-        daz = np.degrees(np.angle(np.exp(1j * (np.arctan2(Pe[:, 1], Pe[:, 0])
-                                               - np.arctan2(P[:, 1], P[:, 0])))))
-        k = _implied_k(A, G)
-        out[name] = {
-            "relative_error_per_axis": e, "relative_error_per_axis_noise_free": e0,
-            "Pz_over_xy": ratio(e), "Pz_over_xy_noise_free": ratio(e0),
-            "ceiling": 1.0 / max(e["x"], e["y"]),
-            "absolute_rms_error_N": {ax: float(np.sqrt((E[:, i] ** 2).mean()))
-                                     for i, ax in enumerate("xyz")},
-            "model_term_rms_N": {ax: float(np.sqrt((model[:, i] ** 2).mean()))
-                                 for i, ax in enumerate("xyz")},
-            "readout_term_rms_N": {ax: float(np.sqrt((readout[:, i] ** 2).mean()))
-                                   for i, ax in enumerate("xyz")},
-            "rms_applied_N": {ax: float(np.sqrt((P[:, i] ** 2).mean()))
-                              for i, ax in enumerate("xyz")},
-            "least_squares_gain": {ax: float(Pe[:, i] @ P[:, i] / (P[:, i] @ P[:, i]))
-                                   if np.any(P[:, i]) else float("nan")
-                                   for i, ax in enumerate("xyz")},
-            "ideal_sensor_relative_error_per_axis": ideal,
-            "xy_rotation_error_rms_deg": float(np.sqrt((daz[on] ** 2).mean())),
-            "xy_rotation_error_rms_deg_heaviest_weight": float(
-                np.sqrt((daz[on & heavy] ** 2).mean())),
-            "implied_k_N_per_V": k, "k_z_over_xy": k["z"] / (0.5 * (k["x"] + k["y"])),
-            "calibration_matrix": A.tolist()}
-    return out
-
-
-def _linearity(seq, S_true, runs, rot0) -> float:
-    """Largest linearity error (% of span) of a sensor's noise-free loading branch over the
-    first rotation's runs (as :func:`designlab.sensors.fingertip.virtual.evaluate`)."""
-    from designlab.calibration.calibration_matrix import linearity_percent
-
-    kmax = int(np.argmax(seq))
-    lin = []
-    for b, r in enumerate(runs):
-        if r[2] != rot0:
-            continue
-        S = S_true[b, : kmax + 1]
-        span = np.abs(S[-1] - S[0])
-        for ch in range(3):
-            if span[ch] > 1e-3 * span.max():
-                lin.append(linearity_percent(seq[: kmax + 1], S[:, ch]))
-    return float(max(lin)) if lin else float("nan")
-
-
-#: readings of Sec. III's compressed-sensor change ("... increase from 2.46 to 2.56 mV under the
-#: same maximum loading force, accounting for a 33.9 % of the total increasing force from 0 to
-#: 2.27 N ... from moving the test location from h9 to h1"); the text does not say relative to
-#: what, so each is reported, named (docs/fingertip_contact.md, "Second investigation")
-CHANGE_DEFINITIONS = {
-    "relative_to_first_span": "change of the compressed sensor's span (reading at the heaviest "
-                              "weight minus at the empty tray) from the first location to the "
-                              "last, relative to its span at the first (h9, r1)",
-    "relative_to_last_span": "the same change relative to its span at the last location (h1, r5)",
-    "percent_of_applied_force": "the same change, in N of sensor force, as a percentage of the "
-                                "applied force change from the empty tray to the heaviest weight "
-                                "(2.28 N): the sentence's 'of the total increasing force from 0 "
-                                "to 2.27 N'",
-}
-
-
-def _compressed_changes(runs, S, kmax, first, last, applied_N) -> dict[str, float | None]:
-    """Mean over rotations of the change (%) of the most compressed sensor's reading change at
-    the heaviest weight from location ``first`` to ``last`` (the sensor most compressed at
-    ``last``, where the moment arm is largest: h1 in G1, r5 in G2), in each of
-    :data:`CHANGE_DEFINITIONS`. ``S`` tared noise-free readings (V), ``applied_N`` the applied
-    force change from the empty tray to the heaviest weight."""
-    by = {}
-    for b, (g, name, rot, *_) in enumerate(runs):
-        by[(name, rot)] = S[b, kmax] - S[b, 0]
-    out = {k: [] for k in CHANGE_DEFINITIONS}
-    for (name, rot), s in by.items():
-        if name != first or (last, rot) not in by:
-            continue
-        t = by[(last, rot)]
-        k = int(np.argmax(t))
-        out["relative_to_first_span"].append(100.0 * (t[k] - s[k]) / s[k])
-        out["relative_to_last_span"].append(100.0 * (t[k] - s[k]) / t[k])
-        out["percent_of_applied_force"].append(100.0 * (t[k] - s[k]) / FSS015_V_PER_N
-                                               / applied_N)
-    return {k: (float(np.mean(v)) if v else None) for k, v in out.items()}
-
-
-def compare_with_paper(report, runs, seq, S_true, protocol) -> dict[str, Any]:
-    """Fig. 6 trend and lowest means, the compressed-sensor changes of Sec. III, Fig. 9's
-    per-axis errors; each with a plain statement whether it matches."""
-    kmax = int(np.argmax(seq))
-    g1 = list(protocol.g1_locations)
-    g2 = list(protocol.g2_locations)
-    out: dict[str, Any] = {"paper": PAPER}
-    for key, label in (("robust_eq1_span10", "robust"), ("paper_eq1_all_sensors", "paper_def"),
-                       ("robust_eq1_span10_noise_free", "robust_noise_free"),
-                       ("paper_eq1_all_sensors_noise_free", "paper_def_noise_free")):
-        h = report["hysteresis_definitions"][key]["by_location"]
-        gs = report["hysteresis_definitions"][key]["by_group"]
-        d = {"G1_by_location": [h[n] for n in g1], "G2_by_location": [h[n] for n in g2]}
-        if len(g1) >= 2:
-            v = np.array(d["G1_by_location"])
-            d["G1_monotonic_decrease_h1_to_h9"] = bool(np.all(np.diff(v) < 0))
-            d["G1_ratio_first_to_last"] = float(v[0] / v[-1]) if v[-1] > 0 else float("inf")
-        if "G1" in gs:
-            d["G1_lowest"] = gs["G1"]["lowest"]
-            d["G1_lowest_over_paper"] = gs["G1"]["lowest"] / PAPER["lowest_mean_G1_pct"]
-        if "G2" in gs:
-            d["G2_lowest"] = gs["G2"]["lowest"]
-            d["G2_lowest_over_paper"] = gs["G2"]["lowest"] / PAPER["lowest_mean_G2_pct"]
-        out[label] = d
-    applied = float(protocol.loads_N[kmax] - protocol.loads_N[0])
-    for grp, names, (first, last) in (("G1", g1, (-1, 0)), ("G2", g2, (0, -1))):
-        if names:
-            d = _compressed_changes(runs, S_true, kmax, names[first], names[last], applied)
-            out[f"compressed_change_{grp}_definitions"] = d
-            out[f"compressed_change_{grp}_pct"] = d["relative_to_first_span"]
-    out["relative_error_per_axis"] = report["relative_error_per_axis_all_weights"]
-    e = out["relative_error_per_axis"]
-    out["Pz_error_over_xy"] = e["z"] / max(e["x"], e["y"])
-    out["condition_number_predicted"] = report["condition_number"]
-    return out
-
-
-def moment_sensitivity(part, cf: CondensedFingertip, settings: ContactSettings | None = None,
-                       bolt_minor_diameter: float = 2.0) -> dict[str, Any]:
-    """How much a load's moment about the ball reaches the sensors, linearised at the preload:
-    the most loaded sensor's force per N of lateral force f_x (``per_N``) and per N mm of
-    moment m_y (``per_Nmm``), their ratio ``rho`` per mm of arm (> 0: a lateral load's moment
-    adds to its force), for the condensed FEM and for an independent hand estimate (rigid ball;
-    three springs k_n along the sensor axes, whose lines pass through the ball centre; the bolt
-    an Euler-Bernoulli steel beam clamped under its head and fixed in the ball), frictionless
-    and with every contact stuck (Mindlin k_t; sensors rigid sideways). ``change_h9_to_h1_pct``
-    is the compressed-sensor change the ratio alone gives on the Table II arms. Also: the
-    rotational restraint of the ball (about x and y, no sideways coupling, frictionless FEM) that
-    would give the paper's 33.9 %, and the axial path (share of P_z through the sensors)."""
-    from designlab.fem.beam import beam_stiffness, circular_section
-    from designlab.fem.materials import get_material
-    from designlab.fem.model import skew
-    from designlab.geometry.fingertip import TABLE_II_HEIGHTS
-
-    settings = settings or ContactSettings()
-    steel = get_material("steel")
-    law = contact_laws(part, settings, cf.k_sensor)[0]
-    N0 = settings.bolt_preload_N / (3 * float(cf.axes[0, 2]))
-    kn = float(law.normal(law.approach(N0))[1])
-    kt = float(law.kt(np.array(N0))[0])
-    axes = cf.axes
-    zh, a = part.cap_z[0], part.ball_radius
-    Kb = beam_stiffness(np.array([0, 0, zh]), np.array([0, 0, -a]), steel.E, steel.G,
-                        **circular_section(bolt_minor_diameter))[6:, 6:]
-    T = np.block([[np.eye(3), -skew(np.array([0, 0, -a]))], [np.zeros((3, 3)), np.eye(3)]])
-    K_hand = T.T @ Kb @ T                               # the bolt's stiffness at the ball centre
-    h1, h9 = TABLE_II_HEIGHTS[0], TABLE_II_HEIGHTS[-1]
-
-    def summary(R):
-        k = int(np.argmax(np.abs(R[0])))
-        rho = float(R[1][k] / R[0][k])
-        return {"per_N": float(abs(R[0][k])), "per_Nmm": float(abs(R[1][k])), "rho_per_mm": rho,
-                "change_h9_to_h1_pct": 100.0 * ((1 + rho * h1) / (1 + rho * h9) - 1)}
-
-    def fem(stuck: bool, k_rot: float = 0.0):
-        K = np.linalg.inv(cf.C)
-        K[3, 3] += k_rot
-        K[4, 4] += k_rot
-        for k in range(3):
-            K += kn * np.outer(cf.L[k, 0], cf.L[k, 0])
-            if stuck:
-                K += kt * (np.outer(cf.L[k, 1], cf.L[k, 1]) + np.outer(cf.L[k, 2], cf.L[k, 2]))
-        U = np.linalg.solve(K, cf.f_wrench.T)
-        return np.array([[-kn * cf.L[k, 0] @ U[:, c] for k in range(3)] for c in (0, 4)])
-
-    out: dict[str, Any] = {"k_n_N_per_mm": kn, "k_t_N_per_mm": kt}
-    for label, stuck in (("frictionless", False), ("stuck", True)):
-        K = K_hand.copy()
-        for k, n in enumerate(axes):
-            tang = [(t, kt) for t in np.linalg.svd(n[None])[2][1:]] if stuck else []
-            for d, kk in [(n, kn), *tang]:
-                row = np.r_[d, np.cross(cf.contacts[k], d)]
-                K += kk * np.outer(row, row)
-        U = np.linalg.solve(K, np.eye(6))
-        hand = np.array([[-kn * axes[k] @ U[:3, c] for k in range(3)] for c in (0, 4)])
-        out[label] = {"hand": summary(hand), "fem": summary(fem(stuck))}
-    # rho that gives the paper's change: (1 + rho h1) = (1 + c) (1 + rho h9)
-    c = PAPER["compressed_change_h9_to_h1_pct"] / 100.0
-    rho_paper = c / (h1 - (1 + c) * h9)
-    lo, hi = 0.0, 1e9
-    if summary(fem(False))["rho_per_mm"] <= rho_paper:
-        hi = 0.0                                        # no restraint needed
-    else:
-        for _ in range(200):
-            mid = np.sqrt(max(lo, 1.0) * hi)
-            lo, hi = (mid, hi) if summary(fem(False, mid))["rho_per_mm"] > rho_paper else (lo, mid)
-    bolt_rot = 1.0 / np.linalg.inv(K_hand)[4, 4]
-    out["paper_rho_per_mm"] = rho_paper
-    out["rotational_restraint_for_paper_N_mm_per_rad"] = float(hi)
-    out["bolt_rotational_stiffness_at_ball_centre_N_mm_per_rad"] = float(bolt_rot)
-    out["axial_share_through_sensors"] = float(abs(axes[:, 2] @ (-cf.linear_unit[2])))
-    out["bolt_and_cap_axial_stiffness_N_per_mm"] = float(1.0 / cf.C[2, 2])
-    out["bolt_alone_axial_stiffness_N_per_mm"] = float(K_hand[2, 2])
-    out["sensors_vertical_stiffness_N_per_mm"] = float(kn * np.sum(axes[:, 2] ** 2))
-    out["gap_closure"] = gap_closure(part, cf, kn, kt)
-    return out
-
-
-def gap_closure(part, cf: CondensedFingertip, kn: float, kt: float) -> dict[str, Any]:
-    """Does the fingertip touch the base across its ``gap`` under the heaviest Table II weight
-    at h1 (a candidate for the rotational restraint the paper's 33.9 % needs)? The fingertip is
-    rigid on the ball: the rim of its underside (radius ``outer_radius``, at the gap's top)
-    moves by the ball's translation plus rotation, linearised at the preload (frictionless and
-    every contact stuck). ``closure_mm`` is the rim's largest downward motion plus the largest
-    well-floor motion (a bound for the base's own deflection); the gap closes when it reaches
-    ``gap_mm``. Units mm, N."""
-    from designlab.geometry.fingertip import TABLE_II_HEIGHTS
-    from designlab.sensors.protocols import G_ACC
-
-    test = HangingWeightTest()
-    F = (max(test.weights_g) + test.tray_g) * 1e-3 * G_ACC
-    w = wrench_at_ball(np.array([0.0, 0.0, TABLE_II_HEIGHTS[0]]), np.array([F, 0.0, 0.0]))
-    R = part.outer_radius
-    out: dict[str, Any] = {"load_N": F, "arm_mm": TABLE_II_HEIGHTS[0], "rim_radius_mm": R,
-                           "gap_mm": part.gap}
-    for label, stuck in (("frictionless", False), ("stuck", True)):
-        K = np.linalg.inv(cf.C)
-        for k in range(3):
-            K += kn * np.outer(cf.L[k, 0], cf.L[k, 0])
-            if stuck:
-                K += kt * (np.outer(cf.L[k, 1], cf.L[k, 1]) + np.outer(cf.L[k, 2], cf.L[k, 2]))
-        u = np.linalg.solve(K, cf.f_wrench.T @ w)
-        rim = R * float(np.hypot(u[3], u[4])) - float(u[2])   # largest downward rim motion
-        wells = float(np.max(np.linalg.norm(u[6:].reshape(3, 6)[:, :3], axis=1)))
-        out[label] = {"ball_rotation_rad": float(np.hypot(u[3], u[4])),
-                      "rim_down_mm": rim, "closure_mm": rim + wells,
-                      "fraction_of_gap": (rim + wells) / part.gap}
-    out["closes"] = any(out[k]["closure_mm"] >= part.gap for k in ("frictionless", "stuck"))
-    return out
-
-
-def bolt_head_joint(part, settings: ContactSettings | None = None,
-                    k_sensor: float = FSS015_STIFFNESS_N_PER_MM,
-                    bolt_minor_diameter: float = 2.0) -> dict[str, Any]:
-    """The bolt head's seat under the cap as a candidate for the paper's small moment
-    sensitivity. Hand estimate of :func:`moment_sensitivity` (rigid ball, three frictionless
-    springs through its centre, the bolt an Euler-Bernoulli steel beam from its head to the
-    ball), with the head held three ways: ``bonded`` (fixed, as the FEM couples it to the cap),
-    ``pinned`` (held sideways, free to tilt: the head tipped off its seat) and ``sliding`` (free
-    sideways, held in tilt: the head slipping on the cap). Each: compressed sensor per N of
-    lateral force and per N mm of moment, ``rho``, and the change h9 -> h1 it gives
-    (``relative_to_first_span``, and ``percent_of_applied_force``: per N mm x (h1 - h9)).
-    ``demand``: with the head bonded, the shear and moment the head carries under the heaviest
-    Table II weight at h1 and at h9, the friction coefficient the head needs to stay put (shear /
-    bolt preload) and the moment at which its preloaded annulus (head diameter on the bolt
-    hole) starts to lift on one side, ``T (a^2 + b^2) / (4 a)`` (linear pressure, rigid head).
-    Units N, mm."""
-    from designlab.fem.beam import beam_stiffness, circular_section
-    from designlab.fem.materials import get_material
-    from designlab.fem.model import skew
-    from designlab.geometry.fingertip import TABLE_II_HEIGHTS
-    from designlab.sensors.protocols import G_ACC
-
-    settings = settings or ContactSettings()
-    steel = get_material("steel")
-    law = contact_laws(part, settings, k_sensor)[0]
-    axes, contacts = part.sensor_axes()
-    N0 = settings.bolt_preload_N / (3 * float(axes[0, 2]))
-    kn = float(law.normal(law.approach(N0))[1])
-    zh, a = part.cap_z[0], part.ball_radius
-    Kb = beam_stiffness(np.array([0, 0, zh]), np.array([0, 0, -a]), steel.E, steel.G,
-                        **circular_section(bolt_minor_diameter))
-    T = np.block([[np.eye(3), -skew(np.array([0, 0, -a]))], [np.zeros((3, 3)), np.eye(3)]])
-    K_s = np.zeros((6, 6))
-    for n in axes:
-        K_s += kn * np.outer(np.r_[n, 0, 0, 0], np.r_[n, 0, 0, 0])
-    h1, h9 = TABLE_II_HEIGHTS[0], TABLE_II_HEIGHTS[-1]
-    big = 1e3 * float(np.abs(Kb).max())
-    out: dict[str, Any] = {"k_n_N_per_mm": kn}
-    for label, (k_side, k_tilt) in (("bonded", (big, big)), ("pinned", (big, 0.0)),
-                                    ("sliding", (0.0, big))):
-        K = Kb.copy()
-        K[np.arange(6), np.arange(6)] += [k_side, k_side, big, k_tilt, k_tilt, big]
-        Kc = K[6:, 6:] - K[6:, :6] @ np.linalg.solve(K[:6, :6], K[:6, 6:])
-        U = np.linalg.solve(T.T @ Kc @ T + K_s, np.eye(6))
-        R = np.array([[-kn * axes[k] @ U[:3, c] for k in range(3)] for c in (0, 4)])
-        k = int(np.argmax(np.abs(R[0])))
-        rho = float(R[1][k] / R[0][k])
-        out[label] = {"per_N": float(abs(R[0][k])), "per_Nmm": float(abs(R[1][k])),
-                      "rho_per_mm": rho,
-                      "relative_to_first_span_pct": 100.0 * ((1 + rho * h1) / (1 + rho * h9) - 1),
-                      "percent_of_applied_force": 100.0 * float(abs(R[1][k])) * (h1 - h9)}
-    test = HangingWeightTest()
-    F = (max(test.weights_g) + test.tray_g) * 1e-3 * G_ACC
-    Kc = Kb[6:, 6:]
-    U = np.linalg.solve(T.T @ Kc @ T + K_s, np.eye(6))
-    tension = settings.bolt_preload_N
-    ah, bh = part.head_diameter / 2, part.bolt_diameter / 2
-    m_lift = tension * (ah ** 2 + bh ** 2) / (4 * ah)
-    demand = {}
-    for name, arm in (("h1", h1), ("h9", h9)):
-        w = wrench_at_ball(np.array([0.0, 0.0, arm]), np.array([F, 0.0, 0.0]))
-        u_entry = T @ (U @ w)
-        f_head = Kb[:6, 6:] @ u_entry                 # the head's end force (head held)
-        shear = float(np.hypot(f_head[0], f_head[1]))
-        moment = float(np.hypot(f_head[3], f_head[4]))
-        demand[name] = {"arm_mm": arm, "load_N": F, "head_shear_N": shear,
-                        "head_moment_N_mm": moment,
-                        "friction_needed_to_stay": shear / tension if tension > 0 else None,
-                        "lifts_on_one_side": bool(moment > m_lift)}
-    out["demand"] = demand
-    out["bolt_preload_N"] = tension
-    out["head_lift_moment_N_mm"] = m_lift
-    return out
-

@@ -11,15 +11,10 @@ from typing import Any
 import numpy as np
 
 from designlab.errors import ParameterError
-from designlab.sensors.fingertip.contact import (
-    CHANGE_DEFINITIONS,
-    FIG9_DEFINITIONS,
-    FIG9_ERROR,
-    PAPER,
-    CondensedFingertip,
-    moment_sensitivity,
-    run_contact_test,
-)
+from designlab.sensors.fingertip.contact import CondensedFingertip, run_contact_test
+from designlab.sensors.fingertip.joint import moment_sensitivity
+from designlab.sensors.fingertip.paper_readings import (CHANGE_DEFINITIONS, FIG9_DEFINITIONS,
+                                                       FIG9_ERROR, PAPER)
 
 # the settings and their sourced defaults live with the fingertip's model settings (which derive
 # from ContactSettings, so that ``--setting friction_coefficient=...`` reaches this model)
@@ -406,7 +401,7 @@ def paper_comparison(part, protocol: HangingWeightTest, settings: ContactSetting
     Fig. 6 G1/G2 hysteresis by location and its lowest means, the compressed-sensor changes
     h9 -> h1 and r1 -> r5 of Sec. III) and Table III (optimised sensor, on this design's
     structure: cond(A) vs 34.92 and Fig. 9's applied-vs-estimated errors per axis). ``table_ii``:
-    the tested sensor and its own condensed structure (``predict`` passes
+    the tested sensor and its own condensed structure (``designlab validate`` passes
     :meth:`CantileverFingertip.table_ii`'s); without it Table II's points run on this design's
     structure (:func:`paper_design`). Each design goal with its value, target and whether it
     is met; ``matches`` and ``does_not_match`` in words. A design that is one of the two (with

@@ -403,7 +403,7 @@ def test_meshed_moment_sensitivity_agrees_with_the_hand_estimate(meshed):
     ball per mm of arm within 25 % of the FEM (whose printed cap lets the bolt root give, so
     its ratio is lower); stuck contacts below the centre raise the ratio in both; the bolt and
     cap carry most of an axial force."""
-    from designlab.sensors.fingertip.contact import moment_sensitivity
+    from designlab.sensors.fingertip.joint import moment_sensitivity
 
     ms = moment_sensitivity(PART, meshed, ContactSettings())
     for label in ("frictionless", "stuck"):

@@ -9,7 +9,10 @@ import pytest
 
 from designlab.geometry.fingertip import TABLE_II_HEIGHTS, CantileverFingertip
 from designlab.sensors.fingertip.model import FSS015_V_PER_N, wrench_at_ball
-from designlab.sensors.fingertip.contact import (CHANGE_DEFINITIONS, PAPER, _compressed_changes, bolt_head_joint, lumped_condensed, moment_sensitivity, run_contact_test)
+from designlab.sensors.fingertip.contact import lumped_condensed, run_contact_test
+from designlab.sensors.fingertip.joint import bolt_head_joint, moment_sensitivity
+from designlab.sensors.fingertip.paper_readings import (CHANGE_DEFINITIONS, PAPER,
+                                                       compressed_changes)
 from designlab.sensors.fingertip.paper import (GOAL_CHANGE_POINTS, paper_comparison, table_ii_dome)
 from designlab.sensors.fingertip.model import ContactSettings
 from designlab.sensors.protocols import HangingWeightTest
@@ -27,14 +30,14 @@ def _runs(spans_first, spans_last, rots=(0.0, 60.0)):
 
 def test_compressed_change_definitions_closed_form():
     runs, S = _runs([0.8, -0.2, 0.1], [2.0, -0.5, 0.3])
-    d = _compressed_changes(runs, S, 1, "h9", "h1", applied_N=2.0)
+    d = compressed_changes(runs, S, 1, "h9", "h1", applied_N=2.0)
     assert set(d) == set(CHANGE_DEFINITIONS)
     assert d["relative_to_first_span"] == pytest.approx(150.0, rel=1e-12)     # 1.2 / 0.8
     assert d["relative_to_last_span"] == pytest.approx(60.0, rel=1e-12)       # 1.2 / 2.0
     assert d["percent_of_applied_force"] == pytest.approx(60.0, rel=1e-12)    # 1.2 N / 2 N
     # the sensor is the one most compressed at the last location, not at the first
     runs, S = _runs([0.9, 0.5, 0.0], [0.4, 1.0, 0.0])
-    d = _compressed_changes(runs, S, 1, "h9", "h1", applied_N=1.0)
+    d = compressed_changes(runs, S, 1, "h9", "h1", applied_N=1.0)
     assert d["relative_to_first_span"] == pytest.approx(100.0, rel=1e-12)     # sensor 2
     assert d["percent_of_applied_force"] == pytest.approx(50.0, rel=1e-12)
 

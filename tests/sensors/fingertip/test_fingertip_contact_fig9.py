@@ -9,7 +9,9 @@ import pytest
 
 from designlab.geometry.fingertip import CantileverFingertip
 from designlab.sensors.fingertip.model import FSS015_V_PER_N
-from designlab.sensors.fingertip.contact import (FIG9_DEFINITIONS, fig9_errors, lumped_condensed, paper_eq9_k_ratio, run_contact_test, surface_normal)
+from designlab.sensors.fingertip.contact import lumped_condensed, run_contact_test
+from designlab.sensors.fingertip.paper_readings import (FIG9_DEFINITIONS, fig9_errors,
+                                                       paper_eq9_k_ratio, surface_normal)
 from designlab.sensors.fingertip.paper import (GOAL_PZ_OVER_XY, paper_comparison)
 from designlab.sensors.fingertip.model import ContactSettings
 from designlab.sensors.protocols import HangingWeightTest
