@@ -60,15 +60,10 @@ class LoadRun:
 def load_runs(part, protocol: HangingWeightTest, rotations_deg) -> list[LoadRun]:
     """Every (load point, rotation) of the protocol on ``part``, G1 then G2."""
     from designlab.sensors.fingertip.model import wrench_at_ball
+    from designlab.sensors.fingertip.runs import location_rotations
 
-    out = []
-    for group, names in (("G1", protocol.g1_locations), ("G2", protocol.g2_locations)):
-        for name in names:
-            for rot in rotations_deg:
-                p, d = part.load_points(rot)[name]
-                out.append(LoadRun(group, name, float(rot), moment_arm(p, d),
-                                   wrench_at_ball(p, d)))
-    return out
+    return [LoadRun(group, name, float(rot), moment_arm(p, d), wrench_at_ball(p, d))
+            for group, name, rot, p, d in location_rotations(part, protocol, rotations_deg)]
 
 
 def linear_readings(unit: np.ndarray, run: LoadRun, load: np.ndarray) -> np.ndarray:
@@ -112,6 +107,91 @@ def _needed_inputs(model) -> set[str]:
     return need
 
 
+def _learned(model_path: str | Path):
+    """The loop's model with outputs sensor_1..3."""
+    from designlab.loop.model import load_model
+
+    learned = load_model(model_path, "--model")
+    missing = [o for o in OUTPUTS if o not in learned.outputs]
+    if missing:
+        raise ParameterError("--model", str(model_path),
+                             f"a fingertip model with outputs {', '.join(OUTPUTS)} (it has "
+                             f"{', '.join(learned.outputs) or 'none'})")
+    return learned
+
+
+def _input_roles(learned, model_path: str | Path) -> dict[str, str]:
+    """The model's input names by role; an error when an effect reads an input the virtual test
+    does not have (other than the hanging weight, moment arm and rotation)."""
+    roles = _roles(learned.inputs)
+    by_name = {v: k for k, v in roles.items()}
+    unknown = sorted(n for n in _needed_inputs(learned) if n not in by_name)
+    if unknown:
+        raise ParameterError("--model", str(model_path),
+                             f"effects on the hanging weight, moment arm and rotation (it uses "
+                             f"input {unknown[0]!r}, which the virtual test does not have)")
+    return roles
+
+
+def _mechanism(f):
+    """The learned effect without the measured sensor's refit of its own base: the mechanism
+    transfers, not the nuisance terms and intercept."""
+    return dataclasses.replace(f, nuisance=(), alpha=(0.0,) * int(bool(f.effect.intercept)))
+
+
+def _card_inputs(learned, roles: dict[str, str], runs: list[LoadRun],
+                 load: np.ndarray) -> dict[str, np.ndarray]:
+    """The runs' inputs under the model's names, in the card's canonical units (mass g, force
+    N)."""
+    by_role = {k: np.concatenate([staircase_inputs(r, load)[k] for r in runs])
+               for k in ROLES}
+    ins = {}
+    for role, name in roles.items():
+        v = by_role[role]
+        if role == "load" and learned.inputs[name].get("quantity") == "force":
+            v = v * 1e-3 * G_ACC
+        ins[name] = v
+    return ins
+
+
+def _staircases(learned, roles, runs: list[LoadRun], unit: np.ndarray, t: np.ndarray,
+                load: np.ndarray, dt_s: float):
+    """The runs one after the other, as a test rig logs them (friction carries its state over):
+    the dataset of the linear readings with the card's inputs, and those readings (n, 3)."""
+    from designlab.measured.dataset import from_arrays
+
+    seg = np.zeros(t.size * len(runs), int)
+    tt = np.concatenate([t + b * (t[-1] + dt_s) for b in range(len(runs))])
+    lin = np.concatenate([linear_readings(unit, r, load) for r in runs]) if runs else \
+        np.zeros((0, 3))
+    ins = _card_inputs(learned, roles, runs, load)
+    data = from_arrays(tt, ins, {o: lin[:, k] for k, o in enumerate(OUTPUTS)}, segment=seg,
+                       units={**{n_: learned.inputs[n_].get("unit") or None for n_ in ins},
+                              **{o: "V" for o in OUTPUTS}},
+                       quantities={n_: learned.inputs[n_].get("quantity") for n_ in ins},
+                       kinds={n_: learned.inputs[n_].get("kind", "drive") for n_ in ins})
+    return data, lin
+
+
+def _with_effects(effects: dict[str, list], data, lin: np.ndarray) -> dict[str, np.ndarray]:
+    """Each output's linear readings plus its effects' contributions (the base reads the wrench;
+    here the readings are the linear test's: the effects only are added)."""
+    from designlab.loop import effects as fx
+
+    full = {}
+    for k, o in enumerate(OUTPUTS):
+        y = lin[:, k].copy()
+        for f in effects[o]:
+            y = y + fx.contribution(f, fx.Context(data, o, y, f.nuisance, None))
+        full[o] = y
+    return full
+
+
+def _per_run(Y: np.ndarray, n_runs: int, n: int) -> list[np.ndarray]:
+    """(n_runs * n, 3) readings split into one (n, 3) array per run."""
+    return [Y[b * n:(b + 1) * n] for b in range(n_runs)]
+
+
 def apply_model(report: dict[str, Any], prediction, model_path: str | Path,
                 protocol: HangingWeightTest, settings, part=None) -> dict[str, Any]:
     """loop -> predict: the mechanisms a loop learned on a measured fingertip (``model.json`` of
@@ -120,73 +200,24 @@ def apply_model(report: dict[str, Any], prediction, model_path: str | Path,
     again (hysteresis, calibration matrix, condition number, ...), ``learned_effects``,
     ``learned_from`` and ``loop_base`` (the same metrics of the linear readings alone).
     ``part``: the design (its load points); default: ``prediction.part``."""
-    from designlab.loop import effects as fx
-    from designlab.loop.model import load_model
-    from designlab.measured.dataset import from_arrays
-
-    learned = load_model(model_path, "--model")
-    missing = [o for o in OUTPUTS if o not in learned.outputs]
-    if missing:
-        raise ParameterError("--model", str(model_path),
-                             f"a fingertip model with outputs {', '.join(OUTPUTS)} (it has "
-                             f"{', '.join(learned.outputs) or 'none'})")
+    learned = _learned(model_path)
     part = part if part is not None else getattr(prediction, "part", None)
     if part is None:
         raise ParameterError("--model", str(model_path),
                              "the fingertip design whose load points the effects act at")
-    roles = _roles(learned.inputs)
-    by_name = {v: k for k, v in roles.items()}
-    unknown = sorted(n for n in _needed_inputs(learned) if n not in by_name)
-    if unknown:
-        raise ParameterError("--model", str(model_path),
-                             f"effects on the hanging weight, moment arm and rotation (it uses "
-                             f"input {unknown[0]!r}, which the virtual test does not have)")
+    roles = _input_roles(learned, model_path)
     t, load, step = protocol.time_history()
     unit = prediction.unit_readings
     if unit.shape[0] != t.size:
         unit = np.broadcast_to(unit[-1], (t.size, 6, 3))
     runs = load_runs(part, protocol, settings.rotations_deg)
-
-    def mechanism(f):
-        # transfer the mechanism, not the measured sensor's refit of its own base
-        return dataclasses.replace(f, nuisance=(), alpha=(0.0,) * int(bool(f.effect.intercept)))
-
-    effects = {o: [mechanism(f) for f in learned.effects.get(o, [])] for o in OUTPUTS}
-    base_read, corrected = [], []
-    # the runs one after the other, as a test rig logs them (friction carries its state over)
-    n = t.size
-    seg = np.zeros(n * len(runs), int)
-    tt = np.concatenate([t + b * (t[-1] + protocol.dt_s) for b in range(len(runs))])
-    lin = np.concatenate([linear_readings(unit, r, load) for r in runs]) if runs else \
-        np.zeros((0, 3))
-    by_role = {k: np.concatenate([staircase_inputs(r, load)[k] for r in runs])
-               for k in ROLES}
-    # the card's canonical units: mass g, force N
-    ins = {}
-    for role, name in roles.items():
-        v = by_role[role]
-        if role == "load" and learned.inputs[name].get("quantity") == "force":
-            v = v * 1e-3 * G_ACC
-        ins[name] = v
-    data = from_arrays(tt, ins, {o: lin[:, k] for k, o in enumerate(OUTPUTS)}, segment=seg,
-                       units={**{n_: learned.inputs[n_].get("unit") or None for n_ in ins},
-                              **{o: "V" for o in OUTPUTS}},
-                       quantities={n_: learned.inputs[n_].get("quantity") for n_ in ins},
-                       kinds={n_: learned.inputs[n_].get("kind", "drive") for n_ in ins})
-    # the base reads the wrench; here the readings are the linear test's: add the effects only
-    out_lin = {o: lin[:, k] for k, o in enumerate(OUTPUTS)}
-    full = {}
-    for o in OUTPUTS:
-        y = out_lin[o].copy()
-        for f in effects[o]:
-            y = y + fx.contribution(f, fx.Context(data, o, y, f.nuisance, None))
-        full[o] = y
-    for b in range(len(runs)):
-        m = slice(b * n, (b + 1) * n)
-        base_read.append(lin[m])
-        corrected.append(np.column_stack([full[o][m] for o in OUTPUTS]))
+    effects = {o: [_mechanism(f) for f in learned.effects.get(o, [])] for o in OUTPUTS}
+    data, lin = _staircases(learned, roles, runs, unit, t, load, protocol.dt_s)
+    full = _with_effects(effects, data, lin)
+    corrected = _per_run(np.column_stack([full[o] for o in OUTPUTS]), len(runs), t.size)
     out = evaluate_readings(protocol, settings.rotations_deg, t, load, step, runs, corrected)
-    plain = evaluate_readings(protocol, settings.rotations_deg, t, load, step, runs, base_read)
+    plain = evaluate_readings(protocol, settings.rotations_deg, t, load, step, runs,
+                              _per_run(lin, len(runs), t.size))
     out["loop_base"] = {k: plain[k] for k in ("hysteresis_percent", "condition_number",
                                                "linearity_percent_span")}
     out["loop_base"]["what"] = ("the design's linear virtual test (FEM gains: wrench at the "
