@@ -9,7 +9,7 @@ from designlab.cli.app import main
 #: the order of ``designlab --help``'s command list (a command not named here comes last)
 HELP_ORDER = (sweep.sweep, sweep.optimize, flexure.flexure, parts.export, parts.show,
               measured.compensate, measured.loop_cmd, verify.verify, parts.mesh_cmd,
-              predict.predict, validate.validate, strap.fit_strap, parts.params_cmd,
+              predict.predict, validate.validate, strap.fit_strap, strap.strap_sizes, parts.params_cmd,
               sensors.new, sensors.sensors_cmd)
 
 _app.app.registered_commands.sort(

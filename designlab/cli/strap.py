@@ -80,3 +80,59 @@ def fit_strap(finger: Optional[str] = typer.Option(None, "--finger", metavar="WI
     threemf = [f for f in res["files"] if str(f).endswith(".3mf")]
     next_step("open next: " + ", ".join([f"{f} (into the slicer)" for f in threemf]
                                         + [f"{out / 'fit.json'} (the fit and size table)"]))
+
+
+def _sizes_table(title: str, rows: list[dict], key: str) -> Table:
+    """A size (or slot) table: fingers, strain and sensitivity per size."""
+    from designlab.sensors.strap.sizes import table_lines
+
+    t = Table(title=title)
+    for col in (key, "breadth p5-p95 mm", "perimeter mm", "share", "strain p5/p50/p95",
+                "spread %", "sum F_n mV/N p5/p50/p95"):
+        t.add_column(col, justify="left" if col == key else "right")
+    for line in table_lines(rows, key):
+        t.add_row(*[c.strip() for c in line.strip("|").split("|")])
+    return t
+
+
+@app.command("strap-sizes")
+def strap_sizes(population: str = typer.Option("all", "--population", help="all | men | women (the shipped anthropometric table)."),
+                sizes: str = typer.Option("5", "--sizes", help="N sizes (1-40) or auto: the fewest keeping the initial-strain spread within 10 % for 90 % of the population."),
+                out: Path = typer.Option(..., "--out", help="Output directory (sizes.json, sizes.md, size_K/size_K.3mf)."),
+                fingers: int = typer.Option(1000, "--fingers", help="Fingers drawn from the table."),
+                seed: int = typer.Option(0, "--seed", help="Seed of the drawn fingers."),
+                fingers_csv: Optional[Path] = typer.Option(None, "--fingers-csv", help="Measured fingers (CSV: width, depth[, length, perimeter] in mm): replaces the table and the depth assumption."),
+                fit_by: str = typer.Option("perimeter", "--fit-by", help="perimeter (a girth at the strap) | breadth (a caliper)."),
+                target_strain: Optional[float] = typer.Option(None, "--target-strain", help="Initial strain each size is cut for (default: the paper's medium slot on the reference finger)."),
+                overwrite: bool = typer.Option(False, "--overwrite", help="Write into an --out that holds another command's run (same-named files are replaced).")):
+    """Strap sizes for a population: the fingers each size fits, their initial strain and
+    sum-channel sensitivity, the paper's three slots on the same fingers, a 3MF per size."""
+    from designlab.cli.runs import check_out, write_run
+    from designlab.sensors.strap import population as pp
+    from designlab.sensors.strap import sizes as sz
+
+    check_out(out, "strap-sizes", overwrite=overwrite)
+    request = sz.SizesRequest(sizes=sizes, fit_by=fit_by, target_strain=target_strain)
+    request.count()
+    pop = (pp.from_csv(fingers_csv) if fingers_csv is not None
+           else pp.draw(population, fingers, seed))
+    with progress_bar("strap-sizes") as bar:
+        res = sz.strap_sizes(pop, request, out, progress=lambda s: bar(f"strap-sizes: {s}"))
+    run = write_run(out, "strap-sizes", {
+        "population": pop.group, "fingers": pop.size, "seed": seed,
+        "fingers_csv": str(fingers_csv) if fingers_csv else None, "sizes": sizes,
+        "fit_by": fit_by, "target_strain": res["target_initial_strain"]})
+    console.print(_sizes_table(
+        f"{res['sizes']} strap sizes, {pop.group} ({pop.size} fingers), target strain "
+        f"{res['target_initial_strain']:.3g}: {100 * res['share_within_goal']:.1f} % within "
+        f"the {res['goal']['strain_spread_percent']:g} % spread", res["size_table"], "size"))
+    sl = res["paper_slots"]
+    console.print(_sizes_table(
+        f"the paper's slots on the same fingers: {100 * sl['share_within_goal']:.1f} % "
+        f"within, {100 * sl['slack_share']:.1f} % slack", sl["rows"], "slot"))
+    for a in res["assumptions"]:
+        console.print(plain(("assumption:", "bold"), " ", a), highlight=False)
+    for f in [*res["files"], str(run)]:
+        console.print(f"wrote {f}", highlight=False, markup=False)
+    next_step(f"open next: {out / 'sizes.md'} (the table), {out / 'size_1'} (the 3MFs, into "
+              "the slicer)")
