@@ -31,7 +31,8 @@ if TYPE_CHECKING:
     from designlab.geometry.flexure import SpringFlexure as Flexure
     from designlab.geometry.parts import PARTS
     from designlab.geometry.strap import ArchStrap as Strap
-    from designlab.predict.run import Prediction, predict, write_prediction
+    from designlab.predict.record import Prediction, write_prediction
+    from designlab.predict.run import predict
     from designlab.sensors.registry import SENSORS
 
 
@@ -59,7 +60,7 @@ def __getattr__(name: str) -> Any:
 
         return _pkg
     if name in ("Prediction", "write_prediction"):
-        from designlab.predict import run as _p
+        from designlab.predict import record as _p
 
         return getattr(_p, name)
     if name == "SENSORS":

@@ -56,7 +56,7 @@ def config_identity(cfg, uncertainty=None) -> str:
 def write_run(out: Path, what: str, settings: dict, identity: Optional[str] = None) -> Path:
     """``run.json`` of a command's output folder (command, version, date, settings; the
     identity ``--out`` compares before reusing the folder)."""
-    from designlab.predict.run import run_manifest
+    from designlab.predict.record import run_manifest
 
     doc = run_manifest(what, settings)
     if identity is not None:

@@ -222,7 +222,7 @@ def _export_chosen(cfg, params: dict, design_dir: Path, formats: str, fem_cache:
     already holds this design with these settings, protocol and formats (every file listed
     there still present): a cached optimize does not export and predict again."""
     from designlab.optimize.evaluate import export_design
-    from designlab.predict.run import run_manifest
+    from designlab.predict.record import run_manifest
 
     what = {"part": cfg.part, "params": params, "formats": formats,
             "settings": cfg.settings, "protocol": cfg.protocol}

@@ -80,7 +80,8 @@ def export_design(part_name: str, params: dict[str, Any], out: str | Path, *,
                   protocol: dict[str, Any] | None = None,
                   fem_cache: str | Path | None = None) -> list[Path]:
     """Export the chosen design for printing and write its full prediction report."""
-    from designlab.predict.run import predict, write_prediction
+    from designlab.predict.record import write_prediction
+    from designlab.predict.run import predict
     from designlab.geometry.export import export_parts
     from designlab.geometry.parts import make_part
 

@@ -37,9 +37,10 @@ KEY_METRICS = ("hysteresis_percent.overall", "condition_number", "geometric_cond
 
 
 def command_line(argv: Iterable[str] | None = None) -> str:
-    """The command as typed (``designlab ...``), quoted for a shell."""
+    """The command as typed (``designlab ...``, also when run as ``python -m designlab.cli``),
+    quoted for a shell."""
     args = list(sys.argv if argv is None else argv)
-    if args and Path(args[0]).name in ("designlab", "__main__.py", "cli.py"):
+    if args and Path(args[0]).name in ("designlab", "__main__.py"):
         args = ["designlab", *args[1:]]
     return " ".join(shlex.quote(a) for a in args)
 

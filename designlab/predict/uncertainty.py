@@ -265,8 +265,6 @@ def summarize(spec: UncertaintySpec, cols: list[str], V: np.ndarray, rows: list[
     """Per metric: mean, std, 5/50/95 % quantiles over the successful builds, and the inputs
     that drive it (Spearman rank correlation, or SALib Sobol S1/ST with ``sensitivity =
     "sobol"``); the failed builds counted with their errors."""
-    from scipy.stats import spearmanr
-
     ok = [i for i, r in enumerate(rows) if r["status"] == "ok"]
     failed = [r for r in rows if r["status"] != "ok"]
     names = sorted({k for i in ok for k in rows[i]["metrics"]})
@@ -274,31 +272,8 @@ def summarize(spec: UncertaintySpec, cols: list[str], V: np.ndarray, rows: list[
     for m in names:
         idx = [i for i in ok if rows[i]["metrics"].get(m) is not None]
         y = np.array([rows[i]["metrics"][m] for i in idx], float)
-        if not len(y):
-            continue
-        q5, q50, q95 = np.quantile(y, [0.05, 0.5, 0.95])
-        entry = {"mean": float(y.mean()), "std": float(y.std(ddof=1)) if len(y) > 1 else 0.0,
-                 "p5": float(q5), "p50": float(q50), "p95": float(q95), "n": int(len(y))}
-        drivers = {}
-        if cols and len(y) > 2 and np.ptp(y) > 0:
-            if spec.sensitivity == "sobol" and len(y) == len(V):
-                from SALib.analyze import sobol as sobol_analyze
-
-                problem = {"num_vars": len(cols), "names": cols,
-                           "bounds": [[0.0, 1.0]] * len(cols)}
-                Si = sobol_analyze.analyze(problem, y, calc_second_order=True, seed=spec.seed)
-                drivers = {c: {"S1": float(Si["S1"][j]), "ST": float(Si["ST"][j])}
-                           for j, c in enumerate(cols)}
-                drivers = dict(sorted(drivers.items(), key=lambda kv: -kv[1]["ST"]))
-            else:
-                X = V[idx]
-                for j, c in enumerate(cols):
-                    if np.ptp(X[:, j]) > 0:
-                        rho = spearmanr(X[:, j], y).statistic
-                        drivers[c] = float(rho) if np.isfinite(rho) else 0.0
-                drivers = dict(sorted(drivers.items(), key=lambda kv: -abs(kv[1])))
-        entry["drivers"] = drivers
-        metrics[m] = entry
+        if len(y):
+            metrics[m] = {**_spread(y), "drivers": _drivers(spec, cols, V, idx, y)}
     errors: dict[str, int] = {}
     for r in failed:
         errors[r.get("error", "?")] = errors.get(r.get("error", "?"), 0) + 1
@@ -309,6 +284,39 @@ def summarize(spec: UncertaintySpec, cols: list[str], V: np.ndarray, rows: list[
                                    else "Spearman rank correlation"),
             "spec": spec.to_json(), "inputs_sampled": cols, "metrics": metrics,
             "paper": model_of(spec.sensor).paper}
+
+
+def _spread(y: np.ndarray) -> dict[str, Any]:
+    """Mean, standard deviation (0 for one build), 5/50/95 % quantiles and count of ``y``."""
+    q5, q50, q95 = np.quantile(y, [0.05, 0.5, 0.95])
+    return {"mean": float(y.mean()), "std": float(y.std(ddof=1)) if len(y) > 1 else 0.0,
+            "p5": float(q5), "p50": float(q50), "p95": float(q95), "n": int(len(y))}
+
+
+def _drivers(spec: UncertaintySpec, cols: list[str], V: np.ndarray, idx: list[int],
+             y: np.ndarray) -> dict[str, Any]:
+    """The inputs that drive one metric ``y`` (builds ``idx`` of the samples ``V``), strongest
+    first: Sobol S1/ST (``sensitivity = "sobol"``, every build succeeded) or Spearman's rho;
+    none for fewer than three builds or a constant metric."""
+    if not (cols and len(y) > 2 and np.ptp(y) > 0):
+        return {}
+    if spec.sensitivity == "sobol" and len(y) == len(V):
+        from SALib.analyze import sobol as sobol_analyze
+
+        problem = {"num_vars": len(cols), "names": cols, "bounds": [[0.0, 1.0]] * len(cols)}
+        Si = sobol_analyze.analyze(problem, y, calc_second_order=True, seed=spec.seed)
+        drivers = {c: {"S1": float(Si["S1"][j]), "ST": float(Si["ST"][j])}
+                   for j, c in enumerate(cols)}
+        return dict(sorted(drivers.items(), key=lambda kv: -kv[1]["ST"]))
+    from scipy.stats import spearmanr
+
+    X = V[idx]
+    rho = {}
+    for j, c in enumerate(cols):
+        if np.ptp(X[:, j]) > 0:
+            r = spearmanr(X[:, j], y).statistic
+            rho[c] = float(r) if np.isfinite(r) else 0.0
+    return dict(sorted(rho.items(), key=lambda kv: -abs(kv[1])))
 
 
 def summary_rows(summary: dict[str, Any], drivers: int = 2) -> list[tuple[str, str, str, str, str]]:

@@ -75,7 +75,8 @@ def test_prediction_json_and_vtu_carry_the_stress(tmp_path):
 
     import pyvista as pv
 
-    from designlab.predict.run import predict, write_prediction
+    from designlab.predict.record import write_prediction
+    from designlab.predict.run import predict
 
     pred = predict("fingertip", {}, settings={"edge_length": 4.0, "mesh_convergence": False})
     write_prediction(pred, tmp_path / "p")

@@ -10,7 +10,7 @@ import pytest
 from designlab.measured.dataset import from_arrays
 from designlab.loop.loop import run_loop
 from designlab.loop.model import load_model
-from designlab.predict.run import sensor_model as _sensor_model
+from designlab.predict.record import sensor_model as _sensor_model
 
 GAINS = {"Ch1": {"F_n": 0.030, "F_x": 0.020}, "Ch2": {"F_n": 0.029, "F_x": -0.013}}
 

@@ -11,8 +11,9 @@ import pytest
 
 SCRIPT = r"""
 import json, multiprocessing, sys
-from designlab.predict.run import (predict, predict_and_write, write_prediction,
-                                       _use_parallel)
+from designlab.predict.record import write_prediction
+from designlab.predict.run import predict, predict_and_write
+from designlab.predict.side import _use_parallel
 parallel = {"1": True, "0": False, "P": True}[sys.argv[1]]
 assert _use_parallel(parallel, None) == parallel
 if sys.argv[1] == "P":          # designlab predict --out: the painter and the plotting side
@@ -65,7 +66,7 @@ def test_jobs_larger_than_a_pipe_both_ways():
 
     import numpy as np
 
-    from designlab.predict.run import _Side
+    from designlab.predict.side import _Side
 
     side = _Side(lambda: np.zeros(300_000))
     big = np.arange(500_000, dtype=float)
@@ -80,7 +81,7 @@ def test_jobs_larger_than_a_pipe_both_ways():
 def test_a_failing_job_is_none_and_the_next_runs():
     import multiprocessing
 
-    from designlab.predict.run import _Side
+    from designlab.predict.side import _Side
 
     side = _Side(None)
     bad = side.submit(int, "not a number")
@@ -92,7 +93,7 @@ def test_a_failing_job_is_none_and_the_next_runs():
 
 def _once(fn):
     """The first job's result of a child that runs ``fn``, the child stopped after."""
-    from designlab.predict.run import _Side
+    from designlab.predict.side import _Side
 
     side = _Side(fn)
     try:
@@ -117,7 +118,7 @@ def test_stop_kills_a_running_child():
     import multiprocessing
     import time
 
-    from designlab.predict.run import _Side
+    from designlab.predict.side import _Side
 
     side = _Side(lambda: time.sleep(60))
     t0 = time.perf_counter()
@@ -132,7 +133,7 @@ def test_a_stalled_child_is_killed_and_gives_none(monkeypatch):
     import multiprocessing
     import time
 
-    from designlab.predict.run import _Side
+    from designlab.predict.side import _Side
 
     monkeypatch.setattr(_Side, "STALL_S", 2.0)
     t0 = time.perf_counter()
@@ -155,7 +156,7 @@ def test_jobs_sent_to_a_stuck_child_do_not_block_the_caller(monkeypatch):
 
     import numpy as np
 
-    from designlab.predict.run import _Side
+    from designlab.predict.side import _Side
 
     monkeypatch.setattr(_Side, "STALL_S", 2.0)
     side = _Side(lambda: time.sleep(120))
@@ -183,7 +184,7 @@ def test_forked_helpers_run_opencascade_serially():
     """In a forked helper OpenCascade's thread pool is the parent's (its threads are not in the
     child): ``_serial_occ`` makes the Booleans build123d asks to run in parallel run on the
     calling thread, as it does for the tessellation (a fresh interpreter: it patches globally)."""
-    code = ("from designlab.predict.run import _serial_occ\n"
+    code = ("from designlab.predict.side import _serial_occ\n"
             "from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut, BRepAlgoAPI_Fuse\n"
             "from OCP.BOPAlgo import BOPAlgo_Builder\n"
             "ops = [c() for c in (BRepAlgoAPI_Fuse, BRepAlgoAPI_Cut, BOPAlgo_Builder)]\n"

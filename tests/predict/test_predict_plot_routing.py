@@ -8,7 +8,8 @@ import dataclasses
 from pathlib import Path
 
 from designlab.sensors import get_sensor
-from designlab.predict.run import _early_plots, _late_plots, _Pictures
+from designlab.predict.run import _early_plots, _late_plots
+from designlab.predict.side import _Pictures
 
 #: the fingertip's plot groups and one that needs ``finish`` (the routing of a late group)
 FINGERTIP = dataclasses.replace(get_sensor("fingertip"), plot_groups=(

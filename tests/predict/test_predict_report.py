@@ -67,7 +67,8 @@ def open_in_chromium(page: Path, tmp: Path, screenshot: Path | None = None) -> d
 @pytest.fixture(scope="module")
 def predicted(tmp_path_factory) -> Path:
     """A coarse but complete fingertip prediction written with its report."""
-    from designlab.predict.run import predict, write_prediction
+    from designlab.predict.record import write_prediction
+    from designlab.predict.run import predict
 
     out = tmp_path_factory.mktemp("pred") / "fingertip"
     pred = predict("fingertip", {}, settings={"edge_length": 4.0})

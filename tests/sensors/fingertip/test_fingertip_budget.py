@@ -16,7 +16,8 @@ pytestmark = pytest.mark.slow     # one coarse fingertip prediction (~15 s CPU) 
 @pytest.fixture(scope="module")
 def predicted(tmp_path_factory):
     """A coarse fingertip prediction (contact model), written with its report."""
-    from designlab.predict.run import predict, write_prediction
+    from designlab.predict.record import write_prediction
+    from designlab.predict.run import predict
 
     pred = predict("fingertip", {}, settings={"edge_length": 4.0})
     out = tmp_path_factory.mktemp("budget") / "fingertip"
