@@ -50,3 +50,121 @@ def test_csv_replaces_the_table(tmp_path):
     g.write_text("width,length\n15,25\n")
     with pytest.raises(DataError, match="missing column.*depth"):
         pp.from_csv(g)
+
+
+# ----------------------------------------------------------------------------------- sizes
+
+from designlab.sensors.strap import sizes as sz  # noqa: E402
+from designlab.sensors.strap.fit import default_target  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def women():
+    return pp.draw("women", 1000, seed=0)
+
+
+def test_auto_picks_the_fewest_sizes_meeting_its_rule(women):
+    target = default_target()
+    n, tried = sz.auto_count(women, target)
+    assert tried[-1]["sizes"] == n and tried[-1]["share_within_goal"] >= sz.GOAL_SHARE
+    assert all(r["share_within_goal"] < sz.GOAL_SHARE for r in tried[:-1])
+    sizes, _ = sz.partition(women, n, target)
+    assert sz.share_within(women, sizes) >= sz.GOAL_SHARE
+    # every finger in exactly one size, each strap cut for its median finger
+    assert sorted(np.concatenate([s.members for s in sizes])) == list(range(women.size))
+    for s in sizes:
+        assert np.median(sz.strains(s.part, women.perimeter[s.members])) == \
+            pytest.approx(target, abs=2e-3)
+
+
+def test_spread_is_p5_p95_over_the_mean():
+    eps = np.linspace(0.1, 0.3, 101)
+    assert sz.spread_percent(eps) == pytest.approx(100 * (0.29 - 0.11) / 0.2)
+
+
+def test_paper_slots_on_the_reference_finger(tmp_path):
+    # circles of the reference radius 9 mm: every finger on the medium slot at the target
+    f = tmp_path / "ref.csv"
+    f.write_text("width,depth\n" + "18,18\n" * 10)
+    pop = pp.from_csv(f)
+    target = default_target()
+    from designlab.fem.materials import get_material
+
+    slots = sz.paper_slots(pop, target, get_material("PI-ETPU"), None)
+    assert [r["slot"] for r in slots["rows"]] == [1, 2, 3]
+    mid = slots["rows"][1]
+    assert mid["share"] == 1.0 and mid["initial_strain"]["p50"] == pytest.approx(target)
+    assert slots["share_within_goal"] == 1.0 and slots["slack_share"] == 0.0
+
+
+def test_paper_slots_take_each_finger_to_its_closest_slot(women):
+    from designlab.fem.materials import get_material
+
+    slots = sz.paper_slots(women, 0.1, get_material("PI-ETPU"), 0.03)
+    assert sum(r["share"] for r in slots["rows"]) == pytest.approx(1.0)
+    for r in slots["rows"]:
+        if r["fingers"]:
+            f = r["sum_F_n_V_per_N"]
+            assert f["p5"] <= f["p50"] <= f["p95"]
+
+
+def test_size_table_without_fem(women):
+    res = sz.strap_sizes(women, sz.SizesRequest(sizes=3), fem=False)
+    rows = res["size_table"]
+    assert [r["size"] for r in rows] == [1, 2, 3]
+    assert sum(r["share"] for r in rows) == pytest.approx(1.0)
+    assert all(r["sum_F_n_V_per_N"] is None for r in rows)
+    assert any("ASSUMED fingertip depth" in a for a in res["assumptions"])
+    lo = [r["perimeter_range_mm"][0] for r in rows]
+    assert lo == sorted(lo)
+    assert "| size 1 |" in sz.markdown(res) and "| slot 2 |" in sz.markdown(res)
+
+
+@pytest.mark.parametrize("bad, match", [(0, "--sizes"), (41, "--sizes"), ("x", "--sizes")])
+def test_bad_size_counts(bad, match):
+    with pytest.raises(ParameterError, match=match):
+        sz.SizesRequest(sizes=bad).count()
+
+
+def _cli(args, capsys):
+    from designlab.cli import main
+
+    try:
+        main([str(a) for a in args])
+        rc = 0
+    except SystemExit as exc:
+        rc = exc.code
+    cap = capsys.readouterr()
+    return rc, cap.out, cap.err
+
+
+@pytest.mark.parametrize("args, name", [
+    (["--sizes", "0"], "--sizes"), (["--sizes", "many"], "--sizes"),
+    (["--population", "kids"], "--population"), (["--fingers", "3"], "--fingers"),
+    (["--fit-by", "girth"], "--fit-by"), (["--target-strain", "2"], "--target-strain"),
+    (["--fingers-csv", "MISSING"], "--fingers-csv")])
+def test_cli_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, args, name):
+    if "MISSING" in args:
+        f = tmp_path / "f.csv"
+        f.write_text("width,length\n15,25\n")
+        args = [a if a != "MISSING" else f for a in args]
+    out = tmp_path / "out"
+    rc, _, err = _cli(["strap-sizes", *args, "--out", out], capsys)
+    assert rc == 2
+    assert name in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_cli_writes_the_sizes_and_their_3mf(tmp_path, capsys):
+    out = tmp_path / "s"
+    rc, _, err = _cli(["strap-sizes", "--population", "men", "--sizes", "2", "--fingers", "200",
+                       "--out", out], capsys)
+    assert rc == 0, err
+    import json
+
+    doc = json.loads((out / "sizes.json").read_text())
+    assert doc["sizes"] == 2 and len(doc["paper_slots"]["rows"]) == 3
+    assert all(r["sum_F_n_V_per_N"]["p50"] > 0 for r in doc["size_table"])
+    assert (out / "size_1" / "size_1.3mf").is_file() and (out / "size_2" / "size_2.3mf").is_file()
+    assert (out / "run.json").is_file() and (out / "sizes.md").is_file()
