@@ -2,12 +2,14 @@
 
 Units: E in MPa, density in t/mm^3 (1 g/cm^3 = 1e-9 t/mm^3), resistivity in ohm*mm, tcr per K.
 Every value carries its source in a comment. ``get_material(name)`` looks one up;
-``dataclasses.replace(m, prony=...)`` gives a variant (e.g. with a fitted Prony series).
+``dataclasses.replace(m, prony=...)`` gives a variant (e.g. with a fitted Prony series);
+``material_table()`` lists the library with its sources.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from designlab.errors import ParameterError
 from designlab.params import did_you_mean
@@ -161,6 +163,60 @@ MATERIALS: dict[str, Material] = {m.name: m for m in [
              strength=3.8, strength_basis="tensile strength of the unfilled silicone",
              strength_source="Smooth-On Dragon Skin 20 technical bulletin: tensile strength "
                              "550 psi (3.8 MPa, ASTM D412); carbon-black filler not included"),
+    # ---- materials a designer prints or buys (no built-in sensor uses them) ----
+    # PETG: the glycol-modified copolyester of most PETG filaments. E 2000 MPa and the yield
+    # strength are typical values (moulded copolyester data sheets such as Eastman Eastar 6763
+    # give about 2 GPa and 50 MPa; printed-filament sheets 1.5-2.1 GPa); nu 0.38 typical for
+    # PET; density 1.27 g/cm^3 (filament data sheets agree).
+    Material("PETG", E=2000.0, nu=0.38, density=1.27e-9, prony=PRINTED_PRONY,
+             source="E, density: typical PETG values (moulded copolyester data sheets, e.g. "
+                    "Eastman Eastar 6763: about 2 GPa, 1.27 g/cm^3); nu typical for PET; "
+                    "Prony: printed-part stand-in (seed 002 relaxation)", stand_ins=("prony",),
+             strength=50.0, strength_basis="tensile yield strength (typical, moulded)",
+             strength_source="typical PETG value: moulded copolyester data sheets (e.g. Eastman "
+                             "Eastar 6763) give about 50 MPa at yield; printed parts are "
+                             "weaker across layers"),
+    # Ultimaker TPU 95A technical data sheet (printed ISO 527 specimens): tensile modulus
+    # 26 MPa, yield 8.6 MPa (at 55 %), break 39 MPa at 580 %, Shore 95A, 1.22 g/cm^3. nu 0.45
+    # as NinjaFlex (assumed). Relaxation: the elastomer stand-in as for the other TPUs.
+    Material("TPU95A", E=26.0, nu=0.45, density=1.22e-9, prony=ELASTOMER_PRONY,
+             source="Ultimaker TPU 95A technical data sheet (E, density, elongation); nu "
+                    "assumed 0.45; Prony: stretch-rig elastomer stand-in",
+             stand_ins=("prony",), max_elongation=5.8,
+             strength=8.6, strength_basis="tensile stress at yield (ISO 527, printed)",
+             strength_source="Ultimaker TPU 95A technical data sheet: tensile stress at yield "
+                             "8.6 MPa (at 55 %), at break 39 MPa"),
+    # Laser-sintered polyamide 12: EOS PA 2200 material data sheet (ISO 527, X direction):
+    # tensile modulus 1650 MPa, tensile strength 48 MPa, elongation at break 18 %, part
+    # density 0.93 g/cm^3. nu 0.39 typical for PA12 (assumed).
+    Material("PA12", E=1650.0, nu=0.39, density=0.93e-9, prony=PRINTED_PRONY,
+             source="EOS PA 2200 material data sheet (E, density, elongation); nu typical for "
+                    "PA12; Prony: printed-part stand-in (seed 002 relaxation)",
+             stand_ins=("prony",), max_elongation=0.18,
+             strength=48.0, strength_basis="tensile strength (the data sheet gives no yield)",
+             strength_source="EOS PA 2200 material data sheet: tensile strength 48 MPa "
+                             "(ISO 527-1/-2, X direction)"),
+    # A standard SLA resin, post-cured: Formlabs Grey (Standard) resin data sheet: tensile
+    # modulus 2.8 GPa, ultimate tensile strength 65 MPa, elongation 6 % (green: 1.6 GPa,
+    # 38 MPa). nu 0.35 and density 1.18 g/cm^3 are typical values of cured methacrylate
+    # photopolymers (assumed). Relaxation: the printed-part stand-in.
+    Material("SLA-Grey", E=2800.0, nu=0.35, density=1.18e-9, prony=PRINTED_PRONY,
+             source="Formlabs Grey (Standard) resin data sheet, post-cured (E, elongation); nu, "
+                    "density: typical cured photopolymer; Prony: printed-part stand-in "
+                    "(seed 002 relaxation)", stand_ins=("prony",), max_elongation=0.06,
+             strength=65.0, strength_basis="ultimate tensile strength, post-cured (brittle: "
+                                           "no yield given)",
+             strength_source="Formlabs Grey (Standard) resin data sheet: ultimate tensile "
+                             "strength 65 MPa post-cured (ASTM D638), 38 MPa green"),
+    # A bought aluminium part: 6061-T6 (ASM Aerospace Specification Metals / MatWeb data
+    # sheet, MMPDS typical values): E 68.9 GPa, nu 0.33, density 2.70 g/cm^3, tensile yield
+    # 276 MPa, ultimate 310 MPa, elongation 12 %. Metals do not relax at these stresses: no
+    # Prony terms.
+    Material("Al6061-T6", E=68900.0, nu=0.33, density=2.70e-9, max_elongation=0.12,
+             source="ASM data sheet for aluminium 6061-T6 (E, nu, density, elongation)",
+             strength=276.0, strength_basis="tensile yield strength (0.2 % offset)",
+             strength_source="ASM data sheet for aluminium 6061-T6: tensile yield 276 MPa, "
+                             "ultimate 310 MPa"),
 ]}
 
 
@@ -296,3 +352,57 @@ def get_material(name: str) -> Material:
     except KeyError:
         raise ParameterError("material", name, "one of " + ", ".join(MATERIALS)
                              + did_you_mean(name, MATERIALS)) from None
+
+
+# ------------------------------------------------------------------------ the library as a table
+
+class MaterialRow(NamedTuple):
+    """One material of the library as the docs and the CLI list it: E (MPa), nu, density
+    (g/cm^3), strength (MPa, None: not documented), its relaxation (Prony terms, and whether
+    they are a stand-in) and where the values come from."""
+
+    name: str
+    E_MPa: float
+    nu: float
+    density_g_cm3: float
+    strength_MPa: float | None
+    strength_basis: str
+    prony: str
+    source: str
+    strength_source: str
+
+
+def _prony_text(m: Material) -> str:
+    if m.prony is None:
+        return "none (elastic)"
+    terms = (f"g {', '.join(f'{g:g}' for g in m.prony.g)}; tau "
+             f"{', '.join(f'{t:g}' for t in m.prony.tau)} s")
+    return f"stand-in: {terms}" if "prony" in m.stand_ins else terms
+
+
+def material_table(materials: dict[str, Material] | None = None) -> list[MaterialRow]:
+    """The library (or ``materials``) as rows, in library order."""
+    lib = MATERIALS if materials is None else materials
+    return [MaterialRow(m.name, float(m.E), round(float(m.nu), 4),
+                        round(float(m.density) * 1e9, 4), m.strength, m.strength_basis,
+                        _prony_text(m), m.source, m.strength_source) for m in lib.values()]
+
+
+#: columns of :func:`material_table_markdown`: (header, row -> text)
+_COLUMNS = (("material", lambda r: f"`{r.name}`"), ("E (MPa)", lambda r: f"{r.E_MPa:g}"),
+            ("nu", lambda r: f"{r.nu:g}"), ("density (g/cm^3)", lambda r: f"{r.density_g_cm3:g}"),
+            ("strength (MPa)", lambda r: "none" if r.strength_MPa is None
+             else f"{r.strength_MPa:g}"),
+            ("relaxation (Prony)", lambda r: r.prony))
+
+
+def material_table_markdown(rows: list[MaterialRow] | None = None) -> str:
+    """The rows as Markdown: the properties table, then each material's sources."""
+    rows = material_table() if rows is None else rows
+    head = [h for h, _ in _COLUMNS]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    lines += ["| " + " | ".join(f(r) for _, f in _COLUMNS) + " |" for r in rows]
+    lines += ["", "Sources:", ""]
+    lines += [f"- `{r.name}`: {r.source}. Strength, {r.strength_basis}: {r.strength_source}."
+              for r in rows]
+    return "\n".join(lines) + "\n"
