@@ -136,7 +136,7 @@ def test_cli_writes_the_run_folder_and_prints_the_goals(tmp_path, capsys):
     name = [n for n in validated_sensors() if n == "flexure"][0]
     main(["validate", name, "--out", str(tmp_path)])
     printed = capsys.readouterr().out
-    assert "force error std" in printed and "within 1.5x of Table I" in printed
+    assert "flexure: seed 002" in printed and printed.count("yes") >= 3   # the met goals
     doc = json.loads((tmp_path / "validation.json").read_text())
     assert list(doc["sensors"]) == [name]
     run = json.loads((tmp_path / "run.json").read_text())
