@@ -160,7 +160,8 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure, o
             uncertainty: Optional[Path] = typer.Option(None, "--uncertainty", help="TOML with an [uncertainty] table (default: the documented distributions)."),
             scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Monte Carlo on a Dask scheduler tcp://HOST:PORT."),
             workers: Optional[int] = typer.Option(None, "--workers", help="Monte Carlo: local worker processes (default: all cores)."),
-            overwrite: bool = typer.Option(False, "--overwrite", help="Write into an --out that holds another command's run (same-named files are replaced).")):
+            overwrite: bool = typer.Option(False, "--overwrite", help="Write into an --out that holds another command's run (same-named files are replaced)."),
+            finger: Optional[str] = typer.Option(None, "--finger", metavar="W,D,L|SCAN.stl", help="strap: the wearer's finger (mm, or a closed STL scan): sets the finger radius and the closest slot.")):
     """Virtual test of a design before printing: hysteresis, calibration matrix, condition number, K_f."""
     from designlab.sensors.registry import get_sensor
 
@@ -168,6 +169,11 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure, o
     check_out(out, f"predict {part}", overwrite=overwrite)
     overrides = _overrides(part, config, set_)
     settings = parse_sets(setting)
+    if finger is not None:
+        from designlab.sensors.strap.wearer import wearer_settings
+
+        settings, note = wearer_settings(part, finger, overrides, settings)
+        console.print(note, highlight=False, markup=False)
     if samples is None and uncertainty is None:
         _predict_once(part, out, overrides, settings, protocol, model, measured)
         return

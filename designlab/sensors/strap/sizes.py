@@ -8,6 +8,7 @@ size. Model notes: docs/guide/strap_sizes.md.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any, Callable
@@ -103,10 +104,9 @@ def _scaled(base, f: float, tab_distance: float):
                                         for k, v in kw.items()})
 
 
-def short_cut(base, length: float):
-    """A strap of engaged ``length`` too short for :func:`fit_part` (whose tab keeps the
-    paper's medium-slot distance): the smallest arch scale the part's rules allow (the gauges
-    must fit on the arch), the rest taken off the tabs."""
+@functools.lru_cache(maxsize=8)
+def min_arch_scale(base) -> float:
+    """The smallest arch scale of ``base`` its rules allow (bisection, just above it)."""
     def ok(f):
         try:
             _scaled(base, f, 5.0)
@@ -118,7 +118,14 @@ def short_cut(base, length: float):
     for _ in range(40):
         mid = 0.5 * (lo + hi)
         lo, hi = (lo, mid) if ok(mid) else (mid, hi)
-    f = hi * 1.001
+    return hi * 1.001
+
+
+def short_cut(base, length: float):
+    """A strap of engaged ``length`` too short for :func:`fit_part` (whose tab keeps the
+    paper's medium-slot distance): the smallest arch scale the part's rules allow (the gauges
+    must fit on the arch), the rest taken off the tabs."""
+    f = min_arch_scale(base)
     d = (length - f * base.arc_length) / 2
     try:
         return _scaled(base, f, d)

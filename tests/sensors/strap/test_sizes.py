@@ -60,6 +60,8 @@ from designlab.sensors.strap.fit import default_target  # noqa: E402
 
 @pytest.fixture(scope="module")
 def women():
+    import designlab.geometry.strap  # noqa: F401  (the CAD import, once per module)
+
     return pp.draw("women", 1000, seed=0)
 
 
@@ -168,3 +170,28 @@ def test_cli_writes_the_sizes_and_their_3mf(tmp_path, capsys):
     assert all(r["sum_F_n_V_per_N"]["p50"] > 0 for r in doc["size_table"])
     assert (out / "size_1" / "size_1.3mf").is_file() and (out / "size_2" / "size_2.3mf").is_file()
     assert (out / "run.json").is_file() and (out / "sizes.md").is_file()
+
+
+# ---------------------------------------------------------------- predict strap --finger
+
+def test_wearer_settings_map_the_finger_like_fit_strap():
+    from designlab.sensors.strap.fit import Finger, REFERENCE_RADIUS
+    from designlab.sensors.strap.wearer import wearer_settings
+
+    s, note = wearer_settings("strap", "16,14,25", {}, {"edge_length": "2.0"})
+    assert s["finger_radius"] == pytest.approx(Finger(16, 14, 25).equivalent_radius, abs=1e-4)
+    assert s["edge_length"] == "2.0" and s["slot"] == 3 and "slot 3" in note
+    d = 2 * REFERENCE_RADIUS                 # the reference finger wears the medium slot
+    assert wearer_settings("strap", f"{d},{d},25", {}, {})[0]["slot"] == 2
+    assert "slot" not in wearer_settings("strap", "16,14,25", {}, {"wrap_length": "60"})[0]
+
+
+@pytest.mark.parametrize("part, finger, setting", [
+    ("fingertip", "16,14,25", []), ("strap", "16,14", []),
+    ("strap", "16,14,25", ["--setting", "finger_radius=8"]), ("strap", "nope.stl", [])])
+def test_predict_finger_bad_input_exit_2(tmp_path, capsys, part, finger, setting):
+    # (a finger outside the wrap model's range is refused by fit.Finger, naming the size)
+    out = tmp_path / "p"
+    rc, _, err = _cli(["predict", part, "--finger", finger, *setting, "--out", out], capsys)
+    assert rc == 2 and "--finger" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
