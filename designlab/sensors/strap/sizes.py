@@ -294,6 +294,17 @@ def group_row(pop: Population, members: np.ndarray, eps: np.ndarray, s0, factor)
     return row
 
 
+def with_pulp(part, perimeter: float, material, slot: int) -> dict[str, float]:
+    """The initial strain on ``perimeter`` when the pulp under the band gives, at both ends of
+    the cited fingertip modulus (:func:`fit.compliant_initial_strain`: a confined linear layer
+    3 mm deep on a rigid bone, a lower bound on the drop)."""
+    from designlab.sensors.strap.fit import cited_pulp_moduli, compliant_initial_strain
+
+    return {f"E_{E:g}_MPa": float(compliant_initial_strain(part, perimeter, material, slot=slot,
+                                                           pulp_E=E)["initial_strain"])
+            for E in cited_pulp_moduli()}
+
+
 def check_strains(rows: list[dict], material, what: str) -> None:
     """No size may strain its fingers to the trace material's elongation at break."""
     hi = material.max_elongation
@@ -325,7 +336,9 @@ def paper_slots(pop: Population, target: float, material, s0, base=None) -> dict
             continue
         eps = eps_all[m, k]
         row = {"slot": k + 1, "engaged_length_mm": float(base.engaged_length(k + 1)),
-               **group_row(pop, m, eps, s0, sensitivity_factor(eps, R0, material))}
+               **group_row(pop, m, eps, s0, sensitivity_factor(eps, R0, material)),
+               "p50_finger_strain_with_pulp": with_pulp(
+                   base, float(np.median(pop.perimeter[m])), material, k + 1)}
         share += row["fingers"] * row["within_goal"]
         rows.append(row)
     chosen = eps_all[np.arange(pop.size), best]
@@ -352,7 +365,9 @@ def size_rows(pop: Population, sizes: list[Size], s0s: list, sources: list[str],
                      "gauge_resistance_ohm": float(R0),
                      **group_row(pop, s.members, eps, s0,
                                  sensitivity_factor(eps, R0, material)),
-                     "unstrained_sum_F_n_V_per_N": s0, "sensitivity_source": src})
+                     "unstrained_sum_F_n_V_per_N": s0, "sensitivity_source": src,
+                     "p50_finger_strain_with_pulp": with_pulp(
+                         s.part, float(np.median(pop.perimeter[s.members])), material, 1)})
     return rows
 
 
@@ -441,6 +456,11 @@ def strap_sizes(pop: Population, request: SizesRequest, out=None, *, fem: bool =
                                  "interpolated), times each finger's prestrain factor "
                                  "(neo-Hookean tangent, gauge operating point); no FEM per "
                                  "finger" if fem else "not computed",
+                  "p50_finger_strain_with_pulp": "the median finger's initial strain with "
+                                                 "the pulp compressed under the band at the "
+                                                 "ends of the cited fingertip modulus "
+                                                 "(fit.compliant_initial_strain); the table's "
+                                                 "strains are on a rigid finger",
                   "paper_slots_sensitivity": "the paper's strap, static FEM on the "
                                              "population's median finger, times each "
                                              "finger's prestrain factor"},
