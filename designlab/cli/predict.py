@@ -73,9 +73,6 @@ def _calibration_rows(prediction) -> list[Row]:
             ("condition number", f"{prediction.condition_number:.4g}")]
     if pred.get("geometric_condition_number") is not None:
         rows.append(("geometric condition number", f"{pred['geometric_condition_number']:.4g}"))
-    if pred.get("paper_comparison"):
-        rows.append(("paper condition number",
-                     f"{pred['paper_comparison']['condition_number_paper']:.4g}"))
     rows += list(force_error_lines(pred))
     if prediction.K_f is not None:
         import numpy as np
@@ -124,6 +121,7 @@ def _predict_once(part: str, out: Path, overrides: dict, settings: dict, protoco
                   measured) -> None:
     """One virtual test: build, predict, write, print its table and where the files are."""
     from designlab.predict.run import predict_and_write
+    from designlab.sensors.registry import get_sensor
 
     records = None
     if measured is not None:
@@ -135,10 +133,10 @@ def _predict_once(part: str, out: Path, overrides: dict, settings: dict, protoco
                                               settings=settings, model_path=model,
                                               measured=records,
                                               progress=lambda s: bar(f"predict {part}: {s}"))
-    pred = prediction.metrics
     console.print(_prediction_table(part, prediction))
-    if pred.get("paper_comparison"):
-        console.print(pred["paper_comparison"]["explanation"], highlight=False)
+    if get_sensor(part).validate is not None:
+        console.print(f"the paper's own sensor against its tables: designlab validate {part} "
+                      "--out DIR", markup=False, highlight=False)
     for w in prediction.warnings:
         warn(w)
     console.print(f"wrote {len(files)} files to {out}", markup=False, highlight=False)

@@ -135,11 +135,6 @@ class Prediction:
         return (self.stress or {}).get("min_safety_factor")
 
     @property
-    def paper_comparison(self) -> dict[str, Any] | None:
-        """The sensor's comparison with its paper (None where it has none)."""
-        return self.metrics.get("paper_comparison")
-
-    @property
     def axial_share_through_sensors(self) -> float | None:
         """Share of the axial (z) load that goes through the sensors (load paths)."""
         lp = self.metrics.get("load_paths")

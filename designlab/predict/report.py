@@ -151,34 +151,6 @@ def stress_section(stress: Mapping[str, Any] | None) -> dict[str, Any] | None:
             "materials": mats}
 
 
-def paper_section(pred: Mapping[str, Any]) -> dict[str, Any] | None:
-    """``paper_comparison``: rows of ``*_paper`` / ``*_predicted`` pairs and the explanation."""
-    pc = pred.get("paper_comparison")
-    if not pc:
-        return None
-    rows, seen = [], set()
-    for k, v in pc.items():
-        if not isinstance(k, str):
-            continue
-        for suf in ("_paper", "_predicted"):
-            if k.endswith(suf):
-                base = k[: -len(suf)]
-                if base in seen:
-                    continue
-                seen.add(base)
-                name, unit = metric_name_unit(base)
-                rows.append({"name": name + (f" ({unit})" if unit else ""),
-                             "paper": _num(pc.get(base + "_paper")),
-                             "predicted": _num(pc.get(base + "_predicted"))})
-    for k, v in pc.items():
-        if k not in ("explanation",) and not any(k.endswith(s) for s in ("_paper", "_predicted")) \
-                and isinstance(v, (int, float)) and not isinstance(v, bool):
-            name, unit = metric_name_unit(k)
-            rows.append({"name": name + (f" ({unit})" if unit else ""), "paper": "",
-                         "predicted": _num(v)})
-    return {"rows": rows, "explanation": pc.get("explanation", "")}
-
-
 def _paper_per_axis(fe: Mapping[str, Any]) -> dict[str, Mapping[str, Any]]:
     """The paper's force error per axis where the test carries it: ``paper_table_I`` or
     ``paper.force_error_per_axis_N`` ({axis: {mean, std, ...}}); {} when the paper prints none."""
@@ -405,7 +377,6 @@ def prediction_sections(pred: Mapping[str, Any], pred_dir: Path, *, part_cls: ty
         "results": result_rows(pred),
         "results_title": "Predicted",
         "stress": stress_section(pred.get("stress")),
-        "paper": paper_section(pred),
         "force_error": force_error_section(pred),
         "plots": [{"src": data_uri(p), "caption": caption_of(p)} for p in plots],
         "tables": tables,

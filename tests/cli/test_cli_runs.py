@@ -323,7 +323,8 @@ def test_console_script_exit_runs_handlers_flushes_and_keeps_the_code():
 
 @pytest.mark.parametrize("argv, needle", [
     (["predict", "fingertp", "--out", "{o}"],
-     "part='fingertp' is not allowed: one of strap, fingertip, flexure (did you mean 'fingertip'?)"),
+     "part='fingertp' is not allowed: one of strap, fingertip, flexure (or a sensor definition: "
+     "FILE.py[:Class] or module:Class) (did you mean 'fingertip'?)"),
     (["export", "fingrtip", "--out", "{o}"], "(did you mean 'fingertip'?)"),
     (["params", "strp"], "(did you mean 'strap'?)"),
     (["loop", "--data", str(ROOT / "examples" / "stretch_card.toml"), "--base", "stretch-fme",
