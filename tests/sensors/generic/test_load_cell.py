@@ -96,6 +96,12 @@ def test_gauge_strain_per_newton_on_a_coarse_mesh(LoadCell):
     assert abs(_err(got["strain"], theory["strain"])) < 2.0
 
 
+def test_the_docs_page_shows_the_definition_as_it_is():
+    src = LOAD_CELL.read_text(encoding="utf-8")
+    page = (ROOT / "docs" / "sensors" / "load_cell.md").read_text(encoding="utf-8")
+    assert src[src.index("class LoadCell"):].strip() in page
+
+
 @pytest.mark.slow
 def test_strain_and_end_deflection_within_two_percent_of_beam_theory(LoadCell):
     cell = _probed(LoadCell, "load_cell_end_probe")()
