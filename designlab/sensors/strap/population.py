@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from designlab.errors import DataError, ParameterError
-from designlab.sensors.strap.fit import (DEPTH_RANGE, LENGTH_RANGE, WIDTH_RANGE,
+from designlab.sensors.strap.fit import (DEPTH_RANGE, SECTION_PERIMETER_RATIO, WIDTH_RANGE,
                                          ellipse_perimeter)
 
 #: the anthropometric table shipped with the package (designlab/data/)
@@ -224,6 +224,13 @@ def from_csv(path: str | Path) -> Population:
     ell = np.array([ellipse_perimeter(a / 2, b / 2) for a, b in zip(w, d)])
     per = col("perimeter", np.nan) if "perimeter" in cols else ell
     per = np.where(np.isfinite(per), per, ell)
+    lo, hi = SECTION_PERIMETER_RATIO
+    bad = (per < lo * ell) | (per > hi * ell)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise DataError(f"--fingers-csv={str(path)!r}: perimeter={per[k]:g} on row {k + 1} is "
+                        f"not allowed: {lo * ell[k]:.4g}-{hi * ell[k]:.4g} mm ({lo:g}-{hi:g} x "
+                        "the ellipse of its width and depth: a fingertip-like section)")
     assumptions = ["measured per person (the user's CSV)"]
     if "perimeter" not in cols:
         assumptions.append("perimeter = ellipse of width and depth (Ramanujan)")

@@ -18,7 +18,7 @@ import numpy as np
 from designlab.errors import ParameterError
 from designlab.sensors.strap.fit import Finger, check_target, default_target, fit_part
 from designlab.sensors.strap.population import Population
-from designlab.sensors.strap.prestrain import neo_hooke, operating_point, wrap_path
+from designlab.sensors.strap.prestrain import wrap_path
 
 #: the goal of ``--sizes auto``: initial-strain spread (p5-p95 over a size's fingers, percent
 #: of their mean) at most this, for at least GOAL_SHARE of the population
@@ -212,14 +212,17 @@ def auto_count(pop: Population, target: float, fit_by: str = "perimeter",
 def sensitivity_factor(eps: np.ndarray, R0: float, material,
                        R_fixed: float = DIVIDER_OHM) -> np.ndarray:
     """The prestrain's factor on the unstrained linear sensitivity per finger (the strap
-    model's: electrical operating point over the neo-Hookean tangent; 1 when slack)."""
-    out = np.ones(len(eps))
-    for i, e in enumerate(np.asarray(eps, float)):
-        if e > 0:
-            op = operating_point(float(e), R0, material.gauge_factor, material.gauge_quadratic,
-                                 R_fixed)
-            out[i] = op["electrical_factor"] / neo_hooke(float(e))["tangent_over_E"]
-    return out
+    model's, :func:`prestrain.operating_point` over :func:`prestrain.neo_hooke`'s tangent,
+    vectorised: the gauge's divider slope at its strained resistance over the unstrained one,
+    divided by the neo-Hookean tangent over E; 1 when slack)."""
+    from designlab.fem.transducers import divider_slope
+
+    e = np.maximum(np.asarray(eps, float), 0.0)
+    g, q = material.gauge_factor, material.gauge_quadratic
+    R = R0 * (1.0 + g * e + q * e ** 2)
+    electrical = (g + 2 * q * e) * divider_slope(R, R_fixed) / (g * divider_slope(R0, R_fixed))
+    tangent = (1.0 + 2.0 * (1.0 + e) ** -3) / 3.0
+    return np.where(np.asarray(eps, float) > 0, electrical / tangent, 1.0)
 
 
 def fem_sensitivity(part, perimeter: float, materials) -> float:

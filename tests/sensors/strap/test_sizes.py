@@ -50,6 +50,10 @@ def test_csv_replaces_the_table(tmp_path):
     g.write_text("width,length\n15,25\n")
     with pytest.raises(DataError, match="missing column.*depth"):
         pp.from_csv(g)
+    h = tmp_path / "girth.csv"
+    h.write_text("width,depth,perimeter\n" + "15,13,45\n" * 5 + "15,13,90\n")
+    with pytest.raises(DataError, match="perimeter=90 on row 6"):
+        pp.from_csv(h)
 
 
 # ----------------------------------------------------------------------------------- sizes
@@ -195,3 +199,17 @@ def test_predict_finger_bad_input_exit_2(tmp_path, capsys, part, finger, setting
     rc, _, err = _cli(["predict", part, "--finger", finger, *setting, "--out", out], capsys)
     assert rc == 2 and "--finger" in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_vectorised_sensitivity_factor_is_the_models():
+    from designlab.fem.materials import get_material
+    from designlab.sensors.strap.prestrain import neo_hooke, operating_point
+
+    mat = get_material("PI-ETPU")
+    eps = np.array([-0.05, 0.0, 0.05, 0.17, 0.3])
+    got = sz.sensitivity_factor(eps, 1800.0, mat)
+    for e, f in zip(eps, got):
+        want = 1.0 if e <= 0 else operating_point(
+            e, 1800.0, mat.gauge_factor, mat.gauge_quadratic, sz.DIVIDER_OHM)[
+            "electrical_factor"] / neo_hooke(e)["tangent_over_E"]
+        assert f == pytest.approx(want, rel=1e-12)
