@@ -131,6 +131,8 @@ def draw_measures(group: str = "all", n: int = 1000, seed: int = 0,
     lo, hi = FINGERS_RANGE
     if not (isinstance(n, (int, np.integer)) and lo <= n <= hi):
         raise ParameterError("--fingers", n, f"a whole number {lo}-{hi}")
+    if not (isinstance(seed, (int, np.integer)) and 0 <= seed < 2 ** 63):
+        raise ParameterError("--seed", seed, "a whole number >= 0")
     table = table or load_table()
     groups = table["groups"]
     rng = np.random.default_rng(seed)

@@ -308,17 +308,6 @@ def with_pulp(part, perimeter: float, material, slot: int) -> dict[str, float]:
             for E in cited_pulp_moduli()}
 
 
-def check_strains(rows: list[dict], material, what: str) -> None:
-    """No size may strain its fingers to the trace material's elongation at break."""
-    hi = material.max_elongation
-    for r in rows:
-        if hi is not None and r["initial_strain"]["p95"] >= hi:
-            raise ParameterError(what, r.get("size", r.get("slot")),
-                                 f"a size whose p95 initial strain "
-                                 f"({r['initial_strain']['p95']:.3g}) stays below "
-                                 f"{hi:g} ({material.name} elongation at break)")
-
-
 def paper_slots(pop: Population, target: float, material, s0, base=None) -> dict[str, Any]:
     """The paper's strap on the same fingers: each finger on the slot closest to the target
     (as a wearer would choose), per slot the fingers it takes and their strain and
@@ -411,6 +400,13 @@ def plan_sizes(pop: Population, request: SizesRequest) -> dict[str, Any]:
     if n is None:
         n, tried = auto_count(pop, target, request.fit_by)
     sizes, tail = partition(pop, n, target, request.fit_by)
+    hi = trace.max_elongation
+    for s in sizes:
+        p95 = float(np.percentile(strains(s.part, pop.perimeter[s.members]), 95))
+        if hi is not None and p95 >= hi:
+            raise ParameterError("--sizes", request.sizes, f"sizes whose p95 initial strain "
+                                 f"stays below {hi:g} ({trace.name} elongation at break; size "
+                                 f"{s.index}: {p95:.3g})")
     return {"target": target, "n": n, "tried": tried, "sizes": sizes, "tail": tail,
             "material": trace}
 
@@ -433,7 +429,6 @@ def strap_sizes(pop: Population, request: SizesRequest, out=None, *, fem: bool =
     s0s, sources = unstrained_sensitivities([(s.design_perimeter, s.part) for s in sizes],
                                             run_fem, say)
     rows = size_rows(pop, sizes, s0s, sources, trace, request.fit_by)
-    check_strains(rows, trace, "--sizes")
     from designlab.geometry.strap import ArchStrap
 
     say("paper strap")

@@ -148,6 +148,7 @@ def _cli(args, capsys):
     (["--sizes", "0"], "--sizes"), (["--sizes", "many"], "--sizes"),
     (["--population", "kids"], "--population"), (["--fingers", "3"], "--fingers"),
     (["--fit-by", "girth"], "--fit-by"), (["--target-strain", "2"], "--target-strain"),
+    (["--seed", "-1"], "--seed"),
     (["--fingers-csv", "MISSING"], "--fingers-csv")])
 def test_cli_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, args, name):
     if "MISSING" in args:
