@@ -10,7 +10,7 @@ from designlab.cli.app import main
 HELP_ORDER = (sweep.sweep, sweep.optimize, flexure.flexure, parts.export, parts.show,
               measured.compensate, measured.loop_cmd, verify.verify, parts.mesh_cmd,
               predict.predict, validate.validate, strap.fit_strap, strap.strap_sizes, parts.params_cmd,
-              sensors.new, sensors.sensors_cmd)
+              sensors.new, sensors.sensors_cmd, sensors.materials_cmd)
 
 _app.app.registered_commands.sort(
     key=lambda c: HELP_ORDER.index(c.callback) if c.callback in HELP_ORDER else len(HELP_ORDER))

@@ -1,4 +1,5 @@
-"""``designlab sensors`` (what is installed) and ``designlab new`` (a sensor definition to edit)."""
+"""``designlab sensors`` (what is installed), ``designlab new`` (a sensor definition to edit) and
+``designlab materials`` (the library a definition's bodies choose from)."""
 
 from __future__ import annotations
 
@@ -31,6 +32,21 @@ def sensors_cmd():
     console.print(table)
     next_step("designlab new NAME writes a sensor definition to edit; designlab predict "
               "FILE.py --out OUT runs it")
+
+
+@app.command("materials")
+def materials_cmd():
+    """The material library: modulus, Poisson's ratio, density, strength, relaxation (Prony
+    terms or the stand-in used) and the source of each value."""
+    from designlab.fem.materials import material_table
+
+    table = Table(title="materials (E MPa, density g/cm^3, strength MPa)")
+    for col in ("name", "E", "nu", "density", "strength", "relaxation", "source"):
+        table.add_column(col)
+    for r in material_table():
+        table.add_row(r.name, f"{r.E_MPa:g}", f"{r.nu:g}", f"{r.density_g_cm3:g}",
+                      "" if r.strength_MPa is None else f"{r.strength_MPa:g}", r.prony, r.source)
+    console.print(table)
 
 
 def _names(name: str) -> tuple[str, str]:

@@ -73,15 +73,18 @@ _KEEP = 4
 
 def stage_key(defn, settings) -> str:
     """What the FEM stage depends on: the definition's class, its parameters but those that
-    only move loads, and the mesh and solver settings."""
+    only move loads, the mesh and solver settings, and the material library."""
     from designlab.fem.cache import fem_key
 
     params = {k: v for k, v in as_dict(defn).items() if k not in defn.load_only()}
     sett = {k: v for k, v in as_dict(settings).items()
             if k not in ("mesh_convergence", "coarse_factor", "viscoelastic")}
     cls = type(defn)
+    from designlab.fem.materials import MATERIALS
+
     return fem_key("definition", cls=f"{cls.__module__}:{cls.__qualname__}",
-                   file=getattr(cls, "_designlab_spec", ""), params=params, settings=sett)
+                   file=getattr(cls, "_designlab_spec", ""), params=params, settings=sett,
+                   materials=repr(sorted(MATERIALS.items())))
 
 
 def _stage(defn, settings, progress) -> tuple[dict, bool]:
@@ -101,7 +104,7 @@ def _unit_wrenches(defn, stage, states) -> tuple[np.ndarray, np.ndarray, list[st
     the loads at the load points as the protocol states them, their names)."""
     points = {lp.name: lp for lp in defn.loads()}
     cases = stage["cases"]
-    names = [f"{lp}.{c}" for lp in points for c in COMPONENTS]
+    names = [f"{lp}_{c}" for lp in points for c in COMPONENTS]
     W = np.zeros((len(states), len(cases)))
     P = np.zeros((len(states), len(names)))
     for i, s in enumerate(states):
@@ -173,7 +176,7 @@ def _report(defn, stage, states, S, P_all, names, protocol, settings, visco, hol
     P, active = metrics.active_loads(P_all, names)
     chans = stage["channels"]
     noise = np.array([c.noise for c in chans], float)
-    moment_cols = [i for i, n in enumerate(active) if n.split(".")[-1].startswith("M")]
+    moment_cols = [i for i, n in enumerate(active) if n.rsplit("_", 1)[-1].startswith("M")]
     cal = metrics.calibration(S, P, moment_cols, getattr(defn, "moment_scale_mm", None))
     K = metrics.sensitivity(S, P)
     C = np.asarray(cal["matrix"])
@@ -198,6 +201,9 @@ def _report(defn, stage, states, S, P_all, names, protocol, settings, visco, hol
         "sensitivity_units": {c.name: {n: f"{c.unit}/{unit_of[n]}" for n in active}
                               for c in chans},
         "sensitivity_norm": float(np.linalg.norm(K)),
+        **metrics.sensitivity_shapes(K, [c.name for c in chans], active, moment_cols,
+                                     getattr(defn, "moment_scale_mm", None),
+                                     getattr(defn, "normalise_rows_by", None)),
         "noise_budget": dict(zip(active, map(float, metrics.noise_budget(C, noise)))),
         "force_error": _force_error(S, P, noise, protocol, active),
         "hysteresis_percent": hyst if hyst is not None else {

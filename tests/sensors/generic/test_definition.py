@@ -30,6 +30,12 @@ def _run(part, edge=3.0, **sett):
     return run(part, settings=settings_class(type(part))(edge_length=edge, **sett))
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _cad_library():
+    """build123d imported once for the module (its import is not what these tests measure)."""
+    import build123d  # noqa: F401
+
+
 def test_registered_from_a_file_and_from_module_class():
     from designlab.sensors.registry import SENSORS, resolve
 
