@@ -1,5 +1,5 @@
-"""The strap-size tables of the user guide (docs/guide/strap_sizes.md): 5 sizes for all adults
-of the shipped table with the paper's three slots beside them (static FEM per size), the size
+"""The strap-size tables of the user guide (docs/guide/strap_sizes.md): 5 sizes and ``--sizes
+auto`` for all adults of the shipped table, each with the paper's three slots beside them, the size
 count ``--sizes auto`` picks per population, fitted by perimeter and by breadth, and how the
 depth assumption moves them.
 
@@ -44,8 +44,8 @@ def auto_rows() -> list[str]:
 
 def main() -> None:
     pop = pp.draw("all", FINGERS, SEED)
-    res = sz.strap_sizes(pop, sz.SizesRequest(sizes=5))
-    print(sz.markdown(res))
+    for sizes in (5, "auto"):
+        print(sz.markdown(sz.strap_sizes(pop, sz.SizesRequest(sizes=sizes))))
     print("\n".join(auto_rows()))
 
 
