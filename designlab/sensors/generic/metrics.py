@@ -79,3 +79,30 @@ def hysteresis(loops, readings: np.ndarray) -> dict[str, Any] | None:
     h = np.where(np.isfinite(h), h, np.nan)
     return {"per_loop": h.tolist(), "mean": np.nanmean(h, axis=0).tolist(),
             "max": np.nanmax(h, axis=0).tolist(), "overall": float(np.nanmean(h))}
+
+
+def sensitivity_shapes(K: np.ndarray, channels: list[str], active: list[str],
+                       moment_cols: list[int], moment_scale_mm: float | None,
+                       normalise_by: str | None) -> dict[str, Any]:
+    """The sensitivity K's condition number (raw, and with the moment columns in load per
+    ``moment_scale_mm``) and, with ``normalise_by`` (a load component such as ``"Fz"``), each
+    channel's row divided by its entry for that load: the shape of the sensitivity that does
+    not depend on each channel's gain."""
+    out: dict[str, Any] = {"sensitivity_condition_number": condition_number(K)}
+    if moment_scale_mm and moment_cols:
+        scale = np.ones(K.shape[1])
+        scale[moment_cols] = moment_scale_mm
+        out["sensitivity_condition_number_scaled"] = condition_number(K * scale[None, :])
+    if normalise_by:
+        cols = [i for i, n in enumerate(active) if n.replace(".", "_").rsplit("_", 1)[-1]
+                == normalise_by]
+        if len(cols) != 1:
+            from designlab.errors import ParameterError
+
+            raise ParameterError("normalise_rows_by", normalise_by, "a load component the "
+                                 "protocol varies at one load point: " + ", ".join(active))
+        Kn = K / K[:, cols]
+        out["sensitivity_normalised_by"] = active[cols[0]]
+        out["sensitivity_normalised"] = {c: dict(zip(active, map(float, Kn[i])))
+                                         for i, c in enumerate(channels)}
+    return out
