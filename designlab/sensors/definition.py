@@ -326,12 +326,18 @@ class SensorDefinition(PartAPI):
     name:        the sensor's registry name (``designlab predict NAME``)
     description: one line shown by ``designlab sensors``
     edge_length: the default mesh edge length, mm
+    moment_scale_mm: a length (mm) the report divides moments by in ``*_scaled`` condition
+                     numbers (None: no scaled figure)
+    normalise_rows_by: a load component (``"Fz"``): the report adds each channel's sensitivity
+                     row divided by its entry for it, a shape free of the channels' gains
     """
 
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
     edge_length: ClassVar[float] = 2.0
     source: ClassVar[str] = ""
+    moment_scale_mm: ClassVar[float | None] = None
+    normalise_rows_by: ClassVar[str | None] = None
 
     def __init_subclass__(cls, **kw: Any) -> None:
         super().__init_subclass__(**kw)
