@@ -1,32 +1,10 @@
 """Point contacts between a linear structure's master points: Hertz, Mindlin, Coulomb (mm N MPa).
 
-Sensor-free building blocks of a small nonlinear contact problem on a *condensed* linear
-structure:
-
-* :class:`HertzContact` - two elastic spheres (Johnson, *Contact Mechanics*, 1985, eqs. 4.22-4.23):
-  ``1/R* = 1/R1 + 1/R2``, ``1/E* = (1-nu1^2)/E1 + (1-nu2^2)/E2``, contact radius
-  ``a = (3 N R* / (4 E*))^(1/3)``, approach ``delta = a^2 / R* = (9 N^2 / (16 R* E*^2))^(1/3)``,
-  i.e. ``N = 4/3 E* sqrt(R*) delta^(3/2)``; Mindlin's tangential stiffness of the stuck circle
-  ``k_t = 8 G* a`` with ``1/G* = (2-nu1)/G1 + (2-nu2)/G2`` (Johnson eq. 7.40; Mindlin 1949).
-* :class:`ContactLaw` - the law of one contact point: normal force from the approach through the
-  Hertz compliance in series with an optional linear spring (a force sensor), unilateral (open
-  when the approach would be negative), tangential Mindlin stiffness with Coulomb slip
-  (``|T| <= mu N``), integrated incrementally with a return map (the elastic-perfectly-plastic
-  friction model: path dependent, so cyclic loads give hysteresis loops). With ``microslip`` > 0
-  the tangential law is Mindlin's partial slip instead (Cattaneo 1938, Mindlin 1949; Johnson
-  Sec. 7.2-7.3): an annulus slips before the whole contact slides, the force-displacement curve
-  ``T = mu N (1 - (1 - d/d_s)^(3/2))``, ``d_s = 3 mu N / (2 k_t)``, and Masing unloading (Mindlin
-  and Deresiewicz 1953), discretised as a parallel Iwan model (1966) of ``microslip`` Jenkins
-  elements: a loop at any amplitude, its energy Johnson's eq. 7.53.
-* :class:`ContactProblem` - ``m`` contacts on a linear structure of flexibility ``C`` (n x n) at
-  its master dofs: ``q = C (f + sum_k L_k^T p_k)``; ``L_k`` (3 x n) maps the master dofs to the
-  relative displacement of body A with respect to body B at contact ``k`` in its local frame
-  (normal, t1, t2; the normal points from B to A); ``p_k = (N, T1, T2)`` is the force B exerts on
-  A. :meth:`ContactProblem.solve_path` follows a load path in increments (Newton on the 3m
-  relative displacements, batched over independent load histories).
-* :func:`condense` - the flexibility of a designlab FEM :class:`~designlab.fem.model.Model` at a
-  few master points (unit loads at reference points, one factorisation): the exact static
-  condensation of a linear model, for the contact problem.
+Sensor-free building blocks of a small nonlinear contact problem on a linear structure
+condensed to a few master points (:func:`condense`): the law of one contact
+(:class:`HertzContact`, :class:`ContactLaw`: Hertz normal force, Mindlin stiffness, Coulomb or
+partial slip) and :class:`ContactProblem`, which follows load paths with hysteresis. The
+formulas and their sources: docs/reference/fem.md.
 """
 
 from __future__ import annotations

@@ -1,47 +1,10 @@
 """Geometrically nonlinear static analysis: compressible neo-Hookean solids, total Lagrangian.
 
-``solve_hyperelastic(model, hyper={body: NeoHooke(mu, kappa)}, cases={"default": 1.0})`` solves
-the equilibrium of a :class:`~designlab.fem.model.Model` at large deformation, on its TET4 or
-TET10 mesh (shape functions and quadrature from :mod:`designlab.fem.elements` through
-:func:`designlab.fem.assembly.cell_basis`: the gradients are w.r.t. the reference
-coordinates).
-
-Energy (per unit reference volume), the CalculiX / Abaqus ``*HYPERELASTIC, NEO HOOKE`` form::
-
-    W = mu/2 (I1bar - 3) + kappa/2 (J - 1)^2,   I1bar = J^(-2/3) tr(F^T F),  J = det F
-
-i.e. C10 = mu/2 and D1 = 2/kappa (mu, kappa: the small-strain shear and bulk moduli: at small
-strain the model is the linear material with G = mu, K = kappa). First Piola-Kirchhoff stress
-``P = mu J^(-2/3) (F - I1/3 F^-T) + kappa J (J - 1) F^-T`` and its consistent tangent
-``A = dP/dF`` are formed in closed form, vectorised over (cells, quadrature points).
-
-Regions without a :class:`NeoHooke` are **St-Venant-Kirchhoff** with the region's linear
-Material (S = lambda tr(E) I + 2 mu E, E the Green-Lagrange strain): geometrically nonlinear
-(large rotations exact), the linear law at small strain, for the stiff parts that strain little.
-
-What comes from the Model (``Model.build()``'s System, the same the linear solvers use): the
-prescribed displacements (``fix``/``prescribe``), nodal forces, tractions, pressures and body
-forces (all **dead loads**: fixed in the reference configuration, no follower pressure),
-linear springs and beams (their stiffness added to the tangent, small-displacement), and the
-rigid couplings (``u = T q + G``: the linear, small-rotation kinematics of the reference
-points). Load cases are combined with the factors ``cases`` and applied in ``steps`` equal
-increments of a load factor lambda 0 -> 1 (prescribed values and loads together).
-
-Newton's method per increment: the first iteration extrapolates the tangent (the predictor
-takes the prescribed-displacement increment through K_t, so a large prescribed step does not
-distort the cells next to it), then full Newton steps with a backtracking line search on the
-residual norm (the step is halved, at most ``max_halvings`` times, while the residual grows
-or a cell inverts). An increment that does not converge in ``max_iter`` iterations (or
-inverts a cell) is cut in half, at most ``max_cuts`` times in a row. Convergence:
-``|r| <= rtol * max(|f_ext|, |f_int|)`` over the free dofs' residual ``r = T^T (f_int -
-lambda f_ext)``, ``f_int`` the full internal force vector (reactions included, so a
-displacement-driven problem has a scale).
-The stresses are formed from the displacement gradient H = F - I without cancellation
-(J - 1, I1 - 3 and the deviatoric bracket expanded in H; E = (H + H^T + H^T H)/2): the
-residual keeps its relative precision at small strains (with F = I + H the stress at strain
-1e-6 would carry a ~1e-10 relative round-off and Newton would stall there). The linear systems use
-:func:`designlab.fem.solvers.factorize` chosen as for many right-hand sides (PARDISO's Cholesky from
-5k unknowns on, its LU where the tangent is indefinite; SuperLU below).
+:func:`solve_hyperelastic` finds the large-deformation equilibrium of a
+:class:`~designlab.fem.model.Model` (its TET4/TET10 mesh, supports, dead loads, springs and
+couplings), neo-Hookean where given, St-Venant-Kirchhoff elsewhere, by Newton's method over
+load increments; :func:`solve_calculix_neo_hooke` is the CalculiX reference it is checked
+against. The energy, stresses and solution method: docs/hyperelastic.md.
 """
 
 from __future__ import annotations
@@ -389,24 +352,88 @@ class HyperelasticResult:
                 "solver": self.solver}
 
 
-def solve_hyperelastic(model: Model, hyper: dict | None = None, cases=None, steps: int = 5,
-                       rtol: float = 1e-9, max_iter: int = 25, max_cuts: int = 8,
-                       max_halvings: int = 6, solver: str = "auto",
-                       on_increment=None) -> HyperelasticResult:
-    """Large-deformation static equilibrium of ``model`` (see the module docstring).
+class _Newton:
+    """Newton's method on the equilibrium of one System: the internal forces and tangent,
+    the reduced linear solves, and one load increment (predictor, corrections, line search);
+    counts the tangent assemblies and keeps the last linear solver's kind."""
 
-    hyper: {body: NeoHooke}; other bodies are St-Venant-Kirchhoff with their Material.
-    cases: {case: factor} (default: the model's only case, factor 1; a str: that case).
-    steps: equal load increments; rtol: residual tolerance (relative); solver: as
-    :func:`~designlab.fem.solvers.factorize`. The solve starts from the reference
-    configuration (u = 0). ``on_increment(lam, u)``: called after every converged increment with the load factor and
-    the displacement (n_dofs,) (e.g. to record a load-response curve)."""
-    t0 = time.perf_counter()
-    if not (isinstance(steps, (int, np.integer)) and steps >= 1):
-        raise ParameterError("steps", steps, "an integer >= 1")
-    if not (0 < rtol < 1):
-        raise ParameterError("rtol", rtol, "in (0, 1)")
-    system = model.build()
+    def __init__(self, system: System, cont: Continuum, f_ext, g, solver: str, rtol: float,
+                 max_iter: int, max_halvings: int):
+        self.system, self.cont, self.f_ext, self.g = system, cont, f_ext, g
+        self.solver, self.rtol = solver, rtol
+        self.max_iter, self.max_halvings = max_iter, max_halvings
+        self.n3 = 3 * system.model.n_points
+        self.T = system.T
+        self.Tt = system.T.T.tocsr()
+        self.assemblies = 0
+        self.kind = ""
+
+    def forces(self, u, tangent: bool):
+        """(f_int (n_dofs,), tangent or None) at displacement ``u``, springs included."""
+        cont, system = self.cont, self.system
+        P, A = cont.stress(cont.displacement_gradient(u[:self.n3]), tangent)
+        fi = np.zeros(system.n_dofs)
+        fi[:self.n3] = cont.internal_force(P)
+        fi += system.K_spring @ u
+        if tangent:
+            self.assemblies += 1
+        return fi, (system.K(cont.tangent(A)) if tangent else None)
+
+    def solve(self, Kt, r):
+        """The reduced system's solution; one factorisation per iteration: "auto" chooses as
+        for many right-hand sides (PARDISO from 5k unknowns on instead of SuperLU up to 20k)."""
+        lin = factorize(self.system.reduce(Kt), self.solver, n_rhs=MANY_RHS)
+        self.kind = lin.kind
+        return lin.solve(r)
+
+    def line_search(self, q_try, dq, lam_new, rn, ref) -> tuple[float, int]:
+        """(step, halvings): the step along ``dq`` halved while the residual grows or a cell
+        inverts, at most ``max_halvings`` times; past that -> ModelError."""
+        step, halv = 1.0, 0
+        for _ in range(self.max_halvings + 1):
+            try:
+                u_t = self.T @ (q_try + step * dq) + lam_new * self.g
+                fi_t, _ = self.forces(u_t, False)
+                rn_t = np.linalg.norm(self.Tt @ (fi_t - lam_new * self.f_ext)) / ref
+                if rn_t < rn or step < 1.0 / 2 ** self.max_halvings:
+                    return step, halv
+            except ModelError:
+                pass
+            step *= 0.5
+            halv += 1
+        raise ModelError("line search failed")
+
+    def increment(self, q, lam: float, lam_new: float, fi_prev, Kt_prev):
+        """One load increment lam -> lam_new from the equilibrium (q, f_int, tangent) at lam:
+        (q, u, f_int, tangent, Increment) at lam_new, or None if ``max_iter`` corrections do
+        not reach the tolerance (the residual after the last one is not evaluated); an
+        inverted cell -> ModelError."""
+        T, Tt, g, f_ext = self.T, self.Tt, self.g, self.f_ext
+        # predictor: the tangent at the last equilibrium takes the increment of the
+        # prescribed values and the loads
+        r = Tt @ (fi_prev + Kt_prev @ ((lam_new - lam) * g) - lam_new * f_ext)
+        q_try = q + self.solve(Kt_prev, -r)
+        res_hist: list[float] = []
+        halv = 0
+        for it in range(self.max_iter):
+            u = T @ q_try + lam_new * g
+            fi, Kt = self.forces(u, True)
+            r = Tt @ (fi - lam_new * f_ext)
+            ref = max(np.linalg.norm(lam_new * f_ext), np.linalg.norm(fi), 1e-300)
+            rn = np.linalg.norm(r) / ref
+            res_hist.append(rn)
+            if rn <= self.rtol:
+                return q_try, u, fi, Kt, Increment(lam_new, it, tuple(res_hist), halv)
+            dq = self.solve(Kt, -r)
+            step, h = self.line_search(q_try, dq, lam_new, rn, ref)
+            halv += h
+            q_try = q_try + step * dq
+        return None
+
+
+def _load_factors(system: System, cases) -> np.ndarray:
+    """The factor of each of the system's load cases; ``cases``: {case: factor}, a case name,
+    or None for a model with one case."""
     if cases is None:
         if len(system.cases) != 1:
             raise ParameterError("cases", None, "{case: factor} for a model with cases "
@@ -417,86 +444,48 @@ def solve_hyperelastic(model: Model, hyper: dict | None = None, cases=None, step
     w = np.zeros(len(system.cases))
     for c, f in cases.items():
         w[system.case_index(c)] += float(f)
+    return w
+
+
+def solve_hyperelastic(model: Model, hyper: dict | None = None, cases=None, steps: int = 5,
+                       rtol: float = 1e-9, max_iter: int = 25, max_cuts: int = 8,
+                       max_halvings: int = 6, solver: str = "auto",
+                       on_increment=None) -> HyperelasticResult:
+    """Large-deformation static equilibrium of ``model`` (the method: docs/hyperelastic.md).
+
+    hyper: {body: NeoHooke}; other bodies are St-Venant-Kirchhoff with their Material.
+    cases: {case: factor} (default: the model's only case, factor 1; a str: that case).
+    steps: equal load increments; rtol: residual tolerance (relative); solver: as
+    :func:`~designlab.fem.solvers.factorize`. The solve starts from the reference
+    configuration (u = 0). ``on_increment(lam, u)``: called after every converged increment
+    with the load factor and the displacement (n_dofs,) (e.g. to record a load-response
+    curve). An increment that does not converge (or inverts a cell) is cut in half, at most
+    ``max_cuts`` times in a row."""
+    t0 = time.perf_counter()
+    if not (isinstance(steps, (int, np.integer)) and steps >= 1):
+        raise ParameterError("steps", steps, "an integer >= 1")
+    if not (0 < rtol < 1):
+        raise ParameterError("rtol", rtol, "in (0, 1)")
+    system = model.build()
+    w = _load_factors(system, cases)
     f_ext = (system.F + system.F_preload) @ w
-    g = system.G @ w
-    cont = Continuum.of(model, hyper)
-    n3 = 3 * model.n_points
-    T = system.T
-    Tt = T.T.tocsr()
-    Ks = system.K_spring
-
-    def forces(u, tangent):
-        P, A = cont.stress(cont.displacement_gradient(u[:n3]), tangent)
-        fi = np.zeros(system.n_dofs)
-        fi[:n3] = cont.internal_force(P)
-        fi += Ks @ u
-        Kt = system.K(cont.tangent(A)) if tangent else None
-        return fi, Kt
-
-    def solve(Kt, r):
-        Kr = system.reduce(Kt)
-        # one factorisation per iteration: "auto" chooses as for many right-hand sides
-        # (PARDISO from 5k unknowns on instead of SuperLU up to 20k)
-        lin = factorize(Kr, solver, n_rhs=MANY_RHS)
-        return lin.solve(r), lin.kind
-
-    q = np.zeros(T.shape[1])
-    lam = 0.0
-    dlam = 1.0 / steps
+    newton = _Newton(system, Continuum.of(model, hyper), f_ext, system.G @ w, solver, rtol,
+                     max_iter, max_halvings)
+    q = np.zeros(system.T.shape[1])
+    lam, dlam = 0.0, 1.0 / steps
     incs: list[Increment] = []
-    cuts = 0
-    assemblies = 0
-    kind = ""
-    cuts_in_row = 0
+    cuts = cuts_in_row = 0
     u_prev = np.zeros(system.n_dofs)
-    fi_prev, Kt_prev = forces(u_prev, True)
-    assemblies += 1
+    fi_prev, Kt_prev = newton.forces(u_prev, True)
     while lam < 1.0:
         lam_new = lam + dlam
         if lam_new > 1.0 - 1e-9:         # the last increment ends exactly at 1
             lam_new = 1.0
-        ok = False
         try:
-            # predictor: the tangent at the last equilibrium takes the increment of the
-            # prescribed values and the loads
-            dg = (lam_new - lam) * g
-            r = Tt @ (fi_prev + Kt_prev @ dg - lam_new * f_ext)
-            dq, kind = solve(Kt_prev, -r)
-            q_try = q + dq
-            res_hist = []
-            halv = 0
-            it = 0
-            while it < max_iter:
-                u = T @ q_try + lam_new * g
-                fi, Kt = forces(u, True)
-                assemblies += 1
-                r = Tt @ (fi - lam_new * f_ext)
-                ref = max(np.linalg.norm(lam_new * f_ext), np.linalg.norm(fi), 1e-300)
-                rn = np.linalg.norm(r) / ref
-                res_hist.append(rn)
-                if rn <= rtol:
-                    ok = True
-                    break
-                it += 1
-                dq, kind = solve(Kt, -r)
-                step = 1.0
-                for _ in range(max_halvings + 1):
-                    try:
-                        u_t = T @ (q_try + step * dq) + lam_new * g
-                        fi_t, _ = forces(u_t, False)
-                        rn_t = np.linalg.norm(Tt @ (fi_t - lam_new * f_ext)) / ref
-                        if rn_t < rn or step < 1.0 / 2 ** max_halvings:
-                            break
-                    except ModelError:
-                        pass
-                    step *= 0.5
-                    halv += 1
-                else:
-                    raise ModelError("line search failed")
-                q_try = q_try + step * dq
+            done = newton.increment(q, lam, lam_new, fi_prev, Kt_prev)
         except ModelError:
-            ok = False
-        if not ok:
+            done = None
+        if done is None:
             cuts += 1
             cuts_in_row += 1
             if cuts_in_row > max_cuts:
@@ -505,14 +494,13 @@ def solve_hyperelastic(model: Model, hyper: dict | None = None, cases=None, step
             dlam *= 0.5
             continue
         cuts_in_row = 0
-        q = q_try
+        q, u_prev, fi_prev, Kt_prev, inc = done
         lam = lam_new
-        u_prev, fi_prev, Kt_prev = u, fi, Kt
-        incs.append(Increment(lam, it, tuple(res_hist), halv))
+        incs.append(inc)
         if on_increment is not None:
-            on_increment(lam, u)
-    return HyperelasticResult(system, cont, u_prev, f_ext, tuple(incs), cuts, rtol,
-                              time.perf_counter() - t0, assemblies, kind)
+            on_increment(lam, u_prev)
+    return HyperelasticResult(system, newton.cont, u_prev, f_ext, tuple(incs), cuts, rtol,
+                              time.perf_counter() - t0, newton.assemblies, newton.kind)
 
 
 # ---------------------------------------------------------------- CalculiX reference

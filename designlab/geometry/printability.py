@@ -1,37 +1,9 @@
 """Printability checks of a part's bodies before export (FDM, build direction = model +z, mm).
 
-Per printed body:
-
-* the B-rep is a valid solid without self-intersection (OpenCascade ``BRepCheck_Analyzer`` and
-  ``BOPAlgo_ArgumentAnalyzer``);
-* its tessellation is watertight and consistently wound (trimesh) and a valid manifold
-  (``manifold3d.Manifold(...).status() == NoError``), enclosing a positive volume;
-* smallest features, measured by casting a ray from surface samples along the inward normal to the
-  opposite wall (Embree through ``embreex`` where installed, all rays at once; else a VTK cell
-  locator, one ray at a time: both find the hit triangle, the distance to its plane is computed
-  in float64, so the two agree to ~1e-14 mm except on rays through an edge): *walls* (samples
-  whose normal is mostly horizontal) must be at least the nozzle diameter wide, *skins* (normal
-  mostly vertical) at least one layer thick.
-  A conductive trace's thickness is thus governed by the layer height (0.2 mm = two 0.1 mm
-  layers is fine) and its width by the nozzle. The thin surface area is measured over the area
-  (points drawn uniformly over the surface with a fixed seed, ~50 per mm^2, each standing for
-  its share of the area), not per face; a ray counts where it reaches a wall facing back
-  (``WALL_OPPOSED``), so a 90 deg corner tessellated with chords is not a thin wall. A thin region counts as a failure only when that
-  area exceeds ``THIN_AREA_MM2``; smaller ones (slivers, wedge tips where two cuts meet,
-  which a slicer drops without consequence) are reported as warnings. Bodies printed by another extruder inside a host
-  body (the traces) need ``MM_WALL_FACTOR`` nozzle widths: PrusaSlicer 2.5 (default Arachne
-  perimeters, 0.4 mm nozzle, 0.1 mm layers) silently drops an embedded second-extruder line
-  0.6 mm wide and prints one 0.7 mm wide (measured with ``tests/geometry/test_export.py``'s fixture).
-
-Per part: printed bodies must not overlap each other (manifold3d intersection volume), otherwise
-the slicer would print the shared volume with one material only.
-
-Bought bodies (``printed=False``) are not checked.
-
-A body's report (and its tessellation, which the overlap check needs) is kept in a small
-in-process cache keyed by its B-rep (OpenCascade's binary form without triangulation, SHA-256),
-its name, extruder and the check's settings: in a sweep the bodies a design parameter does not
-touch (the fingertip's base and cap for every (h, r)) are checked once per worker.
+Each printed body must be a valid, watertight solid whose walls are at least a nozzle wide and
+whose skins at least a layer thick (measured by rays over the surface area); printed bodies must
+not overlap. Bought bodies are not checked. What is measured and why the limits are what they
+are: docs/reference/mesh.md.
 """
 
 from __future__ import annotations
@@ -52,7 +24,8 @@ from designlab.geometry.tessellate import tessellate, topods
 
 #: a sample's normal with |n_z| above this measures a skin (vertical thickness), else a wall
 SKIN_NZ = 0.7
-#: embedded bodies of a second extruder need this many nozzle widths (see module docstring)
+#: embedded bodies of a second extruder need this many nozzle widths (the slicer measurement:
+#: docs/reference/mesh.md)
 MM_WALL_FACTOR = 2.0
 #: a ray measures a wall only where it reaches a face turned back towards it (normals more than
 #: 120 deg apart): the chord facets of a curved side meeting a flat bottom at 90 deg are a
@@ -418,7 +391,7 @@ def check_part(part: str, bodies: Mapping[str, Body], nozzle: float = 0.4, layer
                meshes: Mapping[str, trimesh.Trimesh] | None = None) -> list[BodyReport]:
     """Reports for every body of a part (bought bodies included, unchecked), with overlaps of
     printed bodies added to both bodies' problems. Bodies without a mesh in ``meshes`` are
-    tessellated here (and their reports cached per process, see the module docstring)."""
+    tessellated here (and their reports cached per process, docs/reference/mesh.md)."""
     given = dict(meshes or {})
     host = min((b.extruder for b in bodies.values() if b.printed), default=1)
     reports, meshes = {}, {}

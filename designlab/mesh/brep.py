@@ -25,6 +25,7 @@ face (OpenCascade distance below ``NAMED_TOL``). The group's triangles are retur
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import tempfile
@@ -238,10 +239,122 @@ def ignore_sigpipe() -> None:
     libc.signal(int(signal.SIGPIPE), 1)                 # 1 = SIG_IGN
 
 
-def _tetrahedralize(shapes, names, edge_length, refinement, grading, min_edge, curvature,
-                    named_faces=None, cell_order=1, optimize=0):
-    import gmsh
+def _import_bodies(gmsh, shapes, names) -> list[list[tuple[int, int]]]:
+    """Each body's B-rep imported into gmsh: its solids' (dim, tag); a body gmsh cannot
+    import, or without a solid -> one line naming it."""
     from build123d import export_brep
+
+    inputs: list[list[tuple[int, int]]] = []
+    with tempfile.TemporaryDirectory(prefix="designlab-gmsh-") as tmp:
+        for i, (shape, name) in enumerate(zip(shapes, names)):
+            path = os.path.join(tmp, f"{i}.brep")
+            export_brep(shape, path)
+            try:
+                tags = gmsh.model.occ.importShapes(path, highestDimOnly=True)
+            except Exception as exc:
+                raise MeshingError(f"body {name!r}: gmsh cannot import its B-rep ({exc})") from None
+            tags = [t for t in tags if t[0] == 3]
+            if not tags:
+                raise MeshingError(f"body {name!r}: no solid in its B-rep")
+            inputs.append(tags)
+    return inputs
+
+
+def _fragment(gmsh, inputs, names) -> list[list[int]]:
+    """The bodies fragmented into conforming volumes: each body's volume tags, one physical
+    group per body; two bodies sharing a volume -> one line with their overlap."""
+    flat = [t for tags in inputs for t in tags]
+    if len(flat) > 1:
+        _, omap = gmsh.model.occ.fragment(flat, [])
+    else:
+        omap = [flat]
+    gmsh.model.occ.synchronize()
+    volumes_of: list[list[int]] = []
+    pos = 0
+    for tags in inputs:
+        volumes_of.append(sorted({t for m in omap[pos:pos + len(tags)] for d, t in m if d == 3}))
+        pos += len(tags)
+    owner: dict[int, int] = {}
+    for k, vols in enumerate(volumes_of):
+        for v in vols:
+            if v in owner:
+                mass = gmsh.model.occ.getMass(3, v)
+                raise MeshingError(f"bodies {names[owner[v]]!r} and {names[k]!r} overlap by "
+                                   f"{mass:.4g} mm^3; regions must not intersect")
+            owner[v] = k
+    for k, vols in enumerate(volumes_of):
+        gmsh.model.addPhysicalGroup(3, vols, tag=k + 1, name=names[k])
+    return volumes_of
+
+
+def _size_field(gmsh, edge_length, refinement, grading, min_edge, curvature) -> None:
+    """gmsh's element size: curvature sizing, the global bounds and one Ball field per
+    refinement sphere, graded back to the global size."""
+    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", int(curvature))
+    h = float(edge_length)
+    finest = min([h] + [float(e) for _, _, e in refinement])
+    gmsh.option.setNumber("Mesh.MeshSizeMax", h)
+    gmsh.option.setNumber("Mesh.MeshSizeMin", float(min_edge) if min_edge else 0.05 * finest)
+    if not refinement:
+        return
+    balls = []
+    for c, r, e in refinement:
+        f = gmsh.model.mesh.field.add("Ball")
+        for key, value in (("XCenter", c[0]), ("YCenter", c[1]), ("ZCenter", c[2]),
+                           ("Radius", r), ("VIn", e), ("VOut", h)):
+            gmsh.model.mesh.field.setNumber(f, key, float(value))
+        gmsh.model.mesh.field.setNumber(f, "Thickness", max((h - e) / grading, 1e-6))
+        balls.append(f)
+    fmin = gmsh.model.mesh.field.add("Min")
+    gmsh.model.mesh.field.setNumbers(fmin, "FieldsList", balls)
+    gmsh.model.mesh.field.setAsBackgroundMesh(fmin)
+
+
+def _generate(gmsh, names, cell_order, optimize) -> None:
+    """The 3-D mesh, raised to TET10 with curved mid-side nodes if ``cell_order`` is 2."""
+    try:
+        gmsh.model.mesh.generate(3)
+    except Exception as exc:
+        raise MeshingError(f"gmsh failed on bodies {', '.join(names)}: {exc}") from None
+    if cell_order == 2:
+        gmsh.option.setNumber("Mesh.SecondOrderLinear", 0)
+        gmsh.option.setNumber("Mesh.HighOrderOptimize", int(optimize))
+        gmsh.model.mesh.setOrder(2)
+        if gmsh.option.getNumber("Mesh.SecondOrderLinear") != 0:
+            raise MeshingError("gmsh: Mesh.SecondOrderLinear is not 0")
+
+
+def _cells_of(gmsh, volumes_of, names, cell_order):
+    """(node tags sorted, points, cells, region) of the generated mesh; cells index the
+    sorted nodes (TET10 in CalculiX's node order)."""
+    node_tags, xyz, _ = gmsh.model.mesh.getNodes()
+    node_tags = np.asarray(node_tags, np.int64)
+    order = np.argsort(node_tags)
+    node_tags = node_tags[order]
+    points = np.asarray(xyz, float).reshape(-1, 3)[order]
+    cells, region = [], []
+    for k, vols in enumerate(volumes_of):
+        for v in vols:
+            types, _, enodes = gmsh.model.mesh.getElements(3, v)
+            for t, nodes in zip(types, enodes):
+                if t != (4 if cell_order == 1 else 11):
+                    raise MeshingError(f"body {names[k]!r}: gmsh made elements of type {t}, "
+                                       f"not tetrahedra of order {cell_order}")
+                c = np.searchsorted(node_tags, np.asarray(nodes, np.int64))
+                c = (c.reshape(-1, 4) if cell_order == 1
+                     else c.reshape(-1, 10)[:, GMSH_TET10_TO_C3D10])
+                cells.append(c)
+                region.append(np.full(len(c), k, np.int64))
+    if not cells or not sum(len(c) for c in cells):
+        raise MeshingError(f"gmsh made no tetrahedra for bodies {', '.join(names)}")
+    return node_tags, points, np.vstack(cells), np.concatenate(region)
+
+
+@contextlib.contextmanager
+def _gmsh_session():
+    """gmsh, initialised here (and finalised after) unless it already is; SIGPIPE stays
+    ignored if it was."""
+    import gmsh
 
     own = not gmsh.isInitialized()
     if own:
@@ -250,101 +363,26 @@ def _tetrahedralize(shapes, names, edge_length, refinement, grading, min_edge, c
         if ignored:
             ignore_sigpipe()
     try:
-        for k, v in DETERMINISTIC.items():
-            gmsh.option.setNumber(k, v)
-        gmsh.model.add("designlab")
-        inputs: list[list[tuple[int, int]]] = []
-        with tempfile.TemporaryDirectory(prefix="designlab-gmsh-") as tmp:
-            for i, (shape, name) in enumerate(zip(shapes, names)):
-                path = os.path.join(tmp, f"{i}.brep")
-                export_brep(shape, path)
-                try:
-                    tags = gmsh.model.occ.importShapes(path, highestDimOnly=True)
-                except Exception as exc:
-                    raise MeshingError(f"body {name!r}: gmsh cannot import its B-rep ({exc})") from None
-                tags = [t for t in tags if t[0] == 3]
-                if not tags:
-                    raise MeshingError(f"body {name!r}: no solid in its B-rep")
-                inputs.append(tags)
-        flat = [t for tags in inputs for t in tags]
-        if len(flat) > 1:
-            _, omap = gmsh.model.occ.fragment(flat, [])
-        else:
-            omap = [flat]
-        gmsh.model.occ.synchronize()
-        volumes_of: list[list[int]] = []
-        pos = 0
-        for tags in inputs:
-            vols = sorted({t for m in omap[pos:pos + len(tags)] for d, t in m if d == 3})
-            volumes_of.append(vols)
-            pos += len(tags)
-        owner: dict[int, int] = {}
-        for k, vols in enumerate(volumes_of):
-            for v in vols:
-                if v in owner:
-                    mass = gmsh.model.occ.getMass(3, v)
-                    raise MeshingError(f"bodies {names[owner[v]]!r} and {names[k]!r} overlap by "
-                                       f"{mass:.4g} mm^3; regions must not intersect")
-                owner[v] = k
-        for k, vols in enumerate(volumes_of):
-            gmsh.model.addPhysicalGroup(3, vols, tag=k + 1, name=names[k])
-        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", int(curvature))
-        h = float(edge_length)
-        finest = min([h] + [float(e) for _, _, e in refinement])
-        gmsh.option.setNumber("Mesh.MeshSizeMax", h)
-        gmsh.option.setNumber("Mesh.MeshSizeMin", float(min_edge) if min_edge else 0.05 * finest)
-        if refinement:
-            balls = []
-            for c, r, e in refinement:
-                f = gmsh.model.mesh.field.add("Ball")
-                gmsh.model.mesh.field.setNumber(f, "XCenter", float(c[0]))
-                gmsh.model.mesh.field.setNumber(f, "YCenter", float(c[1]))
-                gmsh.model.mesh.field.setNumber(f, "ZCenter", float(c[2]))
-                gmsh.model.mesh.field.setNumber(f, "Radius", float(r))
-                gmsh.model.mesh.field.setNumber(f, "VIn", float(e))
-                gmsh.model.mesh.field.setNumber(f, "VOut", h)
-                gmsh.model.mesh.field.setNumber(f, "Thickness", max((h - e) / grading, 1e-6))
-                balls.append(f)
-            fmin = gmsh.model.mesh.field.add("Min")
-            gmsh.model.mesh.field.setNumbers(fmin, "FieldsList", balls)
-            gmsh.model.mesh.field.setAsBackgroundMesh(fmin)
-        try:
-            gmsh.model.mesh.generate(3)
-        except Exception as exc:
-            raise MeshingError(f"gmsh failed on bodies {', '.join(names)}: {exc}") from None
-        if cell_order == 2:
-            gmsh.option.setNumber("Mesh.SecondOrderLinear", 0)
-            gmsh.option.setNumber("Mesh.HighOrderOptimize", int(optimize))
-            gmsh.model.mesh.setOrder(2)
-            if gmsh.option.getNumber("Mesh.SecondOrderLinear") != 0:
-                raise MeshingError("gmsh: Mesh.SecondOrderLinear is not 0")
-        node_tags, xyz, _ = gmsh.model.mesh.getNodes()
-        node_tags = np.asarray(node_tags, np.int64)
-        order = np.argsort(node_tags)
-        node_tags = node_tags[order]
-        points = np.asarray(xyz, float).reshape(-1, 3)[order]
-        cells, region = [], []
-        for k, vols in enumerate(volumes_of):
-            for v in vols:
-                types, _, enodes = gmsh.model.mesh.getElements(3, v)
-                for t, nodes in zip(types, enodes):
-                    if t != (4 if cell_order == 1 else 11):
-                        raise MeshingError(f"body {names[k]!r}: gmsh made elements of type {t}, "
-                                           f"not tetrahedra of order {cell_order}")
-                    c = np.searchsorted(node_tags, np.asarray(nodes, np.int64))
-                    c = (c.reshape(-1, 4) if cell_order == 1
-                         else c.reshape(-1, 10)[:, GMSH_TET10_TO_C3D10])
-                    cells.append(c)
-                    region.append(np.full(len(c), k, np.int64))
-        if not cells or not sum(len(c) for c in cells):
-            raise MeshingError(f"gmsh made no tetrahedra for bodies {', '.join(names)}")
-        if named_faces is None:
-            return points, np.vstack(cells), np.concatenate(region)
-        diag = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
-        named = _named_triangles(named_faces, volumes_of, node_tags, points, diag)
-        return points, np.vstack(cells), np.concatenate(region), named
+        yield gmsh
     finally:
         if own:
             gmsh.finalize()
         else:
             gmsh.model.remove()
+
+
+def _tetrahedralize(shapes, names, edge_length, refinement, grading, min_edge, curvature,
+                    named_faces=None, cell_order=1, optimize=0):
+    with _gmsh_session() as gmsh:
+        for k, v in DETERMINISTIC.items():
+            gmsh.option.setNumber(k, v)
+        gmsh.model.add("designlab")
+        volumes_of = _fragment(gmsh, _import_bodies(gmsh, shapes, names), names)
+        _size_field(gmsh, edge_length, refinement, grading, min_edge, curvature)
+        _generate(gmsh, names, cell_order, optimize)
+        node_tags, points, cells, region = _cells_of(gmsh, volumes_of, names, cell_order)
+        if named_faces is None:
+            return points, cells, region
+        diag = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+        named = _named_triangles(named_faces, volumes_of, node_tags, points, diag)
+        return points, cells, region, named

@@ -1,31 +1,10 @@
 """Bodies -> one conforming, region-tagged tetrahedral mesh, mm.
 
-Two meshers. ``gmsh`` (the default, :mod:`designlab.mesh.brep`) meshes the bodies' exact B-rep:
-deterministic (the same input gives the same mesh bit for bit) and fast; it is tried first with
-the size field alone, then with curvature-based sizing, then finer. Facet sets: a set the part
-names by B-rep faces (``named_faces``; a part's optional ``named_faces(bodies)`` method) is, on
-the gmsh path, the boundary triangles of the gmsh surfaces on those faces (a physical surface
-group); every other set, and every set of an fTetWild mesh, comes from the part's facet
-predicates (``facet_sets``). ``MeshResult.named_sets`` lists the sets taken from B-rep faces. ``tetwild`` (fTetWild via
-pytetwild) meshes triangle soups (an STL from elsewhere, a scan) and is the fallback when gmsh
-fails on a part; ``MeshResult.mesher`` says which one made the mesh.
-
-fTetWild: every body is tessellated (:func:`designlab.geometry.tessellate.tessellate`); fTetWild
-meshes the boundary of the union of all bodies together with the surfaces of every body but
-the largest (the *host*), so each interface between bodies is inserted into one tetrahedral mesh
-and the regions share their nodes there. Each cell is then given to the body whose surface winds
-around its centroid (generalised winding number), the rest to the host. The envelope (how far
-fTetWild may move the surface) is a tenth of the thinnest body's thickness ``2 V / A``, so a
-0.2 mm gauge trace survives; region volumes are checked against the bodies' B-rep volumes and
-a mismatch or a fTetWild failure (it runs in a forked child, so even a C++ abort is caught) is
-retried with a tighter envelope, then a different edge length and stop energy, before a
-one-line :class:`MeshingError`. fTetWild is not bitwise deterministic (cell counts vary by ~1 %
-between runs of the same input) and has no seed to set.
-
-Element size: ``edge_length`` (mm) is fTetWild's ideal edge length, by default the smaller of
-the host's thickness and the length that gives about ``target_cells`` cells; ``refinement``
-spheres ``(centre, radius, edge_length)`` become a background sizing field that grades back to
-the global size at ``grading`` mm per mm.
+gmsh meshes the bodies' exact B-rep (deterministic, :mod:`designlab.mesh.brep`); fTetWild
+meshes triangle soups and is the fallback when gmsh fails. Every attempt's region volumes are
+checked against the bodies' B-rep volumes; a part no attempt meshes is a one-line
+:class:`MeshingError` naming the body to blame. The method, envelopes and element sizes:
+docs/reference/mesh.md.
 """
 
 from __future__ import annotations
@@ -366,6 +345,206 @@ def _attempts(h: float, eps: float, energy: float) -> list[tuple[float, float, f
     return [(h, eps, energy), (h, eps / 3.0, energy), (0.75 * h, eps / 3.0, 2.0 * energy)]
 
 
+@dataclass
+class _Job:
+    """What every meshing attempt of one call shares: the bodies, their B-rep volumes and
+    extent, the facet-set settings, the log and the start time."""
+
+    items: list[Body]
+    volumes: np.ndarray
+    t_body: np.ndarray
+    host: int
+    lo: np.ndarray
+    hi: np.ndarray
+    refinement: list
+    facet_sets: Mapping[str, FacetSelector] | None
+    interfaces: bool
+    order: int
+    volume_rtol: float
+    t0: float
+    log: list[str] = field(default_factory=list)
+
+    @property
+    def names(self) -> list[str]:
+        return [b.name for b in self.items]
+
+    @property
+    def diag(self) -> float:
+        return float(np.linalg.norm(self.hi - self.lo))
+
+    def failure(self, head: str, edge_length: float, refinement) -> str:
+        return _failure(head, self.log, self.items, self.volumes, edge_length, refinement,
+                        self.volume_rtol)
+
+
+def _check_settings(order: int, quality: str, edge_length, epsilon, mesher: str) -> None:
+    """One line for the first setting out of range."""
+    if order not in (1, 2):
+        raise ParameterError("order", order, "1 (TET4) or 2 (TET10)")
+    if quality not in PRESETS:
+        raise ParameterError("quality", quality, "one of " + ", ".join(PRESETS))
+    if edge_length is not None and not (np.isfinite(edge_length) and edge_length > 0):
+        raise ParameterError("edge_length", edge_length, "a number > 0 mm")
+    if epsilon is not None and not (np.isfinite(epsilon) and epsilon > 0):
+        raise ParameterError("epsilon", epsilon, "a number > 0 mm")
+    if mesher not in MESHERS:
+        raise ParameterError("mesher", mesher, "one of " + ", ".join(MESHERS)
+                             + did_you_mean(mesher, MESHERS))
+
+
+def _job_of(bodies, refinement: list, facet_sets, interfaces: bool, order: int,
+            volume_rtol: float, t0: float) -> _Job:
+    """The bodies with their B-rep volumes, thicknesses ``2 V / A``, host and bounding box;
+    a body without volume -> one line."""
+    items = _as_bodies(bodies)
+    brep = np.array([(float(b.shape.volume), float(b.shape.area)) for b in items])
+    if not (brep[:, 0] > 0).all():
+        k = int(np.argmin(brep[:, 0]))
+        raise MeshingError(f"body {items[k].name!r} has no volume ({brep[k, 0]:.4g} mm^3): "
+                           f"not a solid")
+    boxes = [b.shape.bounding_box() for b in items]
+    lo = np.min([tuple(bb.min) for bb in boxes], axis=0)
+    hi = np.max([tuple(bb.max) for bb in boxes], axis=0)
+    return _Job(items, brep[:, 0], 2.0 * brep[:, 0] / brep[:, 1], int(np.argmax(brep[:, 0])),
+                lo, hi, refinement, facet_sets, interfaces, order, volume_rtol, t0)
+
+
+def _finish(job: _Job, points, cells, region, h, e, se, which, named=None,
+            curvature=0) -> MeshResult:
+    """The MeshResult of an accepted attempt: facet sets (named B-rep faces first, then the
+    predicates, then the interfaces between regions), TET10 if asked."""
+    names = job.names
+    region_names = {k: n for k, n in enumerate(names)}
+    mesh = TetMesh(points, cells, region, region_names, {b.name: b.material for b in job.items})
+    boundary = mesh.boundary_facets()
+    from_faces = boundary_sets(boundary, named or {})
+    sets = select_facets(points, boundary, {k: v for k, v in (job.facet_sets or {}).items()
+                                            if k not in from_faces})
+    sets.update(from_faces)
+    if job.interfaces and len(job.items) > 1:
+        for name, tri in interface_facets(cells, region, region_names).items():
+            sets.setdefault(name, tri)
+    mesh = TetMesh(points, cells, region, region_names, dict(mesh.materials), sets)
+    if job.order == 2:
+        mesh = mesh.quadratic()
+    return MeshResult(mesh, h, e, se, {n: float(v) for n, v in zip(names, job.volumes)},
+                      job.log, time.perf_counter() - job.t0, which, tuple(sorted(from_faces)),
+                      curvature=curvature, refinement=tuple(job.refinement))
+
+
+def _volume_error(job: _Job, points, cells, region, what: str) -> bool:
+    """True (and a log line) if a region's volume is off its body's by more than the
+    tolerance."""
+    p = points[cells]
+    vol = np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]),
+                    p[:, 3] - p[:, 0]) / 6.0
+    got = np.bincount(region, weights=vol, minlength=len(job.items))
+    err = np.abs(got - job.volumes) / job.volumes
+    if err.max() > job.volume_rtol:
+        k = int(np.argmax(err))
+        job.log.append(f"{what}: body {job.names[k]!r} meshed to {got[k]:.4g} mm^3 instead of "
+                       f"{job.volumes[k]:.4g} mm^3")
+        return True
+    return False
+
+
+def _gmsh_try(job: _Job, h: float, curvature: int, named_in) -> tuple | None:
+    """One gmsh attempt: (points, cells, region, named triangles) or None (logged); an
+    intersection of regions is raised."""
+    from designlab.mesh import brep
+
+    what = f"gmsh: edge {h:.3g} mm, curvature {curvature}"
+    shapes = [b.shape for b in job.items]
+    try:
+        if named_in:
+            return brep.tetrahedralize(shapes, job.names, h, job.refinement,
+                                       curvature=curvature, named_faces=named_in)
+        return (*brep.tetrahedralize(shapes, job.names, h, job.refinement,
+                                     curvature=curvature), None)
+    except MeshingError as exc:
+        job.log.append(f"{what}: {_one_line(exc, 300)}")
+        if "regions must not intersect" in str(exc):
+            raise
+    except Exception as exc:  # gmsh reports its own failures as plain exceptions
+        job.log.append(f"{what}: gmsh error ({type(exc).__name__}: {_one_line(exc, 300)})")
+    return None
+
+
+def _mesh_gmsh(job: _Job, edge_length: float, named_in) -> MeshResult | None:
+    """gmsh from the B-rep: the size field alone, then curvature sizing, then finer; the
+    first attempt whose regions have their bodies' volumes, or None."""
+    for h, curvature in ((edge_length, 0), (edge_length, 12), (0.6 * edge_length, 12)):
+        what = f"gmsh: edge {h:.3g} mm, curvature {curvature}"
+        got = _gmsh_try(job, h, curvature, named_in)
+        if got is None:
+            continue
+        points, cells, region, named = got
+        if named:
+            renumber = np.full(len(points), -1, np.int64)
+            used = np.unique(cells)
+            renumber[used] = np.arange(len(used))
+            named = {k: renumber[t] for k, t in named.items()}
+        points, cells = compact(points, cells)
+        if _volume_error(job, points, cells, region, what):
+            continue
+        job.log.append(f"{what}: ok, {len(cells)} cells")
+        try:
+            return _finish(job, points, cells, region, h, 0.0, float("nan"), "gmsh", named,
+                           curvature)
+        except MeshingError as exc:  # a small facet set no triangle of this mesh hits
+            job.log[-1] = f"{what}: {exc}"
+    return None
+
+
+def _tetwild_surface(job: _Job, tol: float, angular_tolerance: float):
+    """fTetWild's input: the bodies' tessellations, and one triangle soup of their union's
+    boundary with every body's surface but the host's; overlapping bodies -> one line."""
+    items, host = job.items, job.host
+    surfaces = [_tessellate(b, tol, angular_tolerance) for b in items]
+    if len(items) == 1:
+        return surfaces, np.asarray(surfaces[0].vertices), np.asarray(surfaces[0].faces)
+    union = _union(items, tol, angular_tolerance)
+    tess_sum = sum(s.volume for s in surfaces)
+    overlap = tess_sum - union.volume
+    if overlap > 1e-3 * tess_sum + 1e-9:
+        raise MeshingError(f"bodies {', '.join(b.name for b in items)} overlap by "
+                           f"{overlap:.4g} mm^3; regions must not intersect")
+    parts = [union] + [s for k, s in enumerate(surfaces) if k != host]
+    verts = np.vstack([s.vertices for s in parts])
+    offsets = np.cumsum([0] + [len(s.vertices) for s in parts[:-1]])
+    faces = np.vstack([s.faces + o for s, o in zip(parts, offsets)])
+    return surfaces, verts, faces
+
+
+def _mesh_tetwild(job: _Job, edge_length: float, eps: float, energy: float, surface,
+                  threads: int, isolate: bool) -> MeshResult | None:
+    """fTetWild on the tessellation over :func:`_attempts`; regions by winding number; the
+    first attempt whose regions have their bodies' volumes, or None."""
+    surfaces, verts, faces = surface
+    for h, e, se in _attempts(edge_length, eps, energy):
+        sizing = None
+        if job.refinement:
+            pad = 2.0 * h
+            sizing = sizing_field(job.lo - pad, job.hi + pad, h, job.refinement)
+        what = f"edge {h:.3g} mm, epsilon {e:.3g} mm, stop energy {se:g}"
+        try:
+            points, cells = _tetwild(verts, faces, h, e, se, sizing, threads, isolate)
+        except Exception as exc:  # fTetWild reports failures as generic C++ exceptions
+            job.log.append(f"{what}: fTetWild failed ({type(exc).__name__}: "
+                           f"{_one_line(exc, 300)})")
+            continue
+        if len(cells) == 0:
+            job.log.append(f"{what}: fTetWild returned no cells")
+            continue
+        points, cells = compact(points, cells)
+        region = tag_regions(points, cells, surfaces, job.host, pad=e)
+        if _volume_error(job, points, cells, region, f"fTetWild: {what}"):
+            continue
+        job.log.append(f"fTetWild: {what}: ok, {len(cells)} cells")
+        return _finish(job, points, cells, region, h, e, se, "tetwild")
+    return None
+
+
 def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
                          facet_sets: Mapping[str, FacetSelector] | None = None, *,
                          edge_length: float | None = None, refinement: Iterable = (),
@@ -377,7 +556,7 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
                          target_cells: int = TARGET_CELLS, mesher: str = "auto",
                          named_faces: Mapping[str, Sequence[tuple[str, Any]]] | None = None
                          ) -> MeshResult:
-    """Mesh bodies into one conforming TET4/TET10 mesh; see the module doc for the method.
+    """Mesh bodies into one conforming TET4/TET10 mesh (the method: docs/reference/mesh.md).
 
     mesher:      ``auto`` (gmsh from the B-rep, fTetWild if gmsh fails), ``gmsh`` or ``tetwild``
     named_faces: ``{set name: [(body name, B-rep face), ...]}``: on the gmsh path these sets are
@@ -397,153 +576,34 @@ def mesh_bodies_detailed(bodies: Mapping[str, Body] | Sequence[Body],
     isolate:     run fTetWild in a forked process so that a crash in it is a MeshingError
     """
     t0 = time.perf_counter()
-    if order not in (1, 2):
-        raise ParameterError("order", order, "1 (TET4) or 2 (TET10)")
-    if quality not in PRESETS:
-        raise ParameterError("quality", quality, "one of " + ", ".join(PRESETS))
-    if edge_length is not None and not (np.isfinite(edge_length) and edge_length > 0):
-        raise ParameterError("edge_length", edge_length, "a number > 0 mm")
-    if epsilon is not None and not (np.isfinite(epsilon) and epsilon > 0):
-        raise ParameterError("epsilon", epsilon, "a number > 0 mm")
-    if mesher not in MESHERS:
-        raise ParameterError("mesher", mesher, "one of " + ", ".join(MESHERS)
-                             + did_you_mean(mesher, MESHERS))
+    _check_settings(order, quality, edge_length, epsilon, mesher)
     factor, energy = PRESETS[quality]
     refinement = [(c, r, factor * e) for c, r, e in _check_refinement(refinement)]
-    items = _as_bodies(bodies)
-    brep = np.array([(float(b.shape.volume), float(b.shape.area)) for b in items])
-    if not (brep[:, 0] > 0).all():
-        k = int(np.argmin(brep[:, 0]))
-        raise MeshingError(f"body {items[k].name!r} has no volume ({brep[k, 0]:.4g} mm^3): "
-                           f"not a solid")
-    t_body = 2.0 * brep[:, 0] / brep[:, 1]
-    host = int(np.argmax(brep[:, 0]))
-    boxes = [b.shape.bounding_box() for b in items]
-    lo = np.min([tuple(bb.min) for bb in boxes], axis=0)
-    hi = np.max([tuple(bb.max) for bb in boxes], axis=0)
-    diag = float(np.linalg.norm(hi - lo))
-    volumes = brep[:, 0]  # the exact B-rep volumes the regions are checked against
+    job = _job_of(bodies, refinement, facet_sets, interfaces, order, volume_rtol, t0)
     if edge_length is None:
-        h_vol = (_CELLS_PER_EDGE3 * volumes.sum() / target_cells) ** (1.0 / 3.0)
-        edge_length = factor * min(1.5 * t_body[host], h_vol)
-    names = [b.name for b in items]
-    log: list[str] = []
+        h_vol = (_CELLS_PER_EDGE3 * job.volumes.sum() / target_cells) ** (1.0 / 3.0)
+        edge_length = factor * min(1.5 * job.t_body[job.host], h_vol)
+    edge_length = float(edge_length)
+    names = job.names
     named_in = _named_faces_by_index(named_faces, names)
-
-    def finish(points, cells, region, h, e, se, which, named=None, curvature=0):
-        region_names = {k: n for k, n in enumerate(names)}
-        mesh = TetMesh(points, cells, region, region_names, {b.name: b.material for b in items})
-        boundary = mesh.boundary_facets()
-        from_faces = boundary_sets(boundary, named or {})
-        sets = select_facets(points, boundary, {k: v for k, v in (facet_sets or {}).items()
-                                                if k not in from_faces})
-        sets.update(from_faces)
-        if interfaces and len(items) > 1:
-            for name, tri in interface_facets(cells, region, region_names).items():
-                sets.setdefault(name, tri)
-        mesh = TetMesh(points, cells, region, region_names, dict(mesh.materials), sets)
-        if order == 2:
-            mesh = mesh.quadratic()
-        return MeshResult(mesh, h, e, se, {n: float(v) for n, v in zip(names, volumes)}, log,
-                          time.perf_counter() - t0, which, tuple(sorted(from_faces)),
-                          curvature=curvature, refinement=tuple(refinement))
-
-    def volume_error(points, cells, region, what) -> bool:
-        p = points[cells]
-        vol = np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]),
-                        p[:, 3] - p[:, 0]) / 6.0
-        got = np.bincount(region, weights=vol, minlength=len(items))
-        err = np.abs(got - volumes) / volumes
-        if err.max() > volume_rtol:
-            k = int(np.argmax(err))
-            log.append(f"{what}: body {names[k]!r} meshed to {got[k]:.4g} mm^3 instead of "
-                       f"{volumes[k]:.4g} mm^3")
-            return True
-        return False
-
     if mesher in ("auto", "gmsh"):
-        from designlab.mesh import brep
-
-        for h, curvature in ((float(edge_length), 0), (float(edge_length), 12),
-                             (0.6 * float(edge_length), 12)):
-            what = f"gmsh: edge {h:.3g} mm, curvature {curvature}"
-            named = None
-            try:
-                if named_in:
-                    points, cells, region, named = brep.tetrahedralize(
-                        [b.shape for b in items], names, h, refinement, curvature=curvature,
-                        named_faces=named_in)
-                else:
-                    points, cells, region = brep.tetrahedralize(
-                        [b.shape for b in items], names, h, refinement, curvature=curvature)
-            except MeshingError as exc:
-                log.append(f"{what}: {_one_line(exc, 300)}")
-                if "regions must not intersect" in str(exc):
-                    raise
-                continue
-            except Exception as exc:  # gmsh reports its own failures as plain exceptions
-                log.append(f"{what}: gmsh error ({type(exc).__name__}: {_one_line(exc, 300)})")
-                continue
-            if named:
-                renumber = np.full(len(points), -1, np.int64)
-                used = np.unique(cells)
-                renumber[used] = np.arange(len(used))
-                named = {k: renumber[t] for k, t in named.items()}
-            points, cells = compact(points, cells)
-            if volume_error(points, cells, region, what):
-                continue
-            log.append(f"{what}: ok, {len(cells)} cells")
-            try:
-                return finish(points, cells, region, h, 0.0, float("nan"), "gmsh", named,
-                              curvature)
-            except MeshingError as exc:  # a small facet set no triangle of this mesh hits
-                log[-1] = f"{what}: {exc}"
+        result = _mesh_gmsh(job, edge_length, named_in)
+        if result is not None:
+            return result
         if mesher == "gmsh":
-            raise MeshingError(_failure(f"meshing bodies {', '.join(names)} with gmsh failed",
-                                        log, items, volumes, float(edge_length), refinement,
-                                        volume_rtol))
+            raise MeshingError(job.failure(f"meshing bodies {', '.join(names)} with gmsh failed",
+                                           edge_length, refinement))
     eps = float(epsilon) if epsilon is not None else float(
-        np.clip(0.1 * t_body.min(), 1e-5 * diag, 1e-3 * diag))
+        np.clip(0.1 * job.t_body.min(), 1e-5 * job.diag, 1e-3 * job.diag))
     tol = float(tessellation_tolerance) if tessellation_tolerance else max(0.5 * eps, 0.01)
-    surfaces = [_tessellate(b, tol, angular_tolerance) for b in items]
-    if len(items) > 1:
-        union = _union(items, tol, angular_tolerance)
-        tess_sum = sum(s.volume for s in surfaces)
-        overlap = tess_sum - union.volume
-        if overlap > 1e-3 * tess_sum + 1e-9:
-            raise MeshingError(f"bodies {', '.join(b.name for b in items)} overlap by "
-                               f"{overlap:.4g} mm^3; regions must not intersect")
-        parts = [union] + [s for k, s in enumerate(surfaces) if k != host]
-        verts = np.vstack([s.vertices for s in parts])
-        offsets = np.cumsum([0] + [len(s.vertices) for s in parts[:-1]])
-        faces = np.vstack([s.faces + o for s, o in zip(parts, offsets)])
-    else:
-        verts, faces = np.asarray(surfaces[0].vertices), np.asarray(surfaces[0].faces)
+    surface = _tetwild_surface(job, tol, angular_tolerance)
     if stop_energy is not None:
         energy = float(stop_energy)
-    for h, e, se in _attempts(float(edge_length), eps, energy):
-        sizing = None
-        if refinement:
-            pad = 2.0 * h
-            sizing = sizing_field(lo - pad, hi + pad, h, refinement)
-        what = f"edge {h:.3g} mm, epsilon {e:.3g} mm, stop energy {se:g}"
-        try:
-            points, cells = _tetwild(verts, faces, h, e, se, sizing, threads, isolate)
-        except Exception as exc:  # fTetWild reports failures as generic C++ exceptions
-            log.append(f"{what}: fTetWild failed ({type(exc).__name__}: {_one_line(exc, 300)})")
-            continue
-        if len(cells) == 0:
-            log.append(f"{what}: fTetWild returned no cells")
-            continue
-        points, cells = compact(points, cells)
-        region = tag_regions(points, cells, surfaces, host, pad=e)
-        if volume_error(points, cells, region, f"fTetWild: {what}"):
-            continue
-        log.append(f"fTetWild: {what}: ok, {len(cells)} cells")
-        return finish(points, cells, region, h, e, se, "tetwild")
-    raise MeshingError(_failure(f"meshing bodies {', '.join(names)} failed", log, items, volumes,
-                                float(edge_length), refinement if mesher != "tetwild" else None,
-                                volume_rtol))
+    result = _mesh_tetwild(job, edge_length, eps, energy, surface, threads, isolate)
+    if result is not None:
+        return result
+    raise MeshingError(job.failure(f"meshing bodies {', '.join(names)} failed", edge_length,
+                                   refinement if mesher != "tetwild" else None))
 
 
 def _named_faces_by_index(named_faces, names: list[str]) -> dict[str, list[tuple[int, Any]]]:
