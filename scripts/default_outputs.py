@@ -81,6 +81,10 @@ def _table(path: Path) -> list:
 
     df = pd.read_parquet(path)
     cols = [c for c in df.columns if not _skip(str(c))]
+    # rows in the order of their design (a parallel run finishes them in any order)
+    keys = sorted(c for c in df.columns if str(c).startswith("param"))
+    if keys:
+        df = df.sort_values(keys, kind="stable").reset_index(drop=True)
     return json.loads(df[cols].to_json(orient="records"))
 
 
@@ -88,7 +92,8 @@ def diff(old: Path, new: Path) -> int:
     found = []
     for f in sorted(old.rglob("*")):
         rel = f.relative_to(old)
-        if f.suffix not in (".json", ".parquet") or "cache" in str(rel) or rel.name == "run.json":
+        if (f.suffix not in (".json", ".parquet") or "cache" in str(rel) or rel.name == "run.json"
+                or rel.parent.name == "results"):      # the store's files: named by a key hash
             continue
         g = new / rel
         if not g.is_file():

@@ -59,9 +59,8 @@ def evaluate_design(task: dict[str, Any]) -> dict[str, Any]:
     out.update({k: v for k, v in sections.items() if k in always or v is not None})
     if pred.stress is not None:
         out["min_safety_factor"] = pred.min_safety_factor
-    for key in GENERIC_METRICS:     # what a sensor definition's virtual test reports
-        if key in pred.metrics:
-            out[key] = pred.metrics[key]
+    if "sensitivity_norm" in pred.metrics:      # a sensor definition's generic virtual test
+        out.update({k: pred.metrics[k] for k in GENERIC_METRICS if k in pred.metrics})
     if pred.K_f is not None:
         K = pred.K_f
         out["K_f"] = K.tolist()
