@@ -124,6 +124,12 @@ def _loop_table(data: Path, report: dict) -> Table:
                             if k not in ("base_adjust", "form", "g_unit"))
             table.add_row("", escape(e["key"]), escape(par), f"{e['error_before']:.4g}",
                           f"{e['error_after']:.4g}")
+        nf, peer = rep.get("noise_floor"), rep.get("peer")
+        if nf:
+            table.add_row("", "(noise floor)", escape(
+                f"{rep['verdict_kind']}; best peer " + (f"{peer['kind']} {peer['error']:.4g}"
+                                                        if peer else "none")),
+                "", f"{nf['sigma']:.4g}")
         table.add_row("", "[bold]total", f"unexplained {100 * rep['unexplained_fraction']:.1f} %",
                       f"{rep['error_before']:.4g}", escape(f"{rep['error_after']:.4g} {rep['unit']}"),
                       end_section=True)

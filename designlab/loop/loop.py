@@ -23,14 +23,15 @@ from designlab.errors import DataError, ModelError
 from designlab.loop import effects as fx
 from designlab.loop.base_models import fit_base
 from designlab.loop.model import SensorModel, convert_units
+from designlab.loop.peers import fit_peers
+from designlab.loop.noise_floor import difference_sigma, noise_floor
 from designlab.loop.report import (
     LoopResult,
     Selected,
-    add_peer,
+    add_verdict,
     data_summary,
     effect_entry,
     loop_report,
-    no_peer,
     output_report,
     selection_record,
     tare_rule,
@@ -47,6 +48,9 @@ FIT_SAMPLES = 50_000
 #: training rows of the NARX peer: beyond it the network trains on every stride-th row of the
 #: training runs (each row with its full-rate history) and still predicts every sample
 PEER_ROWS = 50_000
+#: the selection stops when the model's held-out error in cross-validation is within this
+#: factor of the noise floor of the training data: what remains is noise
+AT_FLOOR = 1.1
 
 
 
@@ -283,12 +287,11 @@ def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[st
         with threadpool_limits(1, user_api="blas"):
             sel.run(max_effects, n_se, min_relative, progress)
         reports[o], series[o] = output_report(sel.result(max_effects), val)
-        if peer:
-            if progress:
-                progress(o, 0, 1, "NARX peer")
-            add_peer(reports[o], series[o], data, o, *fit_peer(data, o))
-        else:
-            no_peer(reports[o])
+        if peer and progress:
+            progress(o, 0, 1, "peers")
+        add_verdict(reports[o], series[o], data, o,
+                    noise_floor(sel.y_all, sel.start_all, data.segment),
+                    fit_peers(data, o, PEER_ROWS) if peer else [])
     report = loop_report(base_name, reports, selection, data_summary(data), budget)
     conv = model.provenance.get("unit_conversions") if isinstance(base, SensorModel) else None
     errors = {o: {"before": r["error_before"], "after": r["error_after"]}
@@ -352,6 +355,9 @@ class _Selection:
         self.vmask = data.role == "validate"
         base_inputs = tuple(model.base.inputs[o])
         self._predicted(model.predict(train, o, self.y), model.predict(data, o, self.y_all))
+        self.start_all = self.yhat_all
+        # the noise floor of the data the fits see (decimated training data have less noise)
+        self.floor_fit = difference_sigma(self.y - self.yhat, train.segment)
         self.y0_val = self.yhat_v.copy()
         self.start_tr = model.predict(train, o, self.y, upto=0)
         self.cands, self.skipped = fx.library(train, o, base_inputs)
@@ -450,6 +456,15 @@ class _Selection:
             return None
         best = max(scored, key=lambda c: results[c.key]["relative"])
         chosen = max(passing, key=lambda c: results[c.key]["relative"]) if passing else None
+        held = results[best.key]["error_without"]
+        if chosen is not None and not type(chosen).first and held <= AT_FLOOR * self.floor_fit:
+            # what the model leaves in cross-validation is noise: a further effect could only
+            # fit noise (one mechanism, one effect)
+            self.rounds.append({"candidates": results, "best": best.key, "accepted": None,
+                                "at_floor": {"held_out_error": held,
+                                             "noise_floor": self.floor_fit,
+                                             "factor": AT_FLOOR}})
+            return None
         # a loaded model's own zero and gain error go first: any other effect would absorb
         # them in its refit of the base's affine part and be credited with them
         chosen = next((c for c in passing if type(c).first), chosen)

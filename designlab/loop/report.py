@@ -16,6 +16,7 @@ from designlab.atomic import atomic_write_json
 from designlab.calibration.metrics import ncc, rmse
 from designlab.loop import effects as fx
 from designlab.loop.model import SensorModel
+from designlab.loop.noise_floor import lag1_autocorrelation as lag1
 from designlab.loop.plots import plot_output
 from designlab.measured.dataset import Dataset
 
@@ -23,20 +24,44 @@ from designlab.measured.dataset import Dataset
 RULE = ("mean relative held-out RMSE improvement over the held-out units (runs or blocks) "
         "> min_relative, and > n_se standard errors or > 0 on every unit")
 
-#: the peer verdict's sentence per kind (values in the output's unit)
+#: the verdict's sentence per kind, against the noise floor (values in the output's unit)
 PEER_VERDICTS = {
-    "explained": "explained: physics {after:.4g} {unit} vs NARX peer {peer:.4g} {unit} "
-                 "(base {base:.4g} {unit})",
-    "noise": "noise: neither the physics ({after:.4g} {unit}) nor the NARX peer "
-             "({peer:.4g} {unit}) lowers the base's {base:.4g} {unit} by 5 %",
-    "missing mechanism": "missing mechanism: the NARX peer reaches {peer:.4g} {unit}, the "
-                         "physics {after:.4g} {unit} (base {base:.4g} {unit}); the residual "
-                         "correlates most with {top}",
+    "explained": "explained: the validation error {after:.4g} {unit} is {ratio:.2f}x the noise "
+                 "floor {floor:.4g} {unit} (at most {factor:g}x), from the base's {base:.4g} "
+                 "{unit}; the best peer ({peer_kind}) reaches {peer:.4g} {unit}; the residual "
+                 "correlates at most with {top}",
+    "noise": "noise: the base's validation error {base:.4g} {unit} is already {ratio_base:.2f}x "
+             "the noise floor {floor:.4g} {unit} (at most {factor:g}x); the physics reaches "
+             "{after:.4g} {unit}, the best peer ({peer_kind}) {peer:.4g} {unit}",
+    "missing mechanism": "missing mechanism: the validation error {after:.4g} {unit} is "
+                         "{ratio:.2f}x the noise floor {floor:.4g} {unit} (explained needs at "
+                         "most {factor:g}x), from the base's {base:.4g} {unit}; the best peer "
+                         "({peer_kind}) reaches {peer:.4g} {unit}; {why}",
 }
+#: why structure remains, per reason of :func:`verdict_kind` (a "missing mechanism")
+MISSING_WHY = {
+    "floor": "the residual correlates most with {top}",
+    "correlated": "the residual still correlates with {top} (|r| >= {r_min:g})",
+    "peer": "the peer does better by more than {margin:g}x; the residual correlates most with "
+            "{top}",
+}
+#: "explained" needs the validation error within this factor of the noise floor
+FLOOR_FACTOR = 1.5
+#: "explained" needs no peer better than the physics by this factor
+PEER_MARGIN = 1.3
+#: a residual correlating this much with an input, its history or time has structure left
+STRUCTURE_R = 0.3
+#: loop.json's statement of the verdict's rule
+VERDICT_RULE = (f"noise: the base's validation error is within {FLOOR_FACTOR:g}x the noise "
+                f"floor; missing mechanism: the error after the selection is above "
+                f"{FLOOR_FACTOR:g}x the floor, or the residual correlates with an input, its "
+                f"history or time by |r| >= {STRUCTURE_R:g}, or the best peer is better by "
+                f"more than {PEER_MARGIN:g}x; explained: otherwise")
 
 #: the loop.json keys of the first output repeated at the top
 FIRST_OUTPUT_KEYS = ("effects", "error_before", "error_after", "validation",
-                     "unexplained_fraction", "peer", "explained_of_learnable", "verdict_kind")
+                     "unexplained_fraction", "peer", "explained_of_learnable", "verdict_kind",
+                     "noise_floor", "best_peer")
 
 
 @dataclass
@@ -114,6 +139,11 @@ def _validation(val: Dataset, yv: np.ndarray, base_v: np.ndarray, yhat_v: np.nda
 def stop_reason(rounds: list[dict], candidates_left: int, max_effects: int) -> str:
     """Why the selection stopped, from its last round."""
     last = rounds[-1] if rounds else None
+    if last is not None and last.get("at_floor"):
+        f = last["at_floor"]
+        return (f"what the model leaves in cross-validation ({f['held_out_error']:.4g}) is "
+                f"within {f['factor']:g}x the noise floor of the training data "
+                f"({f['noise_floor']:.4g}): a further effect could only fit noise")
     if last is not None and last.get("failed") and not candidates_left:
         return last["failed"]
     if last is not None and last["accepted"] is None and last["best"] is None:
@@ -145,49 +175,84 @@ def verdict(accepted: list[dict], stop: str, unexplained: float, corrs: list[dic
     return "; ".join(clauses)
 
 
-def verdict_kind(base: float, after: float, peer: float | None) -> str:
-    """noise: neither the physics model nor the peer lowers the base's validation error by
-    5 %; explained: the physics model does (by 5 %) and is within 1.3x of the peer; missing
-    mechanism: otherwise (the peer does much better than the physics model)."""
-    phys = after < 0.95 * base
-    if peer is None or not np.isfinite(peer):
-        return "explained" if phys else "noise"
-    if not phys and peer >= 0.95 * base:
-        return "noise"
-    if phys and after <= 1.3 * peer:
-        return "explained"
-    return "missing mechanism"
+def verdict_kind(base: float, after: float, peer: float | None,
+                 floor: float | None = None, structure_r: float = 0.0) -> str:
+    """The verdict against the noise floor ``floor`` (see :data:`VERDICT_RULE`;
+    ``structure_r``: the residual's largest |correlation| with an input, its history or time).
+    Without a floor: noise when neither the physics nor the peer lowers the base's error by
+    5 %, explained when the physics does and is within 1.3x of the peer."""
+    return _verdict(base, after, peer, floor, structure_r)[0]
 
 
-def add_peer(rep: dict, ser: dict, data: Dataset, o: str, pred: np.ndarray, info: dict) -> None:
-    """The NARX peer's prediction ``pred`` of every sample and what it was (``info``) into an
-    output's entry: its validation error, the explained fraction of the learnable error, the
-    verdict kind and its sentence before the selection's verdict."""
+def _verdict(base: float, after: float, peer: float | None, floor: float | None,
+             structure_r: float) -> tuple[str, str | None]:
+    """(kind, why) of :func:`verdict_kind`; ``why`` a key of :data:`MISSING_WHY`."""
+    has_peer = peer is not None and bool(np.isfinite(peer))
+    if floor is None or not np.isfinite(floor) or floor <= 0:
+        phys = after < 0.95 * base
+        if not has_peer:
+            return ("explained" if phys else "noise"), None
+        if not phys and peer >= 0.95 * base:
+            return "noise", None
+        return ("explained", None) if phys and after <= 1.3 * peer else (
+            "missing mechanism", "peer")
+    if base <= FLOOR_FACTOR * floor:
+        return "noise", None
+    if after > FLOOR_FACTOR * floor:
+        return "missing mechanism", "floor"
+    if abs(structure_r) >= STRUCTURE_R:
+        return "missing mechanism", "correlated"
+    if has_peer and peer * PEER_MARGIN < after:
+        return "missing mechanism", "peer"
+    return "explained", None
+
+
+def structure(corrs: list[dict]) -> dict | None:
+    """The residual's strongest correlation with an input, its history or time (the
+    prediction left out)."""
+    return next((c for c in corrs if c["variable"] != "prediction"), None)
+
+
+def add_verdict(rep: dict, ser: dict, data: Dataset, o: str, floor: dict,
+                peers: list[tuple[np.ndarray, dict]]) -> None:
+    """The noise floor, the peers (each one's record; the best on the inner split as
+    ``peer``), the explained fraction of the learnable error, the verdict kind and its
+    sentence before the selection's verdict, into an output's entry."""
     vmask = data.role == "validate"
-    yv = data.outputs[o][vmask]
-    err = rmse(yv, pred[vmask])
-    info["error"] = err
-    base, after = rep["error_before"], rep["error_after"]
-    rep["peer"] = info
-    rep["explained_of_learnable"] = ((base - after) / (base - err) if base - err > 0
-                                     else None)
-    kind = verdict_kind(base, after, err)
+    base, after, unit = rep["error_before"], rep["error_after"], rep["unit"]
+    sigma = floor["sigma"]
+    top = structure(ser.get("corrs") or [])
+    r_top = top["correlation"] if top else 0.0
+    rep["noise_floor"] = {**floor, "ratio_before": base / sigma if sigma > 0 else None,
+                          "ratio_after": after / sigma if sigma > 0 else None,
+                          "factor": FLOOR_FACTOR,
+                          "residual_lag1_autocorrelation": lag1(ser["residual_val"],
+                                                                data.segment[vmask])}
+    rep["verdict_rule"] = VERDICT_RULE
+    best = min(peers, key=lambda p: p[1].get("inner_error", p[1]["error"])) if peers else None
+    err = best[1]["error"] if best else None
+    rep["peers"] = [p[1] for p in peers]
+    rep["best_peer"] = best[1]["kind"] if best else None
+    rep["peer"] = best[1] if best else None
+    rep["explained_of_learnable"] = ((base - after) / (base - err)
+                                     if err is not None and base - err > 0 else None)
+    kind, why = _verdict(base, after, err, sigma, r_top)
     rep["verdict_kind"] = kind
-    unit = rep["unit"]
-    clauses = [PEER_VERDICTS[kind].format(after=after, peer=err, base=base, unit=unit,
-                                          top=_strongest(ser.get("corrs") or []))]
-    if rep["explained_of_learnable"] is None:
+    values = {"after": after, "base": base, "unit": unit, "floor": sigma,
+              "ratio": after / sigma, "ratio_base": base / sigma, "factor": FLOOR_FACTOR,
+              "peer": err if err is not None else float("nan"),
+              "peer_kind": rep["best_peer"] or "none fitted", "margin": PEER_MARGIN,
+              "r_min": STRUCTURE_R,
+              "top": _strongest([top] if top else [])}
+    clauses = [PEER_VERDICTS[kind].format(**values, why=MISSING_WHY.get(why, "").format(
+        **values))]
+    if best and rep["explained_of_learnable"] is None:
         clauses.append(f"the peer is no better than the base ({err:.4g} vs {base:.4g} {unit}): "
                        "explained_of_learnable is null")
     rep["verdict"] = "; ".join([*clauses, rep["verdict"]])
-    ser["peer_val"] = pred[vmask]
-
-
-def no_peer(rep: dict) -> None:
-    """An output's entry without the peer."""
-    rep["peer"] = None
-    rep["explained_of_learnable"] = None
-    rep["verdict_kind"] = None
+    if best:
+        ser["peer_val"] = best[0][vmask]
+        ser["peer_kind"] = best[1]["kind"]
 
 
 def tare_rule(tare: bool) -> str:

@@ -306,7 +306,8 @@ def test_pure_noise_adds_nothing(seed):
     assert "no candidate" in out["stopped"]
     assert out["unexplained_fraction"] < 0.01
     assert res.report["error_after"] == res.report["error_before"]
-    assert out["peer"]["kind"] == "narx" and out["peer"]["error"] > 0.95 * out["error_before"]
+    assert out["peer"]["kind"] == out["best_peer"] in ("narx", "gbt")
+    assert out["peer"]["error"] > 0.95 * out["error_before"]
     assert out["verdict_kind"] == "noise"
 
 
@@ -635,10 +636,13 @@ def test_a_peer_worse_than_the_base_gives_no_learnable_fraction(monkeypatch):
     verdict says so."""
     from designlab.loop import loop as loop_mod
 
-    def constant_peer(data, output):
-        return np.full(len(data), float(np.mean(data.outputs[output]))), {"kind": "narx"}
+    def constant_peer(data, output, max_rows):
+        pred = np.full(len(data), float(np.mean(data.outputs[output])))
+        v = data.role == "validate"
+        err = float(np.sqrt(np.mean((data.outputs[output][v] - pred[v]) ** 2)))
+        return [(pred, {"kind": "narx", "error": err})]
 
-    monkeypatch.setattr(loop_mod, "fit_peer", constant_peer)
+    monkeypatch.setattr(loop_mod, "fit_peers", constant_peer)
     ds, base = case("drift")
     out = run_loop(ds, base, max_effects=1).report["outputs"]["force"]
     assert out["peer"]["error"] > out["error_before"]

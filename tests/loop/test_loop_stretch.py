@@ -67,14 +67,21 @@ def test_resistance_goal_with_a_named_effect(result):
     assert res["error_after"] <= 0.7 * res["error_before"]
     assert 0 < res["unexplained_fraction"] < 1
     assert res["residual_correlations"] and res["verdict"]
-    assert res["peer"]["kind"] == "narx" and res["error_after"] <= 1.3 * res["peer"]["error"]
-    assert res["verdict_kind"] == "explained"
+    assert res["peer"]["kind"] in ("narx", "gbt")
+    assert res["error_after"] <= 1.3 * res["peer"]["error"]
+    # no peer does better, but what remains is far above the noise floor and not white
+    # (131.3 ohm, 8.6x the 15.2 ohm floor, lag-1 autocorrelation 0.98, measured)
+    assert res["noise_floor"]["ratio_after"] > 1.5
+    assert res["noise_floor"]["residual_lag1_autocorrelation"] > 0.5
+    assert res["verdict_kind"] == "missing mechanism"
 
 
 def test_force_beside_the_peer(result):
     force = result.report["outputs"]["force"]
-    assert force["peer"]["error"] > 0 and force["verdict_kind"] == "explained"
+    assert force["peer"]["error"] > 0 and len(force["peers"]) == 2
     assert force["error_after"] <= 1.3 * force["peer"]["error"]
+    # 0.1085 N is 8.6x the 0.0126 N noise floor (measured): structure remains
+    assert force["verdict_kind"] == "missing mechanism"
 
 
 @pytest.mark.slow
@@ -91,7 +98,7 @@ def test_two_runs_find_the_resistance_hysteresis(shared):
     assert out["effects"][0]["evidence"]["cv"]["blocks_improved"] == 2
     assert out["error_after"] <= 0.7 * out["error_before"]
     assert out["error_after"] <= 1.3 * out["peer"]["error"]
-    assert out["verdict_kind"] == "explained" and out["explained_of_learnable"] > 0.9
+    assert out["verdict_kind"] == "missing mechanism" and out["explained_of_learnable"] > 0.9
 
 
 def _cli(base: str, out: Path) -> subprocess.CompletedProcess:

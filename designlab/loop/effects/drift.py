@@ -7,6 +7,11 @@ import numpy as np
 from designlab.loop.effects.base import Context, Effect, Fitted
 
 
+#: the settling variant's time constants over the longest run: a geometric grid fine enough
+#: that a settling between two of them is not left half explained
+SETTLING_TAUS = tuple(float(v) for v in np.geomspace(0.02, 2.0, 21))
+
+
 class Drift(Effect):
     """Baseline drift in the time ``t`` (s) since the run started: polynomial ``t/T``,
     ``(t/T)^2`` over the longest run ``T``, or an exponential settling ``exp(-t / tau_d)``
@@ -15,7 +20,8 @@ class Drift(Effect):
     name = "drift"
     summary = "baseline drift in time since the run started"
     regressors_doc = "`t/T`, `(t/T)^2`, or `exp(-t/tau_d)` (time since the run began)"
-    settings_doc = "order 1 or 2, or `tau_d` = 0.03/0.1/0.3/1 T (T: longest run)"
+    settings_doc = ("order 1 or 2, or `tau_d` from 0.02 to 2 T in 21 geometric steps "
+                    "(T: longest run)")
     applies_doc = "always"
     rank = 70
 
@@ -27,7 +33,7 @@ class Drift(Effect):
         T = float(max(np.max(ctx.data.time_in_run()), 1e-9))
         return ([{"variant": "polynomial", "order": 1, "duration_s": T},
                  {"variant": "polynomial", "order": 2, "duration_s": T}]
-                + [{"variant": "settling", "tau_s": f * T} for f in (0.03, 0.1, 0.3, 1.0)])
+                + [{"variant": "settling", "tau_s": f * T} for f in SETTLING_TAUS])
 
     def features(self, ctx: Context, theta: dict) -> np.ndarray:
         if theta["variant"] == "settling":
