@@ -227,6 +227,173 @@ def chosen_renders(chosen_dir: Path) -> list[tuple[Path, str]]:
     return out
 
 
+#: captions of the sweep's own plots
+_CAPTIONS = {"pareto": "the first two objectives of every design with their mesh error bars; "
+                       "Pareto set joined, chosen design ringed in black, designs not "
+                       "distinguishable from it ringed in blue",
+             "sensitivity": "each objective against each swept parameter (r: correlation)"}
+
+#: legend of the designs table; the second line only when a column has Monte Carlo bands
+_DESIGNS_LEGEND = ("orange: chosen; blue: not distinguishable from the chosen design "
+                   "(difference within the error bar of the difference); pink: Pareto set. "
+                   "±: each design's discretisation error bar (metric on the chosen mesh minus "
+                   "the same on one coarser mesh). Design: the first 8 characters of its key "
+                   "in results.parquet.",
+                   " 5-95 %: the objective's Monte Carlo band over the design's virtual builds "
+                   "(robust run).")
+
+
+def _write_plots(out: Path, rows, config, pareto_keys, best_key, tie_keys):
+    """``pareto.png`` and ``sensitivity.png`` where there is something to plot: (the files
+    written by name, the report's plot entries)."""
+    from designlab.predict.report import png_uri
+
+    written: dict[str, Path] = {}
+    images = []
+    for name, data in (("pareto", pareto_plot(rows, config, pareto_keys, best_key, tie_keys)),
+                       ("sensitivity", sensitivity_plot(rows, config))):
+        if data is not None:
+            atomic_write_bytes(out / f"{name}.png", data)
+            written[name] = out / f"{name}.png"
+            images.append({"src": png_uri(data), "caption": _CAPTIONS[name]})
+    return written, images
+
+
+def _objective_result(best: dict, n: str, config: SweepConfig) -> dict:
+    """One result row of the chosen design: an objective's value, error bar, unit and spec
+    (with its Monte Carlo band in a robust run)."""
+    from designlab.sensors.labels import fmt_value, metric_name_unit
+
+    name, unit = metric_name_unit(n)
+    v, e = best.get(n), error_bar(best, n, config)
+    band = band_of(best, n)
+    note = f"objective: {config.objectives[n]}" + (
+        f"; Monte Carlo 5-95 %: {_band_text(band)}" if band else "")
+    return {"name": name, "value": fmt_value(v) if not isinstance(v, float) else f"{v:.4g}",
+            "bar": "" if not np.isfinite(e) else f"{e:.2g}", "unit": unit, "note": note}
+
+
+def _chosen_results(best: dict, config: SweepConfig, part_cls) -> list[dict]:
+    """The chosen design's result rows: its objectives, then its swept parameters."""
+    from designlab.sensors.labels import fmt_value, param_label
+
+    return ([_objective_result(best, n, config) for n in config.objectives]
+            + [{"name": param_label(part_cls, d.name),
+                "value": fmt_value(best.get(f"param.{d.name}")),
+                "bar": "", "unit": "", "note": "swept parameter"} for d in config.dimensions])
+
+
+def _design_cells(r: dict, config: SweepConfig, banded: set) -> list[str]:
+    """One row of the designs table: key, parameters, each objective with its error bar (and
+    band), feasibility, status, time, error."""
+    from designlab.sensors.labels import fmt_value
+
+    cells = [r["key"][:8]] + [fmt_value(r.get(f"param.{d.name}")) for d in config.dimensions]
+    for n in config.objectives:
+        v, e = r.get(n), error_bar(r, n, config)
+        cells += [f"{v:.4g}" if isinstance(v, float) else fmt_value(v),
+                  f"{e:.2g}" if np.isfinite(e) else ""]
+        if n in banded:
+            cells.append(_band_text(band_of(r, n)))
+    return cells + ["yes" if r.get("feasible") else "no", r.get("status", ""),
+                    f"{r.get('elapsed_s', float('nan')):.1f}", r.get("error") or ""]
+
+
+def _designs_table(rows, config: SweepConfig, part_cls, pareto_keys, best_key,
+                   tie_keys) -> dict:
+    """Every design in a table, the chosen one, its ties and the Pareto set marked; a robust
+    run adds each objective's Monte Carlo band beside it."""
+    from designlab.sensors.labels import metric_label, param_label
+
+    objs = list(config.objectives)
+    banded = {n for n in objs if any(r.get("status") == "ok" and band_of(r, n) for r in rows)}
+    cols = (["design"] + [param_label(part_cls, d.name).split(":")[0] for d in config.dimensions]
+            + [c for n in objs for c in (metric_label(n), "±")
+               + (("5-95 %",) if n in banded else ())]
+            + ["feasible", "status", "time (s)", "error"])
+    trows = [{"cls": ("best" if r["key"] == best_key else "tie" if r["key"] in tie_keys
+                      else "pareto" if r["key"] in pareto_keys else ""),
+              "cells": _design_cells(r, config, banded)} for r in rows]
+    return {"columns": cols, "rows": trows,
+            "legend": _DESIGNS_LEGEND[0] + (_DESIGNS_LEGEND[1] if banded else "")}
+
+
+def _scatter_of_best(best: dict, config: SweepConfig, uncertainty):
+    """The chosen design's Monte Carlo section; the builds per design from ``uncertainty``."""
+    samples, spec = None, None
+    if uncertainty is not None:
+        import dataclasses
+
+        from designlab.predict.uncertainty import draw
+
+        spec_p = dataclasses.replace(uncertainty, sensor=config.part)
+        samples, spec = len(draw(spec_p)[1]), spec_p.to_json()      # Sobol: N (2d + 2)
+    return scatter_of_row(best, samples, spec)
+
+
+def _settings_value(v) -> str:
+    from designlab.sensors.labels import fmt_value
+
+    if not isinstance(v, dict):
+        return fmt_value(v)
+    return ", ".join(f"{a} = {fmt_value(b)}" for a, b in v.items())
+
+
+def _sweep_tables(config: SweepConfig, part_cls) -> list[dict]:
+    """The swept parameters (range, levels, unit, meaning) and the sweep's settings."""
+    from designlab.geometry.api import field_rows
+    from designlab.sensors.labels import fmt_value
+
+    meta = {r["name"]: r for r in field_rows(part_cls)} if part_cls is not None else {}
+    sweep_rows = [[d.name, f"{d.lo:g} .. {d.hi:g}" if not d.values else fmt_value(d.values),
+                   str(d.levels) if config.method == "grid" and not d.values else "",
+                   meta.get(d.name, {}).get("unit", ""), meta.get(d.name, {}).get("meaning", "")]
+                  for d in config.dimensions]
+    setting_rows = ([["method", config.method]]
+                    + [[f"objective {k}", str(v)] for k, v in config.objectives.items()]
+                    + [[f"constraint {k}", str(v)] for k, v in config.constraints.items()]
+                    + [[f"fixed {k}", fmt_value(v)] for k, v in config.fixed.items()]
+                    + [[f"settings {k}", _settings_value(v)] for k, v in config.settings.items()]
+                    + [[f"protocol {k}", fmt_value(v)] for k, v in config.protocol.items()])
+    return [{"title": "Swept parameters",
+             "columns": ["name", "range / values", "levels", "unit", "meaning"],
+             "rows": sweep_rows},
+            {"title": "Sweep settings", "columns": ["setting", "value"], "rows": setting_rows}]
+
+
+def _add_chosen_prediction(ctx: dict, images: list, chosen_dir: Path, config: SweepConfig,
+                           sensor) -> list[Path]:
+    """The exported chosen design's prediction merged into the report (renders, stress,
+    paper comparison, plots, results, tables, warnings); returns its files."""
+    import json
+
+    from designlab.predict.report import param_table, prediction_sections
+
+    part_cls = sensor.part if sensor is not None else None
+    pdir = chosen_dir / "prediction"
+    pred = json.loads((pdir / "prediction.json").read_text())
+    sec = prediction_sections(pred, pdir, part_cls=part_cls,
+                              settings_cls=sensor.settings if sensor else None,
+                              protocol_cls=sensor.protocol if sensor else None,
+                              render_pngs=chosen_renders(chosen_dir))
+    if sensor is not None and sensor.settings is not None:
+        # the settings the run used: the prediction's own, over them the sweep's [settings]
+        # model table (what the config asked for; defaults only where neither says)
+        used = {**(pred.get("settings") or {}), **(config.settings.get("model") or {})}
+        sec["tables"] = [param_table("Model settings", sensor.settings, used)
+                         if t["title"] == "Model settings" else t for t in sec["tables"]]
+    ctx["renders"] = sec["renders"]
+    ctx["stress"] = sec["stress"]
+    ctx["plots"] = images + [f for f in sec["plots"]
+                             if not f["caption"].startswith(("design", "deformed"))]
+    ctx["results"] = ctx.get("results", []) + [
+        {**r, "note": (r["note"] + " (chosen design's prediction)").strip()}
+        for r in sec["results"] if r["name"] not in {x["name"] for x in ctx.get("results", [])}]
+    ctx["tables"] = sec["tables"] + ctx["tables"]
+    ctx["warnings"] = [f"chosen design: {w}" for w in sec["warnings"]]
+    return [p for p in chosen_dir.rglob("*") if p.is_file()]
+
+
 def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: list[str],
                  best_key: str | None, title: str = "designlab sweep",
                  tie_keys: list[str] = (), *, choice: str | None = None,
@@ -238,141 +405,32 @@ def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: 
     (renders, plots, stress, paper comparison, files). A robust run's rows (``mc.*``
     columns): each objective's 5-95 % band beside it and the chosen design's "Scatter (Monte
     Carlo)" section; ``uncertainty`` (its spec) gives the builds per design."""
-    from designlab.sensors.labels import fmt_value, metric_label, metric_name_unit, param_label
     from designlab.sensors.registry import SENSORS
-    from designlab.predict.report import (file_links, param_table, png_uri,
-                                               prediction_sections, render_report)
+    from designlab.predict.report import file_links, render_report
 
     out = Path(out)
-    written: dict[str, Path] = {}
-    images = []
-    captions = {"pareto": "the first two objectives of every design with their mesh error bars; "
-                          "Pareto set joined, chosen design ringed in black, designs not "
-                          "distinguishable from it ringed in blue",
-                "sensitivity": "each objective against each swept parameter (r: correlation)"}
-    for name, data in (("pareto", pareto_plot(rows, config, pareto_keys, best_key, tie_keys)),
-                       ("sensitivity", sensitivity_plot(rows, config))):
-        if data is not None:
-            atomic_write_bytes(out / f"{name}.png", data)
-            written[name] = out / f"{name}.png"
-            images.append({"src": png_uri(data), "caption": captions[name]})
+    written, images = _write_plots(out, rows, config, pareto_keys, best_key, tie_keys)
     sensor = SENSORS.get(config.part)
     part_cls = sensor.part if sensor is not None else None
-    objs = list(config.objectives)
-    dims = [d.name for d in config.dimensions]
     best = next((r for r in rows if r["key"] == best_key), None)
-    ctx: dict[str, Any] = {"title": title, "choice": choice, "plots": images, "tables": [],
-                           "warnings": []}
     n_ok = sum(r.get("status") == "ok" for r in rows)
-    ctx["subtitle"] = (f"{kind} of the {config.part} ({sensor.paper if sensor else ''}): "
-                       f"{len(rows)} designs ({n_ok} evaluated without error), method "
-                       f"{config.method}")
-    # objectives of the chosen design, with their error bars
+    ctx: dict[str, Any] = {
+        "title": title, "choice": choice, "plots": images, "tables": [], "warnings": [],
+        "subtitle": (f"{kind} of the {config.part} ({sensor.paper if sensor else ''}): "
+                     f"{len(rows)} designs ({n_ok} evaluated without error), method "
+                     f"{config.method}")}
     if best is not None:
-        res = []
-        for n in objs:
-            spec = config.objectives[n]
-            name, unit = metric_name_unit(n)
-            v, e = best.get(n), error_bar(best, n, config)
-            band = band_of(best, n)
-            res.append({"name": name, "value": fmt_value(v) if not isinstance(v, float)
-                        else f"{v:.4g}", "bar": "" if not np.isfinite(e) else f"{e:.2g}",
-                        "unit": unit, "note": f"objective: {spec}" + (
-                            f"; Monte Carlo 5-95 %: {_band_text(band)}" if band else "")})
-        for d in dims:
-            v = best.get(f"param.{d}")
-            res.append({"name": param_label(part_cls, d), "value": fmt_value(v), "bar": "",
-                        "unit": "", "note": "swept parameter"})
-        ctx["results"], ctx["results_title"] = res, "Chosen design: objectives"
+        ctx["results"] = _chosen_results(best, config, part_cls)
+        ctx["results_title"] = "Chosen design: objectives"
     if tie_keys:
         ctx["ties"] = [k[:8] for k in tie_keys]
-    # designs table (a robust run: each objective's Monte Carlo band beside it)
-    banded = {n for n in objs if any(r.get("status") == "ok" and band_of(r, n) for r in rows)}
-    cols = (["design"] + [param_label(part_cls, d).split(":")[0] for d in dims]
-            + [c for n in objs for c in (metric_label(n), "±")
-               + (("5-95 %",) if n in banded else ())]
-            + ["feasible", "status", "time (s)", "error"])
-    trows = []
-    for r in rows:
-        cls = ("best" if r["key"] == best_key else "tie" if r["key"] in tie_keys
-               else "pareto" if r["key"] in pareto_keys else "")
-        cells = [r["key"][:8]] + [fmt_value(r.get(f"param.{d}")) for d in dims]
-        for n in objs:
-            v, e = r.get(n), error_bar(r, n, config)
-            cells += [f"{v:.4g}" if isinstance(v, float) else fmt_value(v),
-                      f"{e:.2g}" if np.isfinite(e) else ""]
-            if n in banded:
-                cells.append(_band_text(band_of(r, n)))
-        cells += ["yes" if r.get("feasible") else "no", r.get("status", ""),
-                  f"{r.get('elapsed_s', float('nan')):.1f}", r.get("error") or ""]
-        trows.append({"cls": cls, "cells": cells})
-    ctx["designs"] = {"columns": cols, "rows": trows,
-                      "legend": "orange: chosen; blue: not distinguishable from the chosen "
-                                "design (difference within the error bar of the difference); "
-                                "pink: Pareto set. ±: each design's discretisation error bar "
-                                "(metric on the chosen mesh minus the same on one coarser "
-                                "mesh). Design: the first 8 characters of its key in "
-                                "results.parquet."
-                                + (" 5-95 %: the objective's Monte Carlo band over the "
-                                   "design's virtual builds (robust run)." if banded else "")}
+    ctx["designs"] = _designs_table(rows, config, part_cls, pareto_keys, best_key, tie_keys)
     if best is not None:
-        samples, spec = None, None
-        if uncertainty is not None:
-            import dataclasses
-
-            from designlab.predict.uncertainty import draw
-
-            spec_p = dataclasses.replace(uncertainty, sensor=config.part)
-            samples, spec = len(draw(spec_p)[1]), spec_p.to_json()      # Sobol: N (2d + 2)
-        ctx["scatter"] = scatter_of_row(best, samples, spec)
-    from designlab.geometry.api import field_rows
-
-    meta = {r["name"]: r for r in field_rows(part_cls)} if part_cls is not None else {}
-    sweep_rows = [[d.name, f"{d.lo:g} .. {d.hi:g}" if not d.values else fmt_value(d.values),
-                   str(d.levels) if config.method == "grid" and not d.values else "",
-                   meta.get(d.name, {}).get("unit", ""), meta.get(d.name, {}).get("meaning", "")]
-                  for d in config.dimensions]
-    ctx["tables"].append({"title": "Swept parameters", "columns": ["name", "range / values",
-                                                                  "levels", "unit", "meaning"],
-                          "rows": sweep_rows})
-    setting_rows = ([["method", config.method]]
-                    + [[f"objective {k}", str(v)] for k, v in config.objectives.items()]
-                    + [[f"constraint {k}", str(v)] for k, v in config.constraints.items()]
-                    + [[f"fixed {k}", fmt_value(v)] for k, v in config.fixed.items()]
-                    + [[f"settings {k}", fmt_value(v) if not isinstance(v, dict) else
-                        ", ".join(f"{a} = {fmt_value(b)}" for a, b in v.items())]
-                       for k, v in config.settings.items()]
-                    + [[f"protocol {k}", fmt_value(v)] for k, v in config.protocol.items()])
-    ctx["tables"].append({"title": "Sweep settings", "columns": ["setting", "value"],
-                          "rows": setting_rows})
+        ctx["scatter"] = _scatter_of_best(best, config, uncertainty)
+    ctx["tables"] += _sweep_tables(config, part_cls)
     files = [out / "results.parquet", out / "optimize.json", *written.values()]
     if chosen_dir is not None and (Path(chosen_dir) / "prediction" / "prediction.json").is_file():
-        import json
-
-        chosen_dir = Path(chosen_dir)
-        pdir = chosen_dir / "prediction"
-        pred = json.loads((pdir / "prediction.json").read_text())
-        renders = chosen_renders(chosen_dir)
-        sec = prediction_sections(pred, pdir, part_cls=part_cls,
-                                  settings_cls=sensor.settings if sensor else None,
-                                  protocol_cls=sensor.protocol if sensor else None,
-                                  render_pngs=renders)
-        if sensor is not None and sensor.settings is not None:
-            # the settings the run used: the prediction's own, over them the sweep's [settings]
-            # model table (what the config asked for; defaults only where neither says)
-            used = {**(pred.get("settings") or {}), **(config.settings.get("model") or {})}
-            sec["tables"] = [param_table("Model settings", sensor.settings, used)
-                             if t["title"] == "Model settings" else t for t in sec["tables"]]
-        ctx["renders"] = sec["renders"]
-        ctx["stress"], ctx["paper"] = sec["stress"], sec["paper"]
-        ctx["plots"] = images + [f for f in sec["plots"]
-                                 if not f["caption"].startswith(("design", "deformed"))]
-        ctx["results"] = ctx.get("results", []) + [
-            {**r, "note": (r["note"] + " (chosen design's prediction)").strip()}
-            for r in sec["results"] if r["name"] not in {x["name"] for x in ctx.get("results", [])}]
-        ctx["tables"] = sec["tables"] + ctx["tables"]
-        ctx["warnings"] = [f"chosen design: {w}" for w in sec["warnings"]]
-        files += [p for p in chosen_dir.rglob("*") if p.is_file()]
+        files += _add_chosen_prediction(ctx, images, Path(chosen_dir), config, sensor)
     ctx["files"] = file_links(out, [f for f in files if Path(f).exists()])
     render_report(out / "report.html", ctx)
     written["html"] = out / "report.html"

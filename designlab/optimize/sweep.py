@@ -127,12 +127,33 @@ def _run_sweep(config: SweepConfig, out: Path, *, evaluator, executor, progress,
     tasks = tasks_of(config, evaluator)
     for t in tasks:            # one FEM per distinct model, shared by the sweep's designs
         t["fem_cache"] = str(store.fem_dir)
+    reused, remaining = _pending(store, tasks, config, retry_failed)
+    if progress:
+        progress(reused, len(tasks), {})
+    _evaluate(store, executor, evaluator, remaining, config,
+              lambda n, row: progress(reused + n, len(tasks), row) if progress else None)
+    rows = store.rows([t["key"] for t in tasks])
+    table_path = store.consolidate()
+    pareto, best = _pareto_and_best(rows, config)
+    warnings = _missing_metric_warnings(rows, config)
+    ties, unknown = compare_to_best(rows, config, best) if best is not None else ([], [])
+    if unknown:
+        warnings.append(f"{len(unknown)} design(s) have no discretisation error bar on an "
+                        "objective (no mesh_convergence): whether they differ from the best "
+                        "design by more than the mesh error is unknown, not zero")
+    return SweepResult(rows, len(remaining), reused, sum(r.get("status") != "ok" for r in rows),
+                       pareto, best, table_path, warnings, ties, unknown)
+
+
+def _pending(store: ResultStore, tasks: list[dict], config: SweepConfig,
+             retry_failed: bool) -> tuple[int, list[dict]]:
+    """(designs reused, tasks still to evaluate): a design in the store is reused (with
+    ``retry_failed``, only if it did not fail); one cached (finished) but killed before its
+    row was written gets its row now."""
     done_keys = store.keys()
     if retry_failed:
-        failed = {r["key"] for r in store.rows() if r.get("status") != "ok"}
-        done_keys -= failed
+        done_keys -= {r["key"] for r in store.rows() if r.get("status") != "ok"}
     todo = [t for t in tasks if t["key"] not in done_keys]
-    # a design cached (finished) but killed before its row was written: write the row now
     reused = len(tasks) - len(todo)
     remaining = []
     for t in todo:
@@ -142,11 +163,16 @@ def _run_sweep(config: SweepConfig, out: Path, *, evaluator, executor, progress,
             reused += 1
         else:
             remaining.append(t)
-    n_done = reused
-    if progress:
-        progress(n_done, len(tasks), {})
-    for i, res, err in executor.run(_Timed(evaluator), remaining):
-        t = remaining[i]
+    return reused, remaining
+
+
+def _evaluate(store: ResultStore, executor, evaluator, tasks: list[dict], config: SweepConfig,
+              progress: Callable[[int, dict], Any]) -> None:
+    """Evaluate ``tasks`` on the executor, storing each row (and its result) as it finishes;
+    ``progress(done, row)`` after each."""
+    n_done = 0
+    for i, res, err in executor.run(_Timed(evaluator), tasks):
+        t = tasks[i]
         if err is None:
             row = _row(t, res["metrics"], None, res["elapsed_s"], config)
             store.put(t["key"], row, res)
@@ -154,36 +180,35 @@ def _run_sweep(config: SweepConfig, out: Path, *, evaluator, executor, progress,
             row = _row(t, {}, err, float("nan"), config)
             store.put(t["key"], row, None)
         n_done += 1
-        if progress:
-            progress(n_done, len(tasks), row)
-    rows = store.rows([t["key"] for t in tasks])
-    table_path = store.consolidate()
+        progress(n_done, row)
+
+
+def _pareto_and_best(rows: list[dict], config: SweepConfig) -> tuple[list[str], str | None]:
+    """The Pareto set's keys and the best design's: the first objective's minimum, or with
+    several objectives the Pareto design closest to the ideal point (each scaled to 0..1)."""
     F = scores(rows, config)
     pareto, best = [], None
-    if F.shape[1] and len(rows):
-        mask = non_dominated(F)
-        pareto = [rows[i]["key"] for i in np.flatnonzero(mask)]
-        if F.shape[1] >= 1 and np.isfinite(F[:, 0]).any():
-            best = rows[int(np.nanargmin(F[:, 0]))]["key"] if len(pareto) else None
-            if len(pareto) > 1:
-                # several objectives: the Pareto design closest to the ideal point (normalised)
-                Fp = F[mask]
-                lo, hi = Fp.min(0), Fp.max(0)
-                z = (Fp - lo) / np.where(hi > lo, hi - lo, 1)
-                best = pareto[int(np.argmin(np.linalg.norm(z, axis=1)))]
-    warnings = []
+    if not (F.shape[1] and len(rows)):
+        return pareto, best
+    mask = non_dominated(F)
+    pareto = [rows[i]["key"] for i in np.flatnonzero(mask)]
+    if F.shape[1] >= 1 and np.isfinite(F[:, 0]).any():
+        best = rows[int(np.nanargmin(F[:, 0]))]["key"] if len(pareto) else None
+        if len(pareto) > 1:
+            Fp = F[mask]
+            lo, hi = Fp.min(0), Fp.max(0)
+            z = (Fp - lo) / np.where(hi > lo, hi - lo, 1)
+            best = pareto[int(np.argmin(np.linalg.norm(z, axis=1)))]
+    return pareto, best
+
+
+def _missing_metric_warnings(rows: list[dict], config: SweepConfig) -> list[str]:
+    """One warning per objective or constraint no evaluated design has."""
     ok = [r for r in rows if r.get("status") == "ok"]
-    for name in [*config.objectives, *config.constraints]:
-        if ok and all(r.get(name) is None for r in ok):
-            warnings.append(f"no design has the metric {name!r} (objective or constraint): it "
-                            "cannot rank or admit any design")
-    ties, unknown = compare_to_best(rows, config, best) if best is not None else ([], [])
-    if unknown:
-        warnings.append(f"{len(unknown)} design(s) have no discretisation error bar on an "
-                        "objective (no mesh_convergence): whether they differ from the best "
-                        "design by more than the mesh error is unknown, not zero")
-    return SweepResult(rows, len(remaining), reused, sum(r.get("status") != "ok" for r in rows),
-                       pareto, best, table_path, warnings, ties, unknown)
+    return [f"no design has the metric {name!r} (objective or constraint): it cannot rank or "
+            "admit any design"
+            for name in [*config.objectives, *config.constraints]
+            if ok and all(r.get(name) is None for r in ok)]
 
 
 #: metrics of the CAD (optimize.evaluate.geometry_metrics), not of a mesh: no discretisation error
