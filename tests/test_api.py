@@ -54,6 +54,7 @@ def test_show_writes_a_png_in_a_script(tmp_path):
     assert Path(path).read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.slow
 def test_predict_takes_a_part_object_and_a_name():
     import designlab as dl
 

@@ -191,6 +191,7 @@ def test_a_load_beyond_what_the_mesh_can_carry_is_a_model_error():
 needs_ccx = pytest.mark.skipif(shutil.which("ccx") is None, reason="ccx not installed")
 
 
+@pytest.mark.slow
 @needs_ccx
 @pytest.mark.parametrize("order", [1, 2])
 def test_bonded_block_at_30_percent_compression_matches_calculix(order):

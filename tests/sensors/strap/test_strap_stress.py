@@ -198,6 +198,7 @@ def test_a_bad_measured_file_is_one_line_and_exit_2(tmp_path, capsys):
         measured_materials(PART, other)
 
 
+@pytest.mark.slow
 def test_a_tight_wrap_warns_once():
     """A custom wrap at 50 % initial strain: 4.2 MPa in the band (neo-Hookean stand-in) against
     its 4 MPa, one warning line although the error bar's coarse run repeats the run."""

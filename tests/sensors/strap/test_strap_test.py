@@ -202,6 +202,7 @@ def test_report_has_the_derived_electrical_design_and_the_paper_slots(prediction
     assert any("PI-ETPU: gauge_factor" in n for n in r["material_stand_ins"])
 
 
+@pytest.mark.slow
 def test_prestrained_run_matches_the_slot_table(flat_mesh, prediction):
     """slot=2: the worn strap at the medium slot's initial strain; its sensitivity equals the
     stress-free run's slot-table entry (same FEM, operating point and tangent applied)."""
@@ -264,6 +265,7 @@ def test_fem_key_holds_what_the_fem_depends_on():
         PART, dataclasses.replace(SHORT, normal_N=4.0, cycles=2), CHEAP, el)
 
 
+@pytest.mark.slow
 def test_designs_that_share_the_fem_solve_it_once(tmp_path):
     """Two designs that differ in readout settings only (divider, supply, ADC, bandwidth, the
     wrap's slot): the second reuses the first one's FEM from the cache folder and its numbers
@@ -300,6 +302,7 @@ def test_designs_that_share_the_fem_solve_it_once(tmp_path):
     assert m == ra.report["mesh"]
 
 
+@pytest.mark.slow
 def test_a_mesher_fallback_is_recorded(monkeypatch):
     """Whichever mesher made the mesh (fTetWild when gmsh failed: tests/mesh/test_meshing.py
     ::test_gmsh_failure_falls_back_to_fTetWild) and its attempts reach the report; a given mesh
@@ -326,6 +329,7 @@ def test_a_mesher_fallback_is_recorded(monkeypatch):
     assert given["mesher"] == "given" and given["attempts"] == []
 
 
+@pytest.mark.slow
 def test_a_wrap_that_inverts_a_cell_remeshes_finer(monkeypatch):
     """A flat sliver cell that the wrap turns inside out: the strap is meshed again with shorter
     edges (recorded in the attempts and the report's edge length); a given mesh is not."""
