@@ -199,6 +199,20 @@ def _constraint(name: str, v: Any) -> Any:
     raise ParameterError(f"constraints.{name}", _short(v), "true, {min = x} and/or {max = x}")
 
 
+def _part_of(part: Any) -> tuple[str, str]:
+    """(the config's part as every worker resolves it, its registered name): a sensor name, or
+    a definition spec made canonical (a file's absolute path)."""
+    from designlab.geometry.parts import PARTS
+    from designlab.sensors.registry import canonical, get_sensor, looks_like_definition
+
+    if not isinstance(part, str):
+        raise ParameterError("part", _short(part), "a part name: " + ", ".join(PARTS)
+                             + " or a sensor definition FILE.py[:Class]")
+    if looks_like_definition(part):
+        part = canonical(part)
+    return part, get_sensor(part).name
+
+
 def sweep_config(data: dict[str, Any]) -> SweepConfig:
     """Validate a parsed config dict (see module docstring) against the part (swept and fixed
     parameters, their ranges), its protocol and model settings, and the metrics a design has
@@ -208,15 +222,8 @@ def sweep_config(data: dict[str, Any]) -> SweepConfig:
     check_keys(data, known)
     check_tree(data, "config")
     from designlab.geometry.parts import PARTS
-    from designlab.sensors.registry import canonical, get_sensor, looks_like_definition
 
-    part = data.get("part")
-    if not isinstance(part, str):
-        raise ParameterError("part", _short(part), "a part name: " + ", ".join(PARTS)
-                             + " or a sensor definition FILE.py[:Class]")
-    if looks_like_definition(part):
-        part = canonical(part)      # a spec every worker process resolves the same way
-    name = get_sensor(part).name
+    part, name = _part_of(data.get("part"))
     method = data.get("method", "grid")
     if method not in METHODS:
         raise ParameterError("method", _short(method), "one of " + ", ".join(METHODS)
