@@ -7,7 +7,7 @@ contact a unilateral Hertz law in series with the FSS015, Mindlin's partial slip
 sliding (:mod:`designlab.fem.contact`); the bolt is tightened to its preload, then every location
 and rotation of the hanging-weight test runs through its loading/unloading sequence with the ABS
 relaxation in time (:func:`run_contact_test`), read out as the paper's (FSS015 x 0.06 V/N,
-repeatability, DAQ). The model and its numbers: docs/notes/fingertip_contact_investigation.md.
+repeatability, DAQ). What it reproduces of the paper: docs/validation/fingertip.md.
 Units mm, N, MPa, s; readings V.
 """
 

@@ -27,9 +27,8 @@ PAPER = {"lowest_mean_G1_pct": 0.98, "lowest_mean_G2_pct": 2.19,
 
 # ------------------------------------------------------- Fig. 9: applied vs estimated, per axis
 
-#: the calibration targets of Fig. 9's applied-vs-estimated comparison
-#: (docs/notes/fingertip_contact_investigation.md, "Third investigation: the P_z error"); the
-#: errors of each are in ``fig9_errors``
+#: the calibration targets of Fig. 9's applied-vs-estimated comparison (the paper does not say
+#: which it used; docs/validation/fingertip.md); the errors of each are in ``fig9_errors``
 FIG9_DEFINITIONS = {
     "paper_eq3_normal_component": (
         "the paper's (Sec. IV, eq. 3; Fig. 9 plots 'applied and measured normal forces'): the "
@@ -182,8 +181,7 @@ def branch_linearity(seq, S_true, runs, rot0) -> float:
 #: readings of Sec. III's compressed-sensor change ("... increase from 2.46 to 2.56 mV under the
 #: same maximum loading force, accounting for a 33.9 % of the total increasing force from 0 to
 #: 2.27 N ... from moving the test location from h9 to h1"); the text does not say relative to
-#: what, so each is reported, named (docs/notes/fingertip_contact_investigation.md, "Second
-#: investigation")
+#: what, so each is reported, named (docs/validation/fingertip.md)
 CHANGE_DEFINITIONS = {
     "relative_to_first_span": "change of the compressed sensor's span (reading at the heaviest "
                               "weight minus at the empty tray) from the first location to the "
