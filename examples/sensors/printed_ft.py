@@ -63,7 +63,9 @@ class PrintedFT(dl.SensorDefinition):
     #: the forks' unknown gains
     normalise_rows_by = "Fz"
 
-    arm_width: float = dl.param(3.0, 1.5, 5.0, unit="mm", doc="spiral arm width in the plane "
+    # 2.0 to 3.5 mm: the 0.9 mm gap between neighbouring arms closes at 3.9 mm; below 2.0 the
+    # bridges into the outer blocks (cut at r 38.1) thin out
+    arm_width: float = dl.param(3.0, 2.0, 3.5, unit="mm", doc="spiral arm width in the plane "
                                 "(about its mean radius 37.0 mm)")
     arm_height: float = dl.param(14.0, 6.0, 14.0, unit="mm", doc="spiral arm height (z_T from 0)")
     material: str = dl.param("PLA", choices=("PLA", "ABS"), doc="printed material (not stated by "
