@@ -58,7 +58,12 @@ class SensorModel:
         y = base_predict(self.base, data, output)
         for f in self.effects.get(output, [])[:upto]:
             ctx = fx.Context(data, output, y, f.nuisance, measured)
-            y = y + fx.contribution(f, ctx)
+            try:
+                y = y + fx.contribution(f, ctx)
+            except (ValueError, IndexError, TypeError) as exc:   # coefficients unlike the effect
+                raise ModelError(f"the model's effect {f.effect.name} on '{output}' does not fit "
+                                 f"its theta and coefficients (beta: {len(f.beta)}, alpha: {len(f.alpha)}; "
+                                 f"{str(exc)[:80]})") from None
         return y
 
     def to_json(self) -> dict:
@@ -95,6 +100,7 @@ def load_model(path: str | Path, what: str = "--base") -> SensorModel:
     _check_numbers(p, m)
     outs, inputs, prov = m.get("outputs", {}), m.get("inputs", {}), doc.get("provenance", {})
     _check_sections(p, outs, inputs, prov)
+    _check_base(p, m["base"])
     try:
         base = Base.from_json(m["base"])
         eff = {o: [fx.Fitted.from_json(e) for e in v.get("effects", [])] for o, v in outs.items()}
@@ -150,6 +156,63 @@ def _check_sections(p: Path, outs, inputs, prov) -> None:
         if not isinstance(v, dict) or not isinstance(v.get("effects", []), list):
             raise ModelError(f"{p}: model.outputs.{o} is not allowed: an object with an "
                              "'effects' list")
+        for i, e in enumerate(v.get("effects", [])):
+            where = f"model.outputs.{o}.effects[{i}]"
+            if not isinstance(e, dict) or not isinstance(e.get("theta"), dict):
+                raise ModelError(f"{p}: {where} is not allowed: an object with a 'theta' object")
+            for key, ok in (("beta", _is_number), ("alpha", _is_number),
+                            ("nuisance", lambda x: isinstance(x, str))):
+                x = e.get(key)
+                if not isinstance(x, list) or not all(ok(y) for y in x):
+                    raise ModelError(f"{p}: {where}.{key}={str(x)[:40]} is not allowed: a list "
+                                     f"of {'names' if key == 'nuisance' else 'numbers'}")
+
+
+#: the numbers each base kind's predict reads per output (``linear``: ``intercept`` and ``gains``)
+#: (a stretch base: its force law when it holds E_MPa, else its resistance law)
+_BASE_NUMBERS = {"force": ("F0_N", "stiffness_factor", "E_MPa", "area_mm2", "length_mm"),
+                 "resistance": ("R0_ohm", "GF", "length_mm")}
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _check_base(p: Path, base: dict) -> None:
+    """The base's inputs (a list of names per output) and the numbers its kind reads: one line
+    naming the key and value when one is text, a boolean, a list or missing."""
+    inputs, params = base.get("inputs"), base.get("parameters")
+    if not isinstance(inputs, dict) or not isinstance(params, dict):
+        raise ModelError(f"{p}: model.base needs 'inputs' and 'parameters' objects")
+    for o, names in inputs.items():
+        if not isinstance(names, list) or not names \
+                or not all(isinstance(n, str) for n in names):
+            raise ModelError(f"{p}: model.base.inputs.{o}={str(names)[:40]} is not allowed: "
+                             "a list of input names")
+    for o, v in params.items():
+        where = f"model.base.parameters.{o}"
+        if o not in inputs or not isinstance(v, dict):
+            raise ModelError(f"{p}: {where} is not allowed: an object for an output named in "
+                             "model.base.inputs")
+        kind = base.get("kind")
+        if kind == "linear":
+            gains = v.get("gains")
+            if not isinstance(gains, dict):
+                raise ModelError(f"{p}: {where}.gains is not allowed: an object of input: gain")
+            need = [("intercept", v.get("intercept"))] + [(f"gains.{k}", g)
+                                                          for k, g in gains.items()]
+        elif kind == "load-arm":
+            c = v.get("coefficients")
+            if not isinstance(c, list) or len(c) != 7:
+                raise ModelError(f"{p}: {where}.coefficients={str(c)[:40]} is not allowed: a "
+                                 "list of 7 numbers")
+            need = [(f"coefficients[{i}]", x) for i, x in enumerate(c)]
+        else:
+            keys = _BASE_NUMBERS["force" if "E_MPa" in v else "resistance"]
+            need = [(k, v.get(k)) for k in keys]
+        for k, x in need:
+            if not _is_number(x):
+                raise ModelError(f"{p}: {where}.{k}={str(x)[:30]} is not allowed: a number")
 
 
 def convert_units(model: SensorModel, data: Dataset, outs: list[str]) -> None:
