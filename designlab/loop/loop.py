@@ -290,7 +290,8 @@ def run_loop(data: Dataset, base: str | SensorModel = "linear", outputs: list[st
         if peer and progress:
             progress(o, 0, 1, "peers")
         add_verdict(reports[o], series[o], data, o,
-                    noise_floor(sel.y_all, sel.start_all, data.segment),
+                    noise_floor(sel.y_all, np.column_stack(list(data.inputs.values())),
+                                data.segment),
                     fit_peers(data, o, PEER_ROWS) if peer else [])
     report = loop_report(base_name, reports, selection, data_summary(data), budget)
     conv = model.provenance.get("unit_conversions") if isinstance(base, SensorModel) else None
@@ -355,9 +356,9 @@ class _Selection:
         self.vmask = data.role == "validate"
         base_inputs = tuple(model.base.inputs[o])
         self._predicted(model.predict(train, o, self.y), model.predict(data, o, self.y_all))
-        self.start_all = self.yhat_all
         # the noise floor of the data the fits see (decimated training data have less noise)
-        self.floor_fit = difference_sigma(self.y - self.yhat, train.segment)
+        self.floor_fit = difference_sigma(self.y, train.segment,
+                                          inputs=np.column_stack(list(train.inputs.values())))
         self.y0_val = self.yhat_v.copy()
         self.start_tr = model.predict(train, o, self.y, upto=0)
         self.cands, self.skipped = fx.library(train, o, base_inputs)
@@ -381,6 +382,8 @@ class _Selection:
         self.stages: list[dict] = []
         self.tail_start = self.n_loaded   # effects from here on are refitted with each candidate
         self.run_offsets: dict | None = None
+        self.dropped: list[dict] = []    # effects the backward pass removed
+        self.tail_before: dict[str, int] = {}   # tail_start before each accepted effect
 
     def _predicted(self, yhat: np.ndarray, yhat_all: np.ndarray) -> None:
         self.yhat, self.yhat_all = yhat, yhat_all
@@ -396,8 +399,93 @@ class _Selection:
         while len(self.accepted) < max_effects and self.cands:
             if not self._round(n_se, min_relative, progress):
                 break
+        while self._backward(n_se, min_relative):
+            pass
         if self.per_run:
             self._finish_runs()
+
+    def _backward(self, n_se: float, min_relative: float) -> bool:
+        """One step of the backward pass over the jointly refitted effects: each is
+        cross-validated against the others refitted without it; the one that helps least is
+        dropped (the others refitted on all the training data) when it no longer passes the
+        acceptance rule or the others already leave only noise. False when none is dropped."""
+        o, y = self.o, self.y
+        group = self.model.effects[o][self.tail_start:]
+        if not group:
+            return self._backward_last(n_se, min_relative)
+        frozen = self.model.predict(self.train, o, y, upto=self.tail_start)
+        ctx = self._context(frozen)
+        checks = []
+        for j, f in enumerate(group):
+            rest = group[:j] + group[j + 1:]
+            try:
+                cv = cross_validate(f.effect, ctx, y, self.blocks, rest,
+                                    baselines(ctx, y, self.blocks, rest))
+            except FIT_ERRORS:
+                continue
+            if cv.get("skipped"):
+                continue
+            floor = cv["error_without"] <= AT_FLOOR * self.floor_fit
+            if floor or not acceptable(cv, n_se, min_relative):
+                checks.append((cv["relative"], j, cv, floor))
+        if not checks:
+            return False
+        _, j, cv, floor = min(checks, key=lambda c: c[0])
+        rest = group[:j] + group[j + 1:]
+        try:
+            with np.errstate(all="raise"):
+                refit = fx.fit_group([f.effect for f in rest], ctx, y - frozen,
+                                     np.ones(len(self.train), bool),
+                                     [[f.theta] for f in rest]) if rest else []
+                trial = SensorModel(self.model.base, {**self.model.effects,
+                                                      o: self.model.effects[o][:self.tail_start]
+                                                      + refit})
+                yhat, yhat_all = trial.predict(self.train, o, y), trial.predict(self.data, o,
+                                                                                 self.y_all)
+        except FIT_ERRORS:
+            return False
+        self.model.effects[o] = trial.effects[o]
+        self._predicted(yhat, yhat_all)
+        self._dropped(group[j].effect.key, cv, floor)
+        self._refitted_parameters(refit)
+        return True
+
+    def _backward_last(self, n_se: float, min_relative: float) -> bool:
+        """The backward pass on the last effect when it was fitted on top of the model (not
+        jointly): cross-validated as when it was accepted, against the model before it."""
+        o, y, effects = self.o, self.y, self.model.effects[self.o]
+        if len(effects) <= self.n_loaded or effects[-1].effect.key not in self.tail_before:
+            return False
+        last = effects[-1]
+        start = self.tail_before[last.effect.key]
+        frozen = self.model.predict(self.train, o, y, upto=start)
+        ctx = self._context(frozen)
+        tail = effects[start:-1]
+        try:
+            cv = cross_validate(last.effect, ctx, y, self.blocks, tail,
+                                baselines(ctx, y, self.blocks, tail))
+        except FIT_ERRORS:
+            return False
+        if cv.get("skipped"):
+            return False
+        floor = cv["error_without"] <= AT_FLOOR * self.floor_fit
+        if not floor and acceptable(cv, n_se, min_relative):
+            return False
+        self.model.effects[o] = effects[:-1]
+        self.tail_start = start
+        self._predicted(self.model.predict(self.train, o, y),
+                        self.model.predict(self.data, o, self.y_all))
+        self._dropped(last.effect.key, cv, floor)
+        return True
+
+    def _dropped(self, key: str, cv: dict, floor: bool) -> None:
+        """Record an effect the backward pass removed."""
+        self.dropped.append({"key": key, "cv": cv, "why": (
+            "the other effects leave only noise without it" if floor else
+            "no longer lowers the held-out error by more than noise beside the others")})
+        self.accepted = [a for a in self.accepted if a["key"] != key]
+        self.stages = [st for st in self.stages if st["key"] != key]
+        self.tail_before.pop(key, None)
 
     def _round(self, n_se: float, min_relative: float, progress: Progress | None) -> bool:
         """Every candidate cross-validated; the best acceptable one fitted on all the training
@@ -522,6 +610,7 @@ class _Selection:
             chosen, f, cv, corr, rmse(y, yhat), rmse(y, yhat_new),
             refitted if joint(chosen) else [], e_b, e_a))
         self.model.effects[self.o] = new_effects
+        self.tail_before[chosen.key] = self.tail_start
         if joint(chosen) and fx.group_member(chosen):
             self._refitted_parameters(group)
         else:
@@ -576,7 +665,7 @@ class _Selection:
             max_effects=max_effects, run_offsets=self.run_offsets,
             base_parameters=self.model.base.parameters.get(self.o, {}),
             y_train=self.y, start_train=self.start_tr, final_train=self.yhat,
-            y_val=self.yv, base_val=self.y0_val, final_val=self.yhat_v)
+            y_val=self.yv, base_val=self.y0_val, final_val=self.yhat_v, dropped=self.dropped)
 
 
 def _choose_tare(model: SensorModel, train: Dataset, o: str, y: np.ndarray,

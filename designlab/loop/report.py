@@ -96,6 +96,7 @@ class Selected:
     y_val: np.ndarray
     base_val: np.ndarray
     final_val: np.ndarray
+    dropped: list[dict] = field(default_factory=list)
 
 
 def output_report(s: Selected, val: Dataset) -> tuple[dict, dict]:
@@ -114,7 +115,8 @@ def output_report(s: Selected, val: Dataset) -> tuple[dict, dict]:
         "train_error_after": rmse(s.y_train, s.final_train),
         "validation": _validation(val, yv, s.base_val, yhat_v),
         "unexplained_fraction": unexplained, "residual_correlations": corrs[:8],
-        "stopped": stop, "verdict": verdict(s.accepted, stop, unexplained, corrs),
+        "stopped": stop, "verdict": verdict(s.accepted, stop, unexplained, corrs, s.dropped),
+        "dropped": s.dropped,
         "rounds": s.rounds, "not_applicable": s.not_applicable,
         **({"run_offsets": s.run_offsets} if s.run_offsets is not None else {}),
         "base": s.base_parameters,
@@ -162,10 +164,15 @@ def _strongest(corrs: list[dict]) -> str:
             else "nothing")
 
 
-def verdict(accepted: list[dict], stop: str, unexplained: float, corrs: list[dict]) -> str:
-    """The selection's verdict: what was accepted, why it stopped, what the validation data
-    did not confirm, and what the remaining residual is and correlates with."""
+def verdict(accepted: list[dict], stop: str, unexplained: float, corrs: list[dict],
+            dropped: list[dict] = ()) -> str:
+    """The selection's verdict: what was accepted, why it stopped, what the backward pass
+    dropped, what the validation data did not confirm, and what the remaining residual is and
+    correlates with."""
     clauses = [f"{len(accepted)} effect(s) accepted", stop]
+    if dropped:
+        clauses.append("dropped by the backward pass: " + ", ".join(
+            f"{d['key']} ({d['why']})" for d in dropped))
     unconfirmed = [a["key"] for a in accepted if not a["validation_improved"]]
     if unconfirmed:
         clauses.append("not confirmed by the validation data (its error rose with them): "

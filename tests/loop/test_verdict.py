@@ -43,7 +43,7 @@ def log(kind: str, seed: int = 0, T: float = 600.0):
         x = (2.0 + 8.0 * t / T) * (1 - np.abs(2 * ((t / 20.0) % 1.0) - 1))
         y = 0.2 + 0.3 * x * (1 - 0.04 * np.maximum.accumulate(x))
     elif kind == "ripple":           # a static law no effect of the library describes
-        y = y + 0.05 * np.sin(2 * np.pi * x / 4.0)
+        y = y + 0.08 * np.sin(2 * np.pi * x / 2.0)
     elif kind == "delay":
         y = 0.2 + 0.3 * fx.shift(x, 0.4, t, seg)
     elif kind == "drift":
@@ -64,8 +64,9 @@ def test_noise_floor_of_white_noise_within_20_percent(sigma):
     t = np.arange(n) * DT
     seg = (t > 300).astype(int)
     signal = 3.0 * np.sin(2 * np.pi * t / 40.0)       # smooth: the difference leaves it out
-    y = signal + rng.normal(0, sigma, n)
-    f = noise_floor(y, np.zeros(n), seg)
+    load = rng.uniform(-5, 5, n)                       # a white input: its map comes out
+    y = signal + 0.4 * load + rng.normal(0, sigma, n)
+    f = noise_floor(y, load[:, None], seg)
     assert f["sigma"] == pytest.approx(sigma, rel=0.2)
     assert "difference" in f["method"] and f["samples"] == n
 
@@ -125,3 +126,26 @@ def test_noise_only_with_peers_is_noise():
     out = run_loop(log("noise"), "linear").report["outputs"]["force"]
     assert out["effects"] == [] and out["verdict_kind"] == "noise"
     assert len(out["peers"]) == 2
+
+
+@pytest.mark.slow
+def test_the_backward_pass_drops_effects_that_fit_noise(monkeypatch):
+    """With the forward stop at the floor switched off and a rule that takes any gain, the
+    forward pass adds effects to noise alone; the backward pass removes every one again."""
+    from designlab.loop import loop as loop_mod
+
+    monkeypatch.setattr(loop_mod, "AT_FLOOR", 0.0)
+    backward = loop_mod._Selection._backward
+
+    def at_the_floor(self, *args):
+        monkeypatch.setattr(loop_mod, "AT_FLOOR", 1.1)
+        return backward(self, *args)
+
+    monkeypatch.setattr(loop_mod._Selection, "_backward", at_the_floor)
+    out = run_loop(log("noise", seed=2), "linear", n_se=0.0, min_relative=0.0,
+                   peer=False).report["outputs"]["force"]
+    forward = [r["accepted"] for r in out["rounds"] if r["accepted"]]
+    assert len(forward) > 1, forward
+    assert out["effects"] == [] and {d["key"] for d in out["dropped"]} == set(forward)
+    assert "dropped by the backward pass" in out["verdict"]
+    assert out["verdict_kind"] == "noise"
