@@ -50,10 +50,15 @@ class HangingWeightTest:
 
     def __post_init__(self):
         validate(self)
-        w = np.asarray(self.weights_g, float)
-        if w.ndim != 1 or len(w) < 3 or np.any(np.diff(w) <= 0) or w[0] < 0:
+        w = np.asarray(self.weights_g, object)
+        if w.ndim == 1 and all(isinstance(x, (int, float, np.integer, np.floating))
+                               and not isinstance(x, bool) for x in w):
+            w = w.astype(float)
+        if w.dtype != float or w.ndim != 1 or len(w) < 3 or not np.all(np.isfinite(w)) \
+                or np.any(np.diff(w) <= 0) or w[0] < 0:
             raise ParameterError("weights_g", list(self.weights_g),
-                                 "at least 3 non-negative, strictly increasing masses in g")
+                                 "at least 3 finite, non-negative, strictly increasing masses "
+                                 "in g")
         if self.read_window_s > self.hold_s:
             raise ParameterError("read_window_s", self.read_window_s,
                                  f"<= hold_s ({self.hold_s:g} s)")
@@ -201,14 +206,19 @@ def _coerce(cls, values: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _file_values(path: str | Path) -> Any:
+    """A protocol file's keys: its ``[protocol]`` table, else its top-level keys."""
+    data = load_toml(path)
+    return data.get("protocol", data)
+
+
 def load_protocol(cls: type, path: str | Path | None = None) -> Any:
     """A protocol of class ``cls`` (a sensor's ``Sensor.protocol``) from a TOML file (top-level
     keys or a ``[protocol]`` table; ``preset = "optimized"`` selects Table III of the hanging
     weight test); the defaults when ``path`` is None."""
     if path is None:
         return cls()
-    data = load_toml(path)
-    data = data.get("protocol", data)
+    data = _file_values(path)
     preset = data.pop("preset", None) if isinstance(data, dict) else None
     base = cls.preset(preset) if preset is not None and hasattr(cls, "preset") else None
     if preset is not None and base is None:
@@ -223,11 +233,15 @@ def load_protocol(cls: type, path: str | Path | None = None) -> Any:
 def protocol_for(cls: type, path: str | Path | None = None, values: dict[str, Any] | None = None,
                  design=None, design_protocol=None) -> Any:
     """A sensor's protocol: the paper's defaults (``cls()``), made to fit ``design`` by
-    ``design_protocol(protocol, design, values)`` when no file is given, a TOML file, and/or a
-    dict of overrides (sweeps; ``preset`` selects a preset first). An unknown key is a one-line
+    ``design_protocol(protocol, design, values)`` (a file without ``preset`` is read as
+    overrides of those defaults), a TOML file, and/or a dict of overrides (sweeps; ``preset`` selects a preset first). An unknown key is a one-line
     error naming ``protocol.<key>`` (:func:`_coerce`'s, as for a TOML file)."""
     from dataclasses import replace
 
+    if path is not None and design is not None and design_protocol is not None:
+        data = _file_values(path)
+        if isinstance(data, dict) and "preset" not in data:   # the file's keys on the design's
+            path, values = None, {**data, **(values or {})}   # defaults, as overrides
     proto = load_protocol(cls, path)
     if path is None and design is not None and design_protocol is not None:
         proto = design_protocol(proto, design, values)

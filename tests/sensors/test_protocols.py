@@ -95,3 +95,35 @@ def test_too_many_weights_is_named():
     with pytest.raises(ParameterError) as exc:
         HangingWeightTest(weights_g=tuple(float(i) for i in range(20_000)))
     assert exc.value.name == "weights_g" and "at most 10000 masses" in str(exc.value)
+
+
+@pytest.mark.parametrize("weights", [("a", "b", "c"), ("0", "5", "10"), (0, 5, True),
+                                     (0, float("nan"), 10), (0, 5, float("inf"))])
+def test_weights_that_are_not_finite_numbers_are_named(weights):
+    with pytest.raises(ParameterError, match="weights_g=.*at least 3 finite"):
+        HangingWeightTest(weights_g=weights)
+
+
+def test_a_protocol_file_without_preset_starts_from_the_designs_defaults(tmp_path):
+    """A file holding only hold_s keeps what the design chose (Table III, its load points)."""
+    from designlab.sensors.protocols import protocol_for
+
+    class Design:
+        load_table = "III"
+
+        def load_points(self, _):
+            return ("h1", "h2", "r1")
+
+    def design_protocol(proto, design, overrides):
+        from dataclasses import replace
+        proto = type(proto).preset("optimized")
+        return replace(proto, g1_locations=("h1", "h2"), g2_locations=("r1",))
+
+    f = tmp_path / "p.toml"
+    f.write_text("hold_s = 5.0\n")
+    p = protocol_for(HangingWeightTest, f, None, Design(), design_protocol)
+    assert p.hold_s == 5.0 and p.g1_locations == ("h1", "h2")
+    assert p.weights_g == HangingWeightTest.preset("optimized").weights_g
+    f.write_text('weights_g = ["a", "b", "c"]\n')
+    with pytest.raises(ParameterError, match="weights_g"):
+        protocol_for(HangingWeightTest, f, None, Design(), design_protocol)
