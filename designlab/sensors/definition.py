@@ -12,6 +12,7 @@ named.
 from __future__ import annotations
 
 import dataclasses
+import numbers
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Sequence
 
@@ -257,6 +258,13 @@ class Staircase:
     directions: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, -1.0),)
     hold_s: float = 10.0
     cycles: int = 1
+
+    def __post_init__(self) -> None:
+        w = self.weights_g
+        listed = isinstance(w, (Sequence, np.ndarray)) and not isinstance(w, (str, bytes))
+        if not listed or not len(w) or not all(isinstance(x, numbers.Real) and not isinstance(
+                x, bool) and np.isfinite(x) and x >= 0 for x in w):
+            raise ParameterError("weights_g", w, "a non-empty list of finite masses >= 0 (g)")
 
     def states(self) -> list[LoadState]:
         w = [float(x) for x in self.weights_g]
