@@ -60,6 +60,8 @@ from designlab.params import load_toml
 MAX_ABS_VALUE = 1e20
 
 MAX_FILE_BYTES = 2 * 1024 ** 3     # one data file
+MIN_TIME_STEP_S = 1e-9             # smallest step of a time column (a 1 GHz clock)
+MIN_SPLIT_SAMPLES = 10             # fewest samples a [split] fraction leaves to each part
 MAX_SAMPLES = 20_000_000           # samples of one run on the common clock (rate x duration)
 #: samples of all a card's runs together on the common clock: the loop's memory budget (the
 #: fits are decimated to 50 000 samples, but the record is held whole; 2 000 000 samples of a
@@ -111,13 +113,17 @@ def read_table(path: Path, columns: list[str] | None = None, header: bool | None
                 raise DataError(f"{path}: columns = {columns} names {len(columns)} columns but "
                                 f"the file has {table.num_columns}")
             table = table.rename_columns(list(columns))
-    names = [str(n) for n in table.column_names]
+    try:
+        names = [str(n) for n in table.column_names]
+    except UnicodeDecodeError:   # a header in another encoding (latin-1): arrow reads it lazily
+        raise DataError(f"{path}: cannot parse as CSV (the header row is not UTF-8 text; save "
+                        "the file as UTF-8)") from None
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise DataError(f"{path}: column name(s) {', '.join(map(repr, dup))} appear more than "
                         "once; name the columns with columns = [...]")
     out = {}
-    for name in table.column_names:
+    for name in names:
         col = table.column(name)
         try:
             arr = col.cast(pa.float64()).to_numpy(zero_copy_only=False)
@@ -216,6 +222,11 @@ def interpolate_over(t: np.ndarray, x: np.ndarray, bad: np.ndarray) -> np.ndarra
 
 
 # --------------------------------------------------------------------------- preprocessing
+
+
+#: lowest low-pass cut-off over the sample rate (a Butterworth filter below 1e-10 of the rate is
+#: singular; below 1e-6 it is already a mean of the run)
+MIN_LOWPASS_FRACTION = 1e-6
 
 
 def lowpass(x: np.ndarray, rate: float, cutoff: float, order: int = 4) -> np.ndarray:
@@ -358,6 +369,13 @@ def load_card(path: str | Path, allow_outside: bool = False) -> Dataset:
     if frac is not None and not 0 < float(frac) < 1:
         raise DataError(f"{path}: [split] train={frac!r} is not allowed: 0 < train < 1")
     runs = _resample_runs(raw, spec, rate, roles_given, frac)
+    if not roles_given:   # a fraction near 0 or 1 leaves a part too few samples to judge on
+        held = {r: sum(int(np.sum(run["role"] == r)) for run in runs)
+                for r in ("train", "validate")}
+        if min(held.values()) < MIN_SPLIT_SAMPLES:
+            raise DataError(f"{path}: [split] train={frac!r} is not allowed: a fraction leaving "
+                            f"at least {MIN_SPLIT_SAMPLES} samples to training and to validation "
+                            f"(it leaves {held['train']} and {held['validate']})")
     return _assemble(path, spec, runs, rate, roles_given, frac)
 
 
@@ -485,6 +503,10 @@ def _prepare_file(fpath: Path, data: dict, channels: dict, t_scale: float, rep: 
                                 f"({bad.size} step(s), first at data row {bad[0] + 2})")
             if tt.size < 4:
                 raise DataError(f"{fpath}: time column '{tcol}' has only {tt.size} samples")
+            if d.min() < MIN_TIME_STEP_S:   # 1 / step overflows: no sample rate
+                raise DataError(f"{fpath}: time column '{tcol}' has a step of {d.min():.3g} s "
+                                f"at data row {int(np.argmin(d)) + 2}; allowed: steps >= "
+                                f"{MIN_TIME_STEP_S:g} s (is the time unit right?)")
             clocks[tcol] = tt
         tt = clocks[tcol]
         x = _numeric(data, ch.column, fpath)
@@ -536,6 +558,10 @@ def _preprocess(values: dict, channels: dict, grid: np.ndarray, rate: float, pre
     notes = {}
     cutoff = pre.get("lowpass_hz")
     if cutoff is not None:
+        if cutoff < MIN_LOWPASS_FRACTION * rate:   # the filter's matrices turn singular
+            raise DataError(f"{r['path']}: preprocess.lowpass_hz={cutoff!r} is not allowed: >= "
+                            f"{MIN_LOWPASS_FRACTION:g} x the sample rate ({rate:.6g} Hz), or "
+                            "no lowpass_hz")
         if cutoff >= rate / 2:
             notes["lowpass"] = (f"skipped: {cutoff} Hz is not below the Nyquist frequency "
                                 f"{rate / 2:g} Hz")

@@ -382,3 +382,31 @@ def test_a_card_holds_at_most_the_memory_budgets_samples(tmp_path, monkeypatch):
     msg = str(exc.value)
     assert "run2.csv" in msg and "100 samples" in msg and "at most 99 in all" in msg
     assert "\n" not in msg
+
+
+@pytest.mark.parametrize("change, message", [
+    ("tiny-steps", "time column 't' has a step of 1e-310 s at data row 396; allowed: steps >= 1e-09 s"),
+    ("lowpass", "preprocess.lowpass_hz=1e-13 is not allowed: >= 1e-06 x the sample rate (10 Hz)"),
+    ("split", "[split] train=0.9999999999999999 is not allowed: a fraction leaving at least 10 "
+              "samples to training and to validation (it leaves 399 and 1)"),
+    ("latin-1", "cannot parse as CSV (the header row is not UTF-8 text"),
+])
+def test_values_that_break_the_numbers_are_named(tmp_path, change, message):
+    """Steps of 1e-310 s (1 / step overflows), a cut-off that makes the filter singular, a split
+    leaving one validation sample and a latin-1 header: one line, not an internal error."""
+    t, P, F = signals(400)
+    if change == "tiny-steps":
+        t = t * 1e-309
+    write_csv(tmp_path / "run.csv", {"t": t, "P": P, "F": F})
+    body = BASIC.format(punit="mm")
+    if change == "lowpass":
+        body += "[preprocess]\nlowpass_hz = 1e-13\n"
+    if change == "split":
+        body = body.replace("train = 0.6", "train = 0.9999999999999999")
+    if change == "latin-1":
+        raw = (tmp_path / "run.csv").read_bytes()
+        (tmp_path / "run.csv").write_bytes(b"t,P,F\xe9" + raw[raw.index(b"\n"):])
+        body = body.replace('column = "F"', 'column = "F\xe9"')
+    with pytest.raises(DataError) as exc:
+        load_card(card(tmp_path, body))
+    assert message in str(exc.value) and "\n" not in str(exc.value)
