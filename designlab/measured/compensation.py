@@ -33,6 +33,7 @@ from designlab.atomic import atomic_path, atomic_write_json
 from designlab.measured import linear_fit
 from designlab.measured import mpl
 from designlab.measured import narx
+from designlab.measured.dataset import MAX_CARD_SAMPLES
 from designlab.measured.linear_fit import as_2d
 from designlab.calibration.metrics import ncc, rmse, wilcoxon
 from designlab.errors import DataError, ParameterError
@@ -271,10 +272,20 @@ def compare(train: Sequence[Record], validate_on: Sequence[Record], models=MODEL
     if train:
         _check_shapes(records, train[0])
     fitted, fits = {}, {}
+    rows = sum(len(r.u) for r in records)
+    if rows > MAX_CARD_SAMPLES:
+        raise DataError(f"the records hold {rows} samples; at most {MAX_CARD_SAMPLES} in all (the "
+                        "memory budget of a dataset card: shorten or decimate the files)")
     for m in models:
         if progress:
             progress(f"fitting {m}")
-        fitted[m], fits[m] = fit_compensator(m, train, options)
+        try:
+            fitted[m], fits[m] = fit_compensator(m, train, options)
+        except np.linalg.LinAlgError as exc:
+            big = max(float(np.max(np.abs(r.u))) for r in train)
+            raise DataError(f"the {m} fit on the training records failed ({exc}): their inputs "
+                            f"are constant, collinear or of an extreme scale (largest |input| "
+                            f"{big:.3g})") from None
     if progress:
         progress("evaluating")
     res = evaluate(fitted, records, train_names={r.name for r in train},
@@ -293,23 +304,18 @@ def load_record(path: str | Path, inputs: Sequence[str], outputs: Sequence[str],
     if (time is None) == (dt is None):
         raise ParameterError("--time/--dt", f"time={time!r}, dt={dt!r}",
                              "exactly one of a time column or a sample period")
-    from designlab.measured.dataset import read_table
+    from designlab.measured.dataset import MIN_TIME_STEP_S, _numeric, read_table
 
     cols = list(inputs) + list(outputs) + ([time] if time else [])
     table = read_table(Path(path))
-    data = {}
-    for c in cols:
-        if c not in table:
-            raise DataError(f"{path}: column {c!r} not found; the file has {', '.join(table)}")
-        if not isinstance(table[c], np.ndarray):
-            raise DataError(f"{path}: column {c!r} is not numeric")
-        if not np.all(np.isfinite(table[c])):
-            raise DataError(f"{path}: column {c!r} contains NaN or missing values")
-        data[c] = table[c]
+    data = {c: _numeric(table, c, Path(path)) for c in cols}
     if time:
         steps = np.diff(data[time])
         if steps.size == 0 or np.any(steps <= 0):
             raise DataError(f"{path}: time column {time!r} must increase strictly")
+        if steps.min() < MIN_TIME_STEP_S:
+            raise DataError(f"{path}: time column {time!r} has a step of {steps.min():.3g} s; "
+                            f"allowed: steps >= {MIN_TIME_STEP_S:g} s (is the time unit right?)")
         dt = float(np.median(steps))
         if np.max(np.abs(steps - dt)) > 0.05 * dt:
             raise DataError(f"{path}: time column {time!r} is not uniformly sampled "

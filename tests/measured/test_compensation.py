@@ -1,5 +1,6 @@
 """Compensation of seed 000: linear fit, common evaluation (NCC/RMSE/Wilcoxon), real data, CLI."""
 
+import dataclasses
 import json
 
 from pathlib import Path
@@ -190,3 +191,40 @@ def test_cli_bad_input_exits_2_and_writes_nothing(tmp_path, capsys):
         err = capsys.readouterr().err
         assert text in err and err.strip().count("\n") == 0, err
         assert not out.exists() or not any(out.iterdir())
+
+
+def _write(path, t, x, y):
+    path.write_text("t,x,y\n" + "".join(f"{float(a)!r},{float(b)!r},{float(c)!r}\n"
+                                         for a, b, c in zip(t, x, y)))
+
+
+@pytest.mark.parametrize("change, message", [
+    ("tiny", "time column 't' has a step of 1e-310 s; allowed: steps >= 1e-09 s"),
+    ("inf", "column 't' has 1 NaN/missing or infinite value(s), first (infinite) at data row 6"),
+    ("small", "the linear fit on the training records failed (SVD did not converge"),
+])
+def test_files_that_break_the_fit_are_named(tmp_path, change, message):
+    """Steps of 1e-310 s, an inf time cell and values near 1e-300 (a singular fit)."""
+    t = np.arange(400) * 0.01
+    x, y = np.sin(3 * t), 2 * np.sin(3 * t) + 0.1 * np.cos(t)
+    _write(tmp_path / "v.csv", t, x, y)
+    if change == "tiny":
+        t = t * 1e-308
+    if change == "inf":
+        t[5] = np.inf
+    if change == "small":
+        x, y = x * 1e-300, y * 1e-300
+    _write(tmp_path / "tr.csv", t, x, y)
+    with pytest.raises(DataError) as exc:
+        train = [comp.load_record(tmp_path / "tr.csv", ["x"], ["y"], time="t")]
+        comp.compare(train, [comp.load_record(tmp_path / "v.csv", ["x"], ["y"], time="t")],
+                     ["linear"])
+    assert message in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_records_beyond_the_card_budget_are_refused(monkeypatch):
+    monkeypatch.setattr(comp, "MAX_CARD_SAMPLES", 100)
+    rec = comp.Record(name="a", u=np.ones((80, 1)), y=np.ones((80, 1)), dt=0.1, inputs=("x",),
+                      outputs=("y",))
+    with pytest.raises(DataError, match="the records hold 160 samples; at most 100 in all"):
+        comp.compare([rec], [dataclasses.replace(rec, name="b")], ["linear"])
