@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 from designlab.errors import ParameterError
-from designlab.params import did_you_mean
+from designlab.params import did_you_mean, load_json
 from designlab.fem.prony import Prony
 
 
@@ -275,17 +275,16 @@ class MeasuredProperty:
 def load_measured(path) -> list[MeasuredProperty]:
     """Measured printed-material data from a JSON file ``{"measured": [{"material": ...,
     "quantity": ..., "value": ..., "source": ..., "date": ...}, ...]}``."""
-    import json
     from pathlib import Path
 
     p = Path(path)
+    if not p.is_file():
+        raise ParameterError("measured", str(p), "an existing JSON file")
+    data = load_json(p, "measured")     # size, UTF-8 text, nesting, no NaN: one line each
     try:
-        data = json.loads(p.read_text())
         rows = data["measured"]
         return [MeasuredProperty(**r) for r in rows]
-    except FileNotFoundError:
-        raise ParameterError("measured", str(p), "an existing JSON file") from None
-    except (json.JSONDecodeError, KeyError, TypeError) as exc:
+    except (KeyError, TypeError) as exc:
         raise ParameterError("measured", str(p), 'JSON {"measured": [{material, quantity, '
                              f'value, source, date}}, ...]}} ({exc})') from None
 

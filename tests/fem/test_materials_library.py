@@ -98,3 +98,19 @@ def test_docs_page_shows_the_current_table():
     """docs/materials.md holds the output of ``python examples/materials_table.py``."""
     page = (ROOT / "docs" / "materials.md").read_text(encoding="utf-8")
     assert material_table_markdown().strip() in page
+
+
+@pytest.mark.parametrize("content, message", [
+    (bytes(range(256)) * 4, "a JSON text file (it is binary)"),
+    (b'{"measured": 5}', "JSON {\"measured\": [{material"),
+    (b'[1]', "JSON {\"measured\": [{material"),
+    (b'{"measured": NaN}', "valid JSON"),
+])
+def test_a_measured_file_that_is_not_the_format_is_one_line(tmp_path, content, message):
+    from designlab.errors import ParameterError
+    from designlab.fem.materials import load_measured
+
+    (tmp_path / "m.json").write_bytes(content)
+    with pytest.raises(ParameterError, match="measured=") as exc:
+        load_measured(tmp_path / "m.json")
+    assert message in str(exc.value)
