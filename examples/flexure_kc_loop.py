@@ -238,7 +238,8 @@ def main(argv=None) -> None:
         x = rep[o]
         print(f"{o}: validation RMSE {x['error_before']:.4g} -> {x['error_after']:.4g} "
               f"{x['unit']} (unexplained {100 * x['unexplained_fraction']:.1f} %"
-              + (f"; NARX peer {x['peer']['error']:.4g}" if x.get("peer") else "") + ")")
+              + (f"; {x['peer']['kind']} peer {x['peer']['error']:.4g}" if x.get("peer")
+                 else "") + ")")
         for e in x["effects"]:
             cv = e["evidence"]["cv"]
             print(f"    {e['key']}: {_params(e['parameters'])}; CV {100 * cv['relative']:+.1f} % "

@@ -124,7 +124,9 @@ def _loop_table(data: Path, report: dict) -> Table:
                             if k not in ("base_adjust", "form", "g_unit"))
             table.add_row("", escape(e["key"]), escape(par), f"{e['error_before']:.4g}",
                           f"{e['error_after']:.4g}")
-        nf, peer = rep.get("noise_floor"), rep.get("peer")
+        nf = rep.get("noise_floor")
+        peer = next((p for p in rep.get("peers") or [] if p["kind"] == rep.get("best_peer")),
+                    None)
         if nf:
             table.add_row("", "(noise floor)", escape(
                 f"{rep['verdict_kind']}; best peer " + (f"{peer['kind']} {peer['error']:.4g}"

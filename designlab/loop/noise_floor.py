@@ -20,6 +20,9 @@ ORDER = 2
 #: 1 / Phi^-1(3/4): the median absolute deviation of a normal variable over its sigma
 MAD_TO_SIGMA = 1.482602218505602
 
+#: the floor of a noiseless record, relative to the output's RMS (numerical resolution)
+RESOLUTION = 1e-9
+
 METHOD = ("robust (median absolute deviation) scale of the order-{k} difference of the output "
           "within each run, less its least-squares fit on the same difference of the inputs, "
           "over sqrt(C({k2}, {k})): the standard deviation of the white part of the output, "
@@ -71,5 +74,7 @@ def noise_floor(y: np.ndarray, inputs: np.ndarray, segment: np.ndarray) -> dict:
     method, the other orders' estimates as a check, and the samples it used. ``inputs``: one
     column per input."""
     by_order = {str(k): float(difference_sigma(y, segment, k, inputs)) for k in (1, 2, 3)}
-    return {"sigma": by_order[str(ORDER)], "method": METHOD.format(k=ORDER, k2=2 * ORDER),
+    # a noiseless record: the floor is the numbers' own resolution, not zero
+    resolution = RESOLUTION * float(np.sqrt(np.mean(np.square(y)))) if np.size(y) else 0.0
+    return {"sigma": max(by_order[str(ORDER)], resolution), "method": METHOD.format(k=ORDER, k2=2 * ORDER),
             "order": ORDER, "by_order": by_order, "samples": int(np.asarray(y).size)}

@@ -61,7 +61,7 @@ def _timeseries(plt, o: str, ser: dict, rep: dict, out: Path) -> Path:
                label=f"physics (RMSE {rep['error_after']:.4g} {unit})")
     if ser.get("peer_val") is not None:
         ax[0].plot(x, ser["peer_val"], "C2", lw=0.8, alpha=0.8,
-                   label=f"{rep['peer']['kind']} peer (RMSE {rep['peer']['error']:.4g} {unit})")
+                   label=f"{ser['peer_kind']} peer (RMSE {ser['peer_error']:.4g} {unit})")
     ax[0].set_ylabel(f"{o} ({unit})")
     ax[0].legend(loc="upper right", fontsize=8)
     ax[0].set_title(f"{o}: validation data")

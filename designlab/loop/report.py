@@ -220,18 +220,23 @@ def structure(corrs: list[dict]) -> dict | None:
     return next((c for c in corrs if c["variable"] != "prediction"), None)
 
 
+def _over(a: float, b: float, default: float | None = float("inf")) -> float | None:
+    """a / b, ``default`` when b is not a positive number."""
+    return a / b if np.isfinite(b) and b > 0 else default
+
+
 def add_verdict(rep: dict, ser: dict, data: Dataset, o: str, floor: dict,
                 peers: list[tuple[np.ndarray, dict]]) -> None:
-    """The noise floor, the peers (each one's record; the best on the inner split as
-    ``peer``), the explained fraction of the learnable error, the verdict kind and its
+    """The noise floor, the peers (each one's record in ``peers``, the best on the inner split
+    named in ``best_peer``, the NARX network's record as ``peer``), the explained fraction of the learnable error, the verdict kind and its
     sentence before the selection's verdict, into an output's entry."""
     vmask = data.role == "validate"
     base, after, unit = rep["error_before"], rep["error_after"], rep["unit"]
     sigma = floor["sigma"]
     top = structure(ser.get("corrs") or [])
     r_top = top["correlation"] if top else 0.0
-    rep["noise_floor"] = {**floor, "ratio_before": base / sigma if sigma > 0 else None,
-                          "ratio_after": after / sigma if sigma > 0 else None,
+    rep["noise_floor"] = {**floor, "ratio_before": _over(base, sigma, None),
+                          "ratio_after": _over(after, sigma, None),
                           "factor": FLOOR_FACTOR,
                           "residual_lag1_autocorrelation": lag1(ser["residual_val"],
                                                                 data.segment[vmask])}
@@ -240,13 +245,16 @@ def add_verdict(rep: dict, ser: dict, data: Dataset, o: str, floor: dict,
     err = best[1]["error"] if best else None
     rep["peers"] = [p[1] for p in peers]
     rep["best_peer"] = best[1]["kind"] if best else None
-    rep["peer"] = best[1] if best else None
+    # ``peer`` keeps the NARX network's record (its keys as ever); the verdict uses the best
+    rep["peer"] = next((p[1] for p in peers if p[1]["kind"] == "narx"),
+                       best[1] if best else None)
     rep["explained_of_learnable"] = ((base - after) / (base - err)
                                      if err is not None and base - err > 0 else None)
     kind, why = _verdict(base, after, err, sigma, r_top)
     rep["verdict_kind"] = kind
     values = {"after": after, "base": base, "unit": unit, "floor": sigma,
-              "ratio": after / sigma, "ratio_base": base / sigma, "factor": FLOOR_FACTOR,
+              "ratio": _over(after, sigma), "ratio_base": _over(base, sigma),
+              "factor": FLOOR_FACTOR,
               "peer": err if err is not None else float("nan"),
               "peer_kind": rep["best_peer"] or "none fitted", "margin": PEER_MARGIN,
               "r_min": STRUCTURE_R,
@@ -259,7 +267,7 @@ def add_verdict(rep: dict, ser: dict, data: Dataset, o: str, floor: dict,
     rep["verdict"] = "; ".join([*clauses, rep["verdict"]])
     if best:
         ser["peer_val"] = best[0][vmask]
-        ser["peer_kind"] = best[1]["kind"]
+        ser["peer_kind"], ser["peer_error"] = best[1]["kind"], best[1]["error"]
 
 
 def tare_rule(tare: bool) -> str:

@@ -67,7 +67,7 @@ def test_resistance_goal_with_a_named_effect(result):
     assert res["error_after"] <= 0.7 * res["error_before"]
     assert 0 < res["unexplained_fraction"] < 1
     assert res["residual_correlations"] and res["verdict"]
-    assert res["peer"]["kind"] in ("narx", "gbt")
+    assert res["peer"]["kind"] == "narx" and res["best_peer"] in ("narx", "gbt")
     assert res["error_after"] <= 1.3 * res["peer"]["error"]
     # no peer does better, but what remains is far above the noise floor and not white
     # (131.3 ohm, 8.6x the 15.2 ohm floor, lag-1 autocorrelation 0.98, measured)

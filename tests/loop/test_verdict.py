@@ -46,6 +46,8 @@ def log(kind: str, seed: int = 0, T: float = 600.0):
         y = y + 0.08 * np.sin(2 * np.pi * x / 2.0)
     elif kind == "delay":
         y = 0.2 + 0.3 * fx.shift(x, 0.4, t, seg)
+    elif kind == "long delay":       # the base fitted on it has its gain biased low
+        y = 0.2 + 0.3 * fx.shift(x, 1.7, t, seg)
     elif kind == "drift":
         y = y + 0.4 * t / T
     elif kind == "settling":         # a drift that settles with a time constant of T / 4
@@ -102,13 +104,17 @@ def test_out_of_library_structure_is_not_explained(kind):
     assert f"{out['noise_floor']['sigma']:.4g}" in out["verdict"]
     assert {p["kind"] for p in out["peers"]} == {"narx", "gbt"}
     assert all(p["converged"] and p["error"] > 0 for p in out["peers"])
-    assert rep["best_peer"] == out["peer"]["kind"]
+    assert rep["best_peer"] in ("narx", "gbt") and out["peer"]["kind"] == "narx"
+    best = min(out["peers"], key=lambda p: p["inner_error"])
+    assert best["kind"] == out["best_peer"] and f"{best['error']:.4g}" in out["verdict"]
 
 
 @pytest.mark.slow
-def test_a_pure_delay_is_one_effect():
-    out = run_loop(log("delay"), "linear").report["outputs"]["force"]
+@pytest.mark.parametrize("kind, seed, delay", [("delay", 0, 0.4), ("long delay", 6, 1.7)])
+def test_a_pure_delay_is_one_effect(kind, seed, delay):
+    out = run_loop(log(kind, seed), "linear").report["outputs"]["force"]
     assert [e["name"] for e in out["effects"]] == ["lag"], out["verdict"]
+    assert out["effects"][0]["parameters"]["delay_s"] == pytest.approx(delay, abs=0.05)
     assert out["verdict_kind"] == "explained"
 
 
@@ -149,3 +155,13 @@ def test_the_backward_pass_drops_effects_that_fit_noise(monkeypatch):
     assert out["effects"] == [] and {d["key"] for d in out["dropped"]} == set(forward)
     assert "dropped by the backward pass" in out["verdict"]
     assert out["verdict_kind"] == "noise"
+
+
+def test_a_noiseless_log_has_a_floor_at_the_resolution_and_is_noise():
+    ds = log("noise", T=300.0)
+    x = ds.inputs["displacement"]
+    clean = from_arrays(ds.t, ds.inputs, {"force": 0.2 + 0.3 * x}, segment=ds.segment,
+                        role=ds.role)
+    out = run_loop(clean, "linear", peer=False).report["outputs"]["force"]
+    assert 0 < out["noise_floor"]["sigma"] < 1e-8          # the numbers' own resolution
+    assert out["verdict_kind"] == "noise" and out["verdict"]

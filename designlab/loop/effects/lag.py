@@ -10,8 +10,10 @@ from designlab.loop.effects.base import Context, Effect, Fitted, rate, shift
 
 
 class Lag(Effect):
-    """Channel lag (clock synchronisation): ``yhat(t - delay) - yhat(t)`` with coefficient 1,
-    a fractional ``delay`` (s) at the peak of the cross-correlation of the measured output with
+    """Channel lag (clock synchronisation): ``yhat(t - delay) - yhat(t)`` with a fitted
+    coefficient (1 when the base's gains are right; a base fitted on delayed data has its gains
+    biased low, and the coefficient restores them on the delayed input), a fractional
+    ``delay`` (s) at the peak of the cross-correlation of the measured output with
     the shifted prediction (one-sample grid within +-min(2 s, 5 % of the longest run), then a
     parabola through the peak)."""
 
@@ -22,7 +24,6 @@ class Lag(Effect):
     settings_doc = "one: the delay at the peak, within +-min(2 s, T/20)"
     applies_doc = "always"
     uses_prediction = True
-    fixed_coefficients = True
     rank = 110
 
     @classmethod
@@ -55,7 +56,8 @@ class Lag(Effect):
         return shift(ctx.yhat, theta["delay"], d.t, d.segment) - ctx.yhat
 
     def describe(self, f: Fitted) -> dict:
-        return {"delay_s": f.theta["delay"], "max_lag_s": f.theta.get("max_lag_s")}
+        return {"delay_s": f.theta["delay"], "max_lag_s": f.theta.get("max_lag_s"),
+                "coefficient": float(f.beta[0])}
 
     def regressor(self, f: Fitted, ctx: Context):
         d = ctx.data
