@@ -22,7 +22,7 @@ from rich.progress import (BarColumn, MofNCompleteColumn, Progress, SpinnerColum
                            TimeElapsedColumn, TimeRemainingColumn)
 from rich.text import Text
 
-from designlab.errors import DesignlabError
+from designlab.errors import DesignlabError, ParameterError
 from designlab.version import __version__
 
 app = typer.Typer(add_completion=True, no_args_is_help=True, pretty_exceptions_enable=False,
@@ -193,12 +193,23 @@ def _stop_resource_tracker() -> None:
             stop()
 
 
+def _refuse_empty_out(args: List[str]) -> None:
+    """An empty ``--out`` is a path of "." to the parser: the working folder, written silently."""
+    for i, a in enumerate(args):
+        value = a[len("--out="):] if a.startswith("--out=") else (
+            args[i + 1] if a == "--out" and i + 1 < len(args) else None)
+        if value is not None and not value.strip():
+            raise ParameterError("--out", value, "a folder or file name (. for the working "
+                                 "folder)")
+
+
 def _main(argv: Optional[List[str]]) -> None:
     # numeric warnings (overflow, invalid values) never flood the terminal: a result they
     # spoil is refused by its own check; the first few go to one line each on stderr
     warnings.simplefilter("once", RuntimeWarning)
     warnings.showwarning = _show_warning
     try:
+        _refuse_empty_out(sys.argv[1:] if argv is None else list(argv))
         rc = app(args=argv, standalone_mode=False)
         if isinstance(rc, int) and rc:
             sys.exit(rc)

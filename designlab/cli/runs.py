@@ -4,6 +4,7 @@ folder is (re)used, and the one-writer lock a sweep or optimize holds on its fol
 from __future__ import annotations
 
 import dataclasses
+import errno
 import hashlib
 import json
 import os
@@ -21,6 +22,9 @@ FAMILIES = {"sweep": "sweep", "optimize": "sweep", "export": "export"}
 
 #: files and folders of a sweep/optimize run that ``--overwrite`` removes (the FEM and design
 #: caches stay: they are keyed by what they depend on, so another config can share them)
+#: longest name of one folder or file (bytes) on the usual file systems
+NAME_MAX = 255
+
 SWEEP_OUTPUTS = ("results", "results.parquet", "optimize.json", "report.html", "pareto.png",
                  "sensitivity.png", "chosen", "run.json")
 
@@ -109,6 +113,15 @@ def _writable_folder(out: Path) -> None:
         raise OutputError(f"--out={str(out)!r} is not allowed: a folder on a normal file system "
                           "(not under /proc, /sys or /dev)")
     p = Path(real)
+    try:
+        if any(len(os.fsencode(part)) > NAME_MAX for part in p.parts):
+            raise OSError(errno.ENAMETOOLONG, "")   # also in folders not made yet
+        os.stat(p)
+    except FileNotFoundError:
+        pass
+    except OSError as exc:   # a name longer than the system allows, a loop of links...
+        raise OutputError(f"--out={one_line(out, 80)!r} is not allowed: "
+                          f"{os.strerror(exc.errno).lower()}") from None
     if p.exists() and not p.is_dir():
         raise OutputError(f"--out={str(out)!r} is not allowed: a folder (it is a file)")
     while not p.exists():
