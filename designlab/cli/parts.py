@@ -106,8 +106,9 @@ def show(part: str = typer.Argument(..., help="strap | fingertip | flexure, or a
 
     if part == "all":
         raise ParameterError("part", part, "a single part: " + ", ".join(sensor_names()))
-    if out.suffix.lower() != ".png":
-        raise ParameterError("--out", str(out), "a file name ending in .png")
+    if out.suffix.lower() != ".png" or out.is_dir():
+        raise ParameterError("--out", str(out), "a file name ending in .png"
+                             + (" (it is a folder)" if out.is_dir() else ""))
     for name, v in (("--width", width), ("--height", height)):
         if not 64 <= v <= 8000:
             raise ParameterError(name, v, "64 <= value <= 8000 px")

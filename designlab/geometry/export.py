@@ -234,8 +234,14 @@ class _Staging:
         umask = os.umask(0)
         os.umask(umask)
         for tmp, final in self.temps:
-            os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual file mode
-            os.replace(tmp, final)
+            try:
+                os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual file mode
+                os.replace(tmp, final)
+            except OSError as exc:   # a folder by the target's name, a full disk: no temps left
+                from designlab.atomic import os_error
+
+                self.abort()
+                raise os_error(final, exc) from None
         return [final for _, final in self.temps]
 
     def abort(self) -> None:

@@ -573,3 +573,24 @@ def test_self_intersecting_solid_is_reported():
     assert brep_problems(a) == []
     r = check_body("x", Body("x", bad, "PLA"))
     assert not r.ok and not r.valid_brep
+
+
+def test_a_folder_by_a_targets_name_is_one_line_and_leaves_no_temp(tmp_path):
+    from designlab.errors import OutputError
+    from designlab.geometry.export import _Staging
+
+    (tmp_path / "a.png").mkdir()
+    staging = _Staging()
+    staging.run(tmp_path, [("a.png", lambda p: p.write_bytes(b"x"))])
+    with pytest.raises(OutputError, match="a.png: it is a directory"):
+        staging.commit()
+    assert [p.name for p in tmp_path.iterdir()] == ["a.png"]
+
+
+def test_show_refuses_a_folder_as_its_png_before_any_work(tmp_path, capsys):
+    from designlab.cli import main
+
+    (tmp_path / "d.png").mkdir()
+    with pytest.raises(SystemExit) as e:
+        main(["show", "fingertip", "--out", str(tmp_path / "d.png")])
+    assert e.value.code == 2 and "(it is a folder)" in capsys.readouterr().err
