@@ -76,6 +76,10 @@ def part_config(target: str, cfg: Optional[dict], where: str = "--config") -> Op
                 raise ParameterError(f"{where}: {k}", _short(v), "a [PART] table with PART one "
                                      "of " + ", ".join(PARTS) + did_you_mean(k, PARTS))
             tables[k] = v
+        if target != "all" and target not in tables:   # else the defaults, silently
+            raise ParameterError(where, "[" + "], [".join(tables) + "]",
+                                 f"a [{target}] table (or {target}'s parameters at the top "
+                                 "level) for this part")
     else:
         tables[target] = cfg
     for part, table in tables.items():
