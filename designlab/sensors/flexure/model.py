@@ -16,7 +16,7 @@ import numpy as np
 from designlab.calibration.hysteresis import hysteresis_percent, loop_from_steps
 from designlab.sensors.protocols import FlexureWrenchTest
 from designlab.calibration.stiffness_fit import fit_stiffness
-from designlab.errors import ModelError
+from designlab.errors import ModelError, ParameterError
 from designlab.fem.settings import FEMSettings
 from designlab.params import rng, validate
 from designlab.sensors.flexure.spring import TWIST, WRENCH  # noqa: F401  (the 6x6's order)
@@ -56,6 +56,10 @@ class FlexureModelSettings(FEMSettings):
 
     def __post_init__(self):
         validate(self)
+        for name, default in (("base_set", "flexure_base"), ("tip_set", "flexure_tip")):
+            if self.truth != "fem" and getattr(self, name) != default:   # else silently unused
+                raise ParameterError(name, getattr(self, name), f"{default!r}: the face sets "
+                                     "are read by truth = \"fem\" only")
 
 
 def helical_spring(part):

@@ -160,3 +160,16 @@ def test_prony_material_gives_hysteresis():
     assert h["overall"] > 1.0
     assert all(v > 0.5 for v in h["by_location"].values())
     json.dumps(p.report)
+
+
+def test_a_face_set_the_part_does_not_have_is_refused():
+    """base_set/tip_set are read by the FEM truth only: set with another truth they ran
+    silently unused."""
+    from designlab.errors import ParameterError
+    from designlab.sensors.flexure.model import FlexureModelSettings
+
+    for name in ("base_set", "tip_set"):
+        with pytest.raises(ParameterError, match=f"{name}='nonexistent' is not allowed: "
+                                                 "'flexure_"):
+            FlexureModelSettings(**{name: "nonexistent"})
+    assert FlexureModelSettings(truth="fem", base_set="zmin").base_set == "zmin"
