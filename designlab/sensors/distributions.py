@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -16,6 +17,8 @@ import numpy as np
 from designlab.errors import ParameterError
 from designlab.params import did_you_mean
 
+#: largest magnitude of a distribution's number (a std of 1e308 draws inf: every build fails)
+MAX_ABS = 1e20
 DISTRIBUTIONS = ("normal", "lognormal", "uniform", "fixed")
 _KEYS = {"normal": ("mean", "std", "lo", "hi"), "lognormal": ("mean", "std", "lo", "hi"),
          "uniform": ("lo", "hi"), "fixed": ("value",)}
@@ -49,9 +52,9 @@ class Distribution:
         """Every number given is finite; the ones this kind needs are given."""
         for k in ("mean", "std", "lo", "hi", "value"):
             v = getattr(self, k)
-            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))
-                                  or not math.isfinite(v)):
-                raise ParameterError(f"{where}.{k}", v, "a finite number")
+            if v is not None and (isinstance(v, bool) or not isinstance(v, numbers.Real)
+                                  or not abs(v) <= MAX_ABS):
+                raise ParameterError(f"{where}.{k}", v, f"a finite number, |value| <= {MAX_ABS:g}")
         need = {"normal": ("mean", "std"), "lognormal": ("mean", "std"), "uniform": ("lo", "hi"),
                 "fixed": ("value",)}[self.dist]
         for k in need:

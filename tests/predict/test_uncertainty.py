@@ -26,12 +26,19 @@ from designlab.predict.uncertainty import draw, parse_uncertainty, run_batch, su
     ({"printed_modulus_scale": {"dist": "gauss", "mean": 1.0, "std": 0.1}}, "dist", "normal"),
     ({"printed_modulus_scale": {"dist": "uniform", "lo": 1.0, "hi": 0.5}}, "hi", "> lo"),
     ({"printed_modulus_scale": {"dist": "normal", "mean": 1.0, "sd": 0.1}}, "sd", "std"),
+    ({"bolt_preload_N": {"dist": "normal", "mean": 20.0, "std": 1e308}}, "std",   # draws inf
+     "|value| <= 1e+20"),
 ])
 def test_bad_spec_is_one_line_naming_it(table, name, text):
     with pytest.raises(ParameterError) as e:
         parse_uncertainty("fingertip", table)
     msg = str(e.value)
     assert "\n" not in msg and name in msg and text in msg
+
+
+def test_numpy_numbers_are_numbers():
+    d = Distribution("normal", mean=np.int64(20), std=np.float64(2.0)).check("bolt_preload_N")
+    assert d.mean == 20
 
 
 def test_unknown_name_lists_the_allowed_names():
