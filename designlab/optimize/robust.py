@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from designlab.errors import ParameterError
-from designlab.params import did_you_mean, load_toml
+from designlab.params import did_you_mean
 from designlab.predict.uncertainty import mc_metrics
 
 STATS = ("mean", "std", "p5", "p50", "p95")
@@ -69,7 +69,9 @@ def robust_config(data: dict[str, Any]):
 
 
 def load_robust_config(path: str | Path):
-    return robust_config(load_toml(path, "config"))
+    from designlab.optimize.space import read_sweep_toml
+
+    return robust_config(read_sweep_toml(path))
 
 
 class RobustEvaluator:
@@ -130,9 +132,9 @@ def load_sweep(path: str | Path):
     """(SweepConfig, evaluator) of a sweep/optimize TOML: with an ``[uncertainty]`` table the
     robust config and a :class:`RobustEvaluator`, else the plain config and None (the sweep's
     default evaluator)."""
-    from designlab.optimize.space import sweep_config
+    from designlab.optimize.space import read_sweep_toml, sweep_config
 
-    data = load_toml(path, "config")
+    data = read_sweep_toml(path)
     if "uncertainty" in data:
         cfg, spec = robust_config(data)
         return cfg, RobustEvaluator(spec)

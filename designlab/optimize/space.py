@@ -283,15 +283,20 @@ def sweep_config(data: dict[str, Any]) -> SweepConfig:
                        constraints, protocol)
 
 
-def load_sweep_config(path: str | Path) -> SweepConfig:
-    """A sweep config from a TOML file; a sensor definition file named by ``part`` is taken
+def read_sweep_toml(path: str | Path) -> dict[str, Any]:
+    """A sweep config file's table; a sensor definition file named by ``part`` is taken
     relative to the config's folder."""
     from designlab.sensors.registry import canonical, looks_like_definition
 
     data = load_toml(path, "config")
     if isinstance(data.get("part"), str) and looks_like_definition(data["part"]):
         data["part"] = canonical(data["part"], Path(path).resolve().parent)
-    return sweep_config(data)
+    return data
+
+
+def load_sweep_config(path: str | Path) -> SweepConfig:
+    """A sweep config from a TOML file (:func:`read_sweep_toml`)."""
+    return sweep_config(read_sweep_toml(path))
 
 
 def objective_value(value: float, spec: Any) -> float:

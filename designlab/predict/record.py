@@ -71,7 +71,8 @@ class Prediction:
     @property
     def hysteresis_percent(self) -> float:
         """Overall hysteresis, % of span (eq. 1 of seed 001)."""
-        return float(self.metrics.get("hysteresis_percent", {}).get("overall", float("nan")))
+        v = (self.metrics.get("hysteresis_percent") or {}).get("overall")
+        return float("nan") if v is None else float(v)
 
     @property
     def condition_number(self) -> float:

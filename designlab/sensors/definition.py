@@ -384,11 +384,29 @@ class SensorDefinition(PartAPI):
         return []
 
     # ---- the part interface every command uses ----
+    def solids(self) -> dict[str, "Solid"]:
+        """:meth:`bodies`, built and checked once per design (each a solid with a library
+        material, no two overlapping)."""
+        cached = self.__dict__.get("_solids")
+        if cached is None:
+            key = (type(self), tuple(sorted((k, repr(v)) for k, v in vars(self).items()
+                                            if not k.startswith("_"))))
+            cached = _SOLIDS.get(key)
+            if cached is None:
+                cached = self.bodies()
+                check_bodies(cached)
+                _SOLIDS[key] = cached
+                while len(_SOLIDS) > 8:
+                    _SOLIDS.pop(next(iter(_SOLIDS)))
+            object.__setattr__(self, "_solids", cached)
+        return cached
+
+    def __getstate__(self) -> dict:
+        return {k: v for k, v in self.__dict__.items() if k != "_solids"}
+
     def build(self) -> dict[str, Body]:
-        """The bodies as designlab's parts give them, checked: each a solid with a library
-        material, no two overlapping."""
-        bodies = self.bodies()
-        check_bodies(bodies)
+        """The bodies as designlab's parts give them (:meth:`solids`)."""
+        bodies = self.solids()
         out = {}
         for k, (name, s) in enumerate(bodies.items()):
             color = s.color or _PALETTE[k % len(_PALETTE)]
@@ -396,7 +414,7 @@ class SensorDefinition(PartAPI):
         return out
 
     def mesh_bodies(self) -> tuple[str, ...]:
-        return tuple(self.bodies())
+        return tuple(self.solids())
 
     def facet_sets(self) -> dict:
         return {}
@@ -405,6 +423,10 @@ class SensorDefinition(PartAPI):
         """The parameters that only move loads (their designs share one FEM)."""
         return tuple(f.name for f in dataclasses.fields(self) if f.metadata.get("moves_load"))
 
+
+#: the last designs' bodies by (class, parameters): copies of a design (a sweep's, the report's)
+#: build their geometry once
+_SOLIDS: dict = {}
 
 _PALETTE = ((0.85, 0.55, 0.2), (0.3, 0.55, 0.8), (0.5, 0.7, 0.4), (0.75, 0.75, 0.75),
             (0.7, 0.4, 0.6), (0.9, 0.8, 0.3))
@@ -437,12 +459,22 @@ def check_bodies(bodies: Any) -> None:
             raise ParameterError(f"bodies.{name}.shape", f"{vols[name]:g} mm^3", "a solid with "
                                  "a volume")
     names = list(bodies)
+    boxes = {n: bodies[n].shape.bounding_box() for n in names}
     for i, a in enumerate(names):
         for b in names[i + 1:]:
+            if not _boxes_meet(boxes[a], boxes[b]):
+                continue
             common = (bodies[a].shape & bodies[b].shape).volume
             if common > 1e-6 * min(vols[a], vols[b]):
                 raise ParameterError(f"bodies.{a}", f"overlaps {b} by {common:.3g} mm^3",
                                      "bodies that touch (bonded by the mesh) but do not overlap")
+
+
+def _boxes_meet(a, b) -> bool:
+    """Two bounding boxes overlap in a volume (touching faces do not count)."""
+    lo = np.maximum(np.array(tuple(a.min)), np.array(tuple(b.min)))
+    hi = np.minimum(np.array(tuple(a.max)), np.array(tuple(b.max)))
+    return bool(np.all(hi - lo > 1e-9))
 
 
 def is_definition(obj: Any) -> bool:

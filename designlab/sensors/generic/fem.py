@@ -74,7 +74,7 @@ def _supports(model: Model, defn) -> None:
 
 
 def _rigid_bodies(model: Model, defn) -> None:
-    for name, s in defn.bodies().items():
+    for name, s in defn.solids().items():
         if s.rigid:
             model.rigid(f"rigid_{name}", model.mesh.cells[model.mesh.region
                                                           == model.mesh.region_id(name)].ravel())

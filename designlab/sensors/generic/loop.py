@@ -78,7 +78,7 @@ def apply_model(report: dict[str, Any], result, model_path: str | Path, protocol
                            result.readings[idx], channels, units)[ends]
     noise = np.array([c["noise"] for c in report["channels"]], float)
     moment_cols = [i for i, a in enumerate(active) if a.rsplit("_", 1)[-1].startswith("M")]
-    cal = metrics.calibration(S, P, moment_cols, report.get("moment_scale_mm"))
+    cal = metrics.calibration(S, P, moment_cols, report.get("moment_scale_mm"), noise)
     fe = metrics.force_error(S, P, noise, protocol.noise_repeats, protocol.seed)
     proto = part.protocol() if part is not None else None
     loops = proto.loops() if proto is not None and hasattr(proto, "loops") else []

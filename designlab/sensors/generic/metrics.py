@@ -19,13 +19,30 @@ def active_loads(P: np.ndarray, names: list[str]) -> tuple[np.ndarray, list[str]
     return P[:, keep], [n for n, k in zip(names, keep) if k]
 
 
+def fit_matrix(S: np.ndarray, P: np.ndarray, noise: np.ndarray) -> tuple[np.ndarray, int]:
+    """C with P ~ S C by least squares over the directions of the readings that stand above
+    their noise: the channels scaled by their noise, reading directions whose singular value
+    is below the noise's own over the states (sqrt(n_states)) are left out (more channels than
+    loads: the extra directions carry no load, only what a model adds there). Returns (C, the
+    number of directions used)."""
+    sd = np.where(noise > 0, noise, 1.0)
+    U, sv, Vt = np.linalg.svd(S / sd[None, :], full_matrices=False)
+    keep = sv > np.sqrt(len(S))
+    if not keep.any():
+        keep = sv >= sv.max()
+    Cw = Vt[keep].T @ ((U[:, keep].T @ P) / sv[keep][:, None])
+    return Cw / sd[:, None], int(keep.sum())
+
+
 def calibration(S: np.ndarray, P: np.ndarray, moment_cols: list[int],
-                moment_scale_mm: float | None) -> dict[str, Any]:
-    """P ~ S C by least squares: C, its condition number (raw, and with moments divided by
+                moment_scale_mm: float | None, noise: np.ndarray | None = None
+                ) -> dict[str, Any]:
+    """P ~ S C (:func:`fit_matrix`): C, its condition number (raw, and with moments divided by
     ``moment_scale_mm``), the fit residual and the cross-talk."""
-    C, *_ = np.linalg.lstsq(S, P, rcond=None)
+    noise = np.ones(S.shape[1]) if noise is None else np.asarray(noise, float)
+    C, rank = fit_matrix(S, P, noise)
     est = S @ C
-    out = {"matrix": C.tolist(), "condition_number": condition_number(C),
+    out = {"matrix": C.tolist(), "condition_number": condition_number(C), "directions": rank,
            "fit_rms": np.sqrt(np.mean((est - P) ** 2, axis=0)).tolist(),
            "cross_talk_percent": cross_talk_percent(P, est).tolist()}
     if moment_scale_mm and moment_cols:
@@ -57,7 +74,7 @@ def force_error(S: np.ndarray, P: np.ndarray, noise: np.ndarray, repeats: int,
     for _ in range(repeats):
         S1 = S + rng.standard_normal(S.shape) * noise
         S2 = S + rng.standard_normal(S.shape) * noise
-        C1, *_ = np.linalg.lstsq(S1, P, rcond=None)
+        C1, _ = fit_matrix(S1, P, noise)
         errs.append(np.sqrt(np.mean((S2 @ C1 - P) ** 2, axis=0)))
     e = np.asarray(errs)
     rel = e.mean(0) / np.maximum(np.abs(P).max(0), 1e-300) * 100.0

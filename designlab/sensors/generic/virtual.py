@@ -27,8 +27,6 @@ class DefinitionProtocol:
 
     hold_s: float = field(default=0.0, metadata=rng(0, 3600, unit="s", doc=(
         "hold of each load; 0: the definition's protocol's own")))
-    steps_per_hold: int = field(default=4, metadata=rng(1, 200, doc=(
-        "time steps of the viscoelastic march in each hold")))
     noise_repeats: int = field(default=20, metadata=rng(2, 10000, doc=(
         "noisy calibrations drawn for the force error and its spread")))
     seed: int = field(default=0, metadata=rng(0, 2**31 - 1, doc="seed of the noise draws"))
@@ -123,24 +121,81 @@ def _unit_wrenches(defn, stage, states) -> tuple[np.ndarray, np.ndarray, list[st
     return W, P, names
 
 
-def _history(stage, W: np.ndarray, hold: float, steps: int, solver: str):
-    """Readings (n_states, n_channels) at the end of each hold of the viscoelastic march, and
-    the displacement columns there."""
+def _history(stage, W: np.ndarray, hold: float, solver: str) -> np.ndarray:
+    """Readings (n_states, n_channels) at the end of each hold of the protocol through the
+    viscoelastic march: the response of each unit load case to a held step, marched once (all
+    cases in one march, read at every multiple of the hold), superposed over the protocol's
+    load changes. The march is linear and time-invariant on a uniform grid, so the
+    superposition equals marching the protocol itself on the same steps."""
     from designlab.fem.history import History
     from designlab.fem.viscoelastic import solve_history
 
     n = len(W)
-    t, rows, ends = [], [], []
-    for k in range(n):
-        ts = k * hold + np.linspace(0.0, hold, steps + 1)
-        t += list(ts)
-        rows += [W[k]] * len(ts)
-        ends.append(len(t) - 1)
-    A = np.asarray(rows)
-    hist = History(np.asarray(t), {c: A[:, j] for j, c in enumerate(stage["cases"])})
-    res = solve_history(stage["model"], hist, solver=solver, forces=False)
-    U = np.asarray(res.U)[:, ends]
-    return np.asarray(stage["read"] @ U).T, U
+    m = min(n, _settled_holds(stage["model"], hold))
+    sub = _steps_per_hold(stage["model"], hold)
+    t = hold * np.arange(m * sub + 1) / sub
+    hist = History(t, {c: np.ones(len(t)) for c in stage["cases"]})
+    res = solve_history(stage["model"], hist, solver=solver, forces=False, batch=True)
+    U = np.asarray(res.U)[:, :, ::sub]                          # (n_dofs, n_cases, m + 1)
+    R = _read_steps(stage["read"], U)
+    if m < n:       # every Prony term has decayed to round-off: the response stays put
+        R = np.concatenate([R, np.repeat(R[-1:], n - m, axis=0)])
+    dW = np.diff(np.vstack([np.zeros(W.shape[1]), W]), axis=0)  # the load change at each hold
+    S = np.zeros((n, R.shape[1]))
+    for j in range(n):
+        k = np.arange(j + 1)
+        S[j] = np.einsum("kc,krc->r", dW[k], R[j - k + 1])
+    return S
+
+
+#: a relaxation term e^(-t / tau) below this is taken as decayed (round-off of the readings)
+SETTLED = 1e-13
+
+
+def _taus(model) -> list[float]:
+    return [t for m in model.region_materials.values() if m.prony is not None
+            for t in (*m.prony.tau, *m.prony.k_tau)]
+
+
+#: time steps per relaxation time of the fastest Prony term (the creep under a held load is
+#: then within about 1 % of its converged value at the end of a hold)
+STEPS_PER_TAU = 2
+MAX_STEPS_PER_HOLD = 50
+
+
+def _steps_per_hold(model, hold: float) -> int:
+    """Steps of the march in one hold: at least :data:`STEPS_PER_TAU` per fastest relaxation
+    time."""
+    taus = _taus(model)
+    if not taus:
+        return 1
+    return int(min(MAX_STEPS_PER_HOLD, max(1, np.ceil(STEPS_PER_TAU * hold / min(taus)))))
+
+
+def _settled_holds(model, hold: float) -> int:
+    """Holds after which the slowest Prony term of every material has decayed below
+    :data:`SETTLED` (the step response is then constant to round-off)."""
+    taus = _taus(model)
+    if not taus:
+        return 1
+    return int(np.ceil(max(taus) * np.log(1.0 / SETTLED) / hold)) + 1
+
+
+def _read_steps(read, U: np.ndarray) -> np.ndarray:
+    """(n_times, n_channels, n_cases) readings of every unit case at every time."""
+    n_dofs, n_cases, n_t = U.shape
+    flat = np.asarray(read @ U.reshape(n_dofs, n_cases * n_t))   # (n_ch, n_cases * n_t)
+    return flat.reshape(-1, n_cases, n_t).transpose(2, 0, 1)
+
+
+def _long_time(stage, solver: str) -> np.ndarray:
+    """The unit cases' long-time displacements (relaxed moduli), once per FEM stage: what the
+    stress and the deformed shape of a held load are taken from."""
+    if "U_long" not in stage:
+        from designlab.fem.viscoelastic import long_time_displacements
+
+        stage["U_long"] = long_time_displacements(stage["model"], solver)
+    return stage["U_long"]
 
 
 def _relaxes(model) -> bool:
@@ -161,7 +216,8 @@ def run(part, protocol: DefinitionProtocol | None = None, settings=None, progres
     visco = bool(settings.viscoelastic and _relaxes(stage["model"]))
     if visco:
         say(f"viscoelastic march: {len(states)} holds of {hold:g} s")
-        S, U_states = _history(stage, W, hold, protocol.steps_per_hold, settings.solver)
+        S = _history(stage, W, hold, settings.solver)
+        U_states = _long_time(stage, settings.solver) @ W.T
     else:
         S, U_states = W @ stage["R"].T, stage["U"] @ W.T
     report = _report(part, stage, states, S, P_all, names, protocol, settings, visco, hold, reused)
@@ -177,7 +233,7 @@ def _report(defn, stage, states, S, P_all, names, protocol, settings, visco, hol
     chans = stage["channels"]
     noise = np.array([c.noise for c in chans], float)
     moment_cols = [i for i, n in enumerate(active) if n.rsplit("_", 1)[-1].startswith("M")]
-    cal = metrics.calibration(S, P, moment_cols, getattr(defn, "moment_scale_mm", None))
+    cal = metrics.calibration(S, P, moment_cols, getattr(defn, "moment_scale_mm", None), noise)
     K = metrics.sensitivity(S, P)
     C = np.asarray(cal["matrix"])
     unit_of = dict(zip(names, UNITS * (len(names) // 6)))
@@ -192,6 +248,7 @@ def _report(defn, stage, states, S, P_all, names, protocol, settings, visco, hol
         "hold_s": hold,
         "viscoelastic": visco,
         "calibration_matrix": cal["matrix"],
+        "calibration_directions": cal["directions"],
         "condition_number": cal["condition_number"],
         **({"condition_number_scaled": cal["condition_number_scaled"],
             "moment_scale_mm": cal["moment_scale_mm"]} if "moment_scale_mm" in cal else {}),
@@ -232,22 +289,24 @@ def gains(report: dict[str, Any], result: GenericResult) -> tuple[dict, dict]:
     return {ch: dict(g) for ch, g in report["sensitivity"].items()}, units
 
 
+#: at most this many of the protocol's load states are stress load cases
+MAX_STRESS_STATES = 64
+
+
 def load_cases(part, protocol, settings, result: GenericResult, cache=None) -> list:
-    """The protocol's largest load state and the largest of each load component as stress load
-    cases."""
+    """The protocol's load states as stress load cases, the largest first (every state up to
+    :data:`MAX_STRESS_STATES`, else the largest by their loads relative to each load's range);
+    the three largest are VTU fields."""
     from designlab.sensors.sensor import LoadCase
 
     P = result.loads
-    picks: list[int] = []
-    for j in range(P.shape[1]):
-        if np.ptp(P[:, j]) > 0:
-            k = int(np.argmax(np.abs(P[:, j])))
-            if k not in picks:
-                picks.append(k)
+    scale = np.where(np.ptp(P, axis=0) > 0, np.abs(P).max(axis=0), np.inf)
+    size = np.linalg.norm(P / scale, axis=1)
+    picks = [int(k) for k in np.argsort(-size, kind="stable")[:MAX_STRESS_STATES] if size[k] > 0]
     n3 = 3 * result.mesh.n_points
     states = part.protocol().states()
     out = []
-    for k in picks[:8]:
+    for k in picks:
         s = states[k]
         desc = (f"{s.label or k}: F = {np.round(s.force_N, 3).tolist()} N, M = "
                 f"{np.round(s.moment_Nmm, 1).tolist()} N mm at {s.load}")

@@ -12,6 +12,7 @@ import pytest
 
 import designlab as dl
 from designlab.errors import ParameterError
+from designlab.sensors.definition import check_bodies
 
 ROOT = Path(__file__).resolve().parents[3]
 LOAD_CELL = ROOT / "examples" / "sensors" / "load_cell.py"
@@ -67,7 +68,7 @@ def test_a_body_without_a_library_material_is_named():
     from build123d import Box
 
     with pytest.raises(ParameterError, match=r"bodies\.b\.material"):
-        dl.SensorDefinition.build.__get__(_Bodies({"b": dl.Solid(Box(1, 1, 1), "wood")}))()
+        check_bodies({"b": dl.Solid(Box(1, 1, 1), "wood")})
 
 
 def test_overlapping_bodies_are_named():
@@ -75,17 +76,9 @@ def test_overlapping_bodies_are_named():
 
     bodies = {"a": dl.Solid(Box(4, 4, 4), "PLA"), "b": dl.Solid(Pos(2, 0, 0) * Box(4, 4, 4), "PLA")}
     with pytest.raises(ParameterError, match="overlaps b by 32"):
-        dl.SensorDefinition.build.__get__(_Bodies(bodies))()
+        check_bodies(bodies)
     touching = {"a": bodies["a"], "b": dl.Solid(Pos(4, 0, 0) * Box(4, 4, 4), "PLA")}
-    assert set(dl.SensorDefinition.build.__get__(_Bodies(touching))()) == {"a", "b"}
-
-
-class _Bodies:
-    def __init__(self, bodies):
-        self._b = bodies
-
-    def bodies(self):
-        return self._b
+    check_bodies(touching)      # bodies that touch are bonded, not an error
 
 
 def test_staircase_loops_pair_each_weight_up_and_down():
@@ -202,6 +195,7 @@ def _drift_model(path, beta):
     return path
 
 
+@pytest.mark.slow
 def test_a_learned_model_is_applied_back_to_a_definition(tmp_path):
     """loop -> predict: a drift of zero changes nothing; a drift adds hysteresis (the readings
     going down come later than going up)."""
@@ -224,3 +218,28 @@ def test_a_learned_model_is_applied_back_to_a_definition(tmp_path):
         text = bad.read_text().replace('"gauge"', '"other"')
         bad.write_text(text)
         apply_model(res.report, res, bad, proto, None, part)
+
+
+@pytest.mark.slow
+def test_the_superposed_march_equals_marching_the_protocol():
+    """The readings at the end of each hold: one step-response march superposed over the load
+    changes equals the protocol marched as it is (held loads, jumps between them)."""
+    from designlab.fem.history import History
+    from designlab.fem.viscoelastic import solve_history
+    from designlab.sensors.generic import virtual as g
+
+    part = _cell()
+    res = _run(part, edge=4.0)
+    st = res.stage
+    W, _, _ = g._unit_wrenches(part, st, part.protocol().states())
+    hold, n = 10.0, len(W)
+    sub = g._steps_per_hold(st["model"], hold)
+    assert sub > 1                  # the march steps within a hold
+    # each hold: the jump at its start, then its steps; read at its end
+    t = np.concatenate([k * hold + hold * np.arange(sub + 1) / sub for k in range(n)])
+    amp = np.repeat(W, sub + 1, axis=0)
+    hist = History(t, {c: amp[:, j] for j, c in enumerate(st["cases"])})
+    U = np.asarray(solve_history(st["model"], hist, forces=False).U)[:, sub::sub + 1]
+    direct = np.asarray(st["read"] @ U).T
+    assert np.allclose(res.readings, direct, rtol=1e-9, atol=1e-12 * np.abs(direct).max())
+    assert res.report["hysteresis_percent"]["overall"] > 0

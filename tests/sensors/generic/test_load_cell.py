@@ -169,7 +169,7 @@ def test_hysteresis_of_the_pla_stand_in_is_present_and_small(LoadCell):
     proto = cell.protocol()
     hold, steps = proto.hold_s, len(proto.weights_g)
     sett = settings_class(type(cell))(edge_length=3.0)
-    visco = run(cell, DefinitionProtocol(steps_per_hold=10), settings=sett).report
+    visco = run(cell, DefinitionProtocol(), settings=sett).report
     elastic = run(cell, settings=dataclasses.replace(sett, viscoelastic=False)).report
     c = g / (1.0 - g) * pla.E / (3.0 * pla.G)
     ratio = visco["sensitivity"]["gauge"]["tip_Fz"] / elastic["sensitivity"]["gauge"]["tip_Fz"]
