@@ -14,6 +14,7 @@ from rich.table import Table
 from designlab.cli.app import app, console, err_console, next_step, progress_bar
 from designlab.cli.options import (check_options, config_file, export_names, part_arg, sensor_names,
                                    short)
+from designlab.atomic import out_lock
 from designlab.cli.runs import check_out, write_run
 from designlab.errors import ParameterError
 from designlab.params import parse_sets
@@ -58,7 +59,8 @@ def export(part: str = typer.Argument(..., help="strap | fingertip | flexure | a
     _check_ranges((("--nozzle", nozzle, 0.05, 2.0), ("--layer-height", layer, 0.01, 1.0)), "mm")
     parts = _parts_from_cli(part, set_, config)
     check_out(out, f"export {part}", overwrite=overwrite)
-    with progress_bar("export", 2 * len(parts)) as bar:
+    with out_lock(out, f"designlab export {part}"), \
+            progress_bar("export", 2 * len(parts)) as bar:   # one writer: a second is refused
         def step(text: str, done: int, total: int) -> None:
             bar(text, completed=done, total=total)
 
@@ -68,10 +70,10 @@ def export(part: str = typer.Argument(..., help="strap | fingertip | flexure | a
             bar.stop()
             err_console.print(reports_table(exc.reports))
             raise
-    run = write_run(out, f"export {part}", {
-        "formats": formats, "nozzle_mm": nozzle, "layer_height_mm": layer,
-        "parts": {n: {f.name: getattr(o, f.name) for f in dataclasses.fields(o)}
-                  for n, o in parts.items()}})
+        run = write_run(out, f"export {part}", {
+            "formats": formats, "nozzle_mm": nozzle, "layer_height_mm": layer,
+            "parts": {n: {f.name: getattr(o, f.name) for f in dataclasses.fields(o)}
+                      for n, o in parts.items()}})
     console.print(reports_table(res.reports))
     for f in [*res.files, run]:
         console.print(f"wrote {f}", highlight=False, markup=False)

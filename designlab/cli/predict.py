@@ -11,6 +11,7 @@ from rich.table import Table
 
 from designlab.cli.app import app, console, next_step, progress_bar, warn
 from designlab.cli.options import check_options, make_executor, part_arg, part_config, sensor_names
+from designlab.atomic import out_lock
 from designlab.cli.runs import check_out
 from designlab.errors import ParameterError
 from designlab.params import load_toml, parse_sets
@@ -173,7 +174,8 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure, o
         settings, note = wearer_settings(part, finger, overrides, settings)
         console.print(note, highlight=False, markup=False)
     if samples is None and uncertainty is None:
-        _predict_once(part, out, overrides, settings, protocol, model, measured)
+        with out_lock(out, f"designlab predict {part}"):   # one writer: a second run is refused
+            _predict_once(part, out, overrides, settings, protocol, model, measured)
         return
     from designlab.predict.uncertainty import load_uncertainty
 

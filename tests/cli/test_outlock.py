@@ -63,3 +63,31 @@ def test_a_live_holder_refuses_and_its_release_lets_the_next_in(tmp_path):
     with out_lock(out):
         assert (out / LOCK_NAME).exists()
     assert (out / "row").exists()
+
+
+def test_predict_and_export_refuse_an_out_another_run_is_writing(tmp_path, capsys):
+    """A second predict or export into the --out of a running one is refused (it replaced the
+    first run's files silently)."""
+    from designlab.cli import main
+
+    out = tmp_path / "out"
+    holder = subprocess.Popen([sys.executable, "-c", textwrap.dedent(f"""
+        import sys
+        from designlab.atomic import out_lock
+        with out_lock({str(out)!r}, "designlab predict flexure"):
+            print("held", flush=True)
+            sys.stdin.readline()
+        """)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        for argv in (["predict", "flexure"], ["export", "flexure", "--format", "stl",
+                                               "--no-png"]):
+            with pytest.raises(SystemExit) as e:
+                main([*argv, "--out", str(out)])
+            assert e.value.code == 2
+            assert f"in use by pid {holder.pid}" in capsys.readouterr().err
+        assert sorted(p.name for p in out.iterdir()) == [LOCK_NAME]
+    finally:
+        holder.stdin.write("\n")
+        holder.stdin.flush()
+        holder.wait(30)
