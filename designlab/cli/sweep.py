@@ -19,6 +19,7 @@ from designlab.cli.runs import check_out, read_run, start_sweep_run
 from designlab.errors import ParameterError
 from designlab.params import did_you_mean
 
+#: hand-written methods; the Optuna samplers are designlab.optimize.study.SAMPLERS
 METHODS = ("auto", "surrogate", "de", "pareto")
 
 
@@ -152,8 +153,12 @@ def _choose(res, rows: list, cfg) -> tuple:
 def optimize(ctx: typer.Context,
              config: Path = typer.Argument(..., help="Sweep config (TOML) with objectives."),
              out: Path = typer.Option(..., "--out", help="Output directory."),
-             method: str = typer.Option("auto", "--method", help="auto | surrogate | de | pareto"),
+             method: str = typer.Option("auto", "--method", help="auto | surrogate | de | pareto, "
+                                        "or an Optuna sampler: tpe | nsga2 | gp | grid | random | qmc "
+                                        "(the study in OUT/study.log, resumed when run again)"),
              maxiter: int = typer.Option(10, "--maxiter", help="Differential-evolution generations (method de)."),
+             trials: Optional[int] = typer.Option(None, "--trials", help="Finished trials of an "
+                                                  "Optuna study (default: the config's samples)."),
              scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler tcp://HOST:PORT."),
              workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes."),
              formats: str = typer.Option("stl,3mf,step", "--format", help="Export formats of the chosen design."),
@@ -165,20 +170,28 @@ def optimize(ctx: typer.Context,
     from designlab.optimize.report import write_report
     from designlab.optimize.robust import band_lines, load_sweep
 
+    from designlab.optimize.study import SAMPLERS, MAX_TRIALS, check_method
+
     check_out(out)
-    check_options(("--workers", workers, 1, 512), ("--maxiter", maxiter, 1, 1000))
-    if method not in METHODS:
-        raise ParameterError("--method", method, "one of auto, surrogate, de, pareto"
-                             + did_you_mean(method, METHODS))
+    check_options(("--workers", workers, 1, 512), ("--maxiter", maxiter, 1, 1000),
+                  ("--trials", trials, 1, MAX_TRIALS))
+    if method not in METHODS + SAMPLERS:
+        raise ParameterError("--method", method, "one of " + ", ".join(METHODS + SAMPLERS)
+                             + did_you_mean(method, METHODS + SAMPLERS))
     parse_formats(formats)
     cfg, evaluator = load_sweep(config)      # [uncertainty]: robust (Monte Carlo per design)
+    if method in SAMPLERS:
+        check_method(method, cfg)
     executor = make_executor(scheduler, workers)
     start_sweep_run(ctx, out, "optimize", config, cfg, overwrite, evaluator)
     try:
-        with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
-            res = run_optimize(cfg, out, method=method, executor=executor,
-                               progress=_sweep_callback(bar), maxiter=maxiter,
-                               evaluator=evaluator)
+        if method in SAMPLERS:
+            res = _run_study(cfg, out, method, trials or cfg.samples, executor, evaluator)
+        else:
+            with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
+                res = run_optimize(cfg, out, method=method, executor=executor,
+                                   progress=_sweep_callback(bar), maxiter=maxiter,
+                                   evaluator=evaluator)
     except KeyboardInterrupt:
         raise _interrupted()
     rows = list({r["key"]: r for r in [*res.sweep.rows, res.chosen]}.values())
@@ -204,6 +217,25 @@ def optimize(ctx: typer.Context,
     console.print(f"exported {len(files)} files to {design_dir}", markup=False, highlight=False)
     next_step(f"open next: {out / 'report.html'} (the report), {design_dir} (files to "
               "print)")
+
+
+def _run_study(cfg, out: Path, method: str, trials: int, executor, evaluator):
+    """An Optuna study of ``trials`` finished trials in ``out`` (resumed when it exists), as
+    the optimizer's result: its designs, their Pareto set and the best one."""
+    from designlab.optimize.optimizer import OptimizeResult, _params
+    from designlab.optimize.study import run_study
+
+    with progress_bar("trials", trials, transient=False) as bar:
+        st = run_study(cfg, out, method, trials=trials, executor=executor,
+                       evaluator=evaluator, progress=_sweep_callback(bar))
+    if st.sweep.best_key is None:
+        raise ParameterError("constraints", cfg.constraints,
+                             "constraints that at least one design of the study satisfies")
+    chosen = next(r for r in st.sweep.rows if r["key"] == st.sweep.best_key)
+    console.print(f"Optuna study ({method}): {st.trials} trials, {st.sweep.new} designs "
+                  f"evaluated in this run, the study in {st.storage} (optuna-dashboard opens it)",
+                  highlight=False, markup=False)
+    return OptimizeResult(method, st.sweep, chosen, _params(chosen, cfg.dimensions), st.info)
 
 
 def _up_to_date(design_dir: Path, key: dict) -> Optional[list]:

@@ -176,7 +176,7 @@ def choice_text(method: str, rows: list[dict], config: SweepConfig, pareto_keys:
     names = list(config.objectives)
     if not names:
         return f"{method}: no objective"
-    if method == "pareto" and len(names) >= 2:
+    if len(names) >= 2:        # several objectives: every method picks from the Pareto set
         front = [r for r in rows if r["key"] in pareto_keys and r.get("status") == "ok"]
         ideal = []
         for n in names:
@@ -194,7 +194,11 @@ def choice_text(method: str, rows: list[dict], config: SweepConfig, pareto_keys:
     n = names[0]
     how = {"surrogate": "a surrogate model fitted to the sweep, then evaluated at its optimum",
            "de": "differential evolution over the parameter ranges",
-           "pareto": "the sweep's best design"}.get(method, method)
+           "pareto": "the sweep's best design",
+           **{k: f"an Optuna study's best trial, {v} sampler" for k, v in (
+               ("tpe", "tree-structured Parzen estimator"), ("nsga2", "NSGA-II"),
+               ("gp", "Gaussian-process"), ("grid", "grid"), ("random", "random"),
+               ("qmc", "quasi-Monte Carlo"))}}.get(method, method)
     return (f"{method} method ({how}): the best {metric_label(n, config.objectives[n])}: "
             f"{_value_text(chosen, n)}, beyond the mesh error bars of the other designs.")
 
