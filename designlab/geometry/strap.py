@@ -85,7 +85,7 @@ class ArchStrap:
                                                           doc="apex to gauge centre, arc length"))
     lead_length: float = field(default=1.6, metadata=rng(
         0, 15, unit="mm", doc=("trace from the meander to its connection pads, along the arch (0: "
-                               "none)")))
+                               "none, with legs = 2)")))
     pad_width: float = field(default=2.0, metadata=rng(
         0.8, 8, unit="mm", doc=("connection pad width across the strap (wires are melted into the "
                                 "pads)")))
@@ -321,7 +321,8 @@ class ArchStrap:
             at_least("lead_length", self.lead_length, 0.1, "or 0: no lead")
         if n > 2:
             at_least("lead_length", self.lead_length, w + g,
-                     "trace_width + trace_gap: pads clear the outer turns")
+                     f"trace_width + trace_gap with legs = {n}: pads clear the outer turns "
+                     "(0, no lead, takes legs = 2)")
         lo, hi = self.gauge_offset_range()
         if not above(hi, lo):  # the arch is too short for the gauges: name what to shorten
             short = lo - hi  # each of these lengths counts once in it

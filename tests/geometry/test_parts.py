@@ -475,3 +475,15 @@ def test_assemblies_step_and_gltf(tmp_path, monkeypatch):
     with pytest.raises(OSError):
         asm.save_assembly_step(a, tmp_path / "bad.step")
     assert sorted(x.name for x in tmp_path.iterdir()) == ["fingertip.glb", "fingertip.step"]
+
+
+def test_no_lead_is_a_two_leg_strap_and_the_refusal_says_so():
+    """lead_length = 0 ("none") needs legs = 2 (the pads then lie at the meander's ends); with
+    more legs the message names that way out."""
+    from designlab.errors import ParameterError
+    from designlab.geometry.strap import ArchStrap
+
+    assert ArchStrap(lead_length=0, legs=2, pad_width=0.8).lead_length == 0
+    with pytest.raises(ParameterError, match=r"lead_length=0 is not allowed: .*with legs = 4.*"
+                                             r"\(0, no lead, takes legs = 2\)"):
+        ArchStrap(lead_length=0)
