@@ -255,11 +255,20 @@ def check_type(name: str, value: Any, default: Any) -> None:
         raise ParameterError(name, _short(value), want)
 
 
+def _plain(obj: Any, name: str) -> Any:
+    """Field ``name`` of ``obj``, a numpy scalar (np.int64(3)) replaced by its Python number."""
+    v = getattr(obj, name)
+    if type(v).__module__ == "numpy" and getattr(v, "ndim", None) == 0:
+        v = v.item()
+        object.__setattr__(obj, name, v)
+    return v
+
+
 def whole_numbers(obj: Any, names: Iterable[str]) -> None:
     """Counts of a (frozen) parameter dataclass given as whole floats (4.0 from TOML, JSON or a
     sweep's grid) become ints; 4.5 or a bool is a ParameterError naming the field."""
     for name in names:
-        v = getattr(obj, name)
+        v = _plain(obj, name)
         if isinstance(v, float) and v.is_integer():
             object.__setattr__(obj, name, int(v))
         elif not isinstance(v, int) or isinstance(v, bool):
@@ -268,8 +277,9 @@ def whole_numbers(obj: Any, names: Iterable[str]) -> None:
 
 def validate(obj: Any) -> None:
     """Check every field of a parameter dataclass: its type (as its default's) and its
-    declared range."""
+    declared range. A numpy scalar becomes the Python number it holds."""
     for f in dataclasses.fields(obj):
+        _plain(obj, f.name)
         if f.default is not dataclasses.MISSING:
             check_type(f.name, getattr(obj, f.name), f.default)
         if f.metadata:
