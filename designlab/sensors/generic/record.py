@@ -24,7 +24,8 @@ def sensor_record(cls: type) -> Sensor:
         plots=g.plots,
         gains=g.gains,
         load_cases=g.load_cases,
-        convergence=("condition_number", "sensitivity_norm"),
+        convergence=("condition_number", "sensitivity_norm")
+        + (("condition_number_scaled",) if getattr(cls, "moment_scale_mm", None) else ()),
         uncertainty=monte_carlo_model(cls),
         apply_model=apply_model,
     )
