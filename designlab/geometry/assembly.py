@@ -53,7 +53,12 @@ def save_assembly_gltf(assy: cq.Assembly, path: str | Path, tolerance: float = 0
     binary = Path(path).suffix.lower() == ".glb"
 
     def write(tmp):
-        if not exportGLTF(assy, tmp, binary=binary, tolerance=tolerance,
-                          angularTolerance=angular_tolerance):
+        try:
+            ok = exportGLTF(assy, tmp, binary=binary, tolerance=tolerance,
+                            angularTolerance=angular_tolerance)
+        finally:   # the writer's buffer file beside a .glb (left when the disk is full)
+            if binary:
+                Path(tmp).with_suffix(".bin.tmp").unlink(missing_ok=True)
+        if not ok:
             raise OutputError(f"glTF export of {path} failed")
     return _atomic(path, write)

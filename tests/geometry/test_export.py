@@ -594,3 +594,21 @@ def test_show_refuses_a_folder_as_its_png_before_any_work(tmp_path, capsys):
     with pytest.raises(SystemExit) as e:
         main(["show", "fingertip", "--out", str(tmp_path / "d.png")])
     assert e.value.code == 2 and "(it is a folder)" in capsys.readouterr().err
+
+
+def test_a_failed_glb_leaves_no_buffer_file(tmp_path, monkeypatch):
+    """On a full disk the glTF writer fails after opening its buffer file beside the target
+    (``<temp>.bin.tmp``): nothing of it stays."""
+    from cadquery.occ_impl.exporters import assembly as cq_assembly
+
+    from designlab.errors import OutputError
+    from designlab.geometry.assembly import save_assembly_gltf
+
+    def full_disk(assy, path, **kw):
+        Path(path).with_suffix(".bin.tmp").write_bytes(b"partial")
+        return False
+
+    monkeypatch.setattr(cq_assembly, "exportGLTF", full_disk)
+    with pytest.raises(OutputError, match="glTF export"):
+        save_assembly_gltf(None, tmp_path / "part.glb")
+    assert list(tmp_path.iterdir()) == []
