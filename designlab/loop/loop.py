@@ -454,16 +454,19 @@ class _Selection:
         """The backward pass on the last effect when it was fitted on top of the model (not
         jointly): cross-validated as when it was accepted, against the model before it."""
         o, y, effects = self.o, self.y, self.model.effects[self.o]
-        if len(effects) <= self.n_loaded or effects[-1].effect.key not in self.tail_before:
-            return False
+        if (len(effects) <= self.n_loaded or effects[-1].effect.key not in self.tail_before
+                or type(effects[-1].effect).first):
+            return False      # a loaded model's own zero and gain error stay (taken first)
         last = effects[-1]
         start = self.tail_before[last.effect.key]
         frozen = self.model.predict(self.train, o, y, upto=start)
         ctx = self._context(frozen)
         tail = effects[start:-1]
         try:
+            # the baseline of its round: the model before it, refitted as the round refitted it
+            refit = self.fitted_base or bool(tail) or self.per_run
             cv = cross_validate(last.effect, ctx, y, self.blocks, tail,
-                                baselines(ctx, y, self.blocks, tail))
+                                baselines(ctx, y, self.blocks, tail if refit else []))
         except FIT_ERRORS:
             return False
         if cv.get("skipped"):
