@@ -357,25 +357,21 @@ def records_from_card(path: str | Path, inputs: Sequence[str], outputs: Sequence
     return records_from_dataset(load_card(path), inputs, outputs)
 
 
-def _atomic_write(path: Path, write: Callable[[str], None]) -> None:
-    with atomic_path(path) as tmp:
-        write(str(tmp))
-
-
 def write_outputs(result: CompensationResult, records: Sequence[Record],
                   out_dir: str | Path) -> list[Path]:
     """``compensation.json`` (metrics, fits, Wilcoxon tables) and ``compensation.png``
-    (measured vs estimated outputs), each written atomically."""
+    (measured vs estimated outputs), written as a pair: the plot's temp file first, the JSON
+    inside it, so a failed write (a full disk) leaves neither."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     jpath, ppath = out / "compensation.json", out / "compensation.png"
-
-    atomic_write_json(jpath, result.to_json())
     import matplotlib.pyplot as plt
 
     fig = plot(result, records)
     try:
-        _atomic_write(ppath, lambda tmp: fig.savefig(tmp, dpi=90, format="png"))
+        with atomic_path(ppath) as tmp:
+            fig.savefig(str(tmp), dpi=90, format="png")
+            atomic_write_json(jpath, result.to_json())
     finally:
         plt.close(fig)
     return [jpath, ppath]

@@ -228,3 +228,29 @@ def test_records_beyond_the_card_budget_are_refused(monkeypatch):
                       outputs=("y",))
     with pytest.raises(DataError, match="the records hold 160 samples; at most 100 in all"):
         comp.compare([rec], [dataclasses.replace(rec, name="b")], ["linear"])
+
+
+@pytest.mark.parametrize("fail", ["json", "png"])
+def test_outputs_are_written_as_a_pair_or_not_at_all(tmp_path, monkeypatch, fail):
+    """A full disk while writing either file leaves neither (the JSON stood alone before)."""
+    import errno
+
+    from designlab.errors import OutputError
+
+    t = np.arange(200) * 0.01
+    rec = comp.Record(name="a", u=np.sin(3 * t)[:, None], y=2 * np.sin(3 * t)[:, None] + 0.1,
+                      dt=0.01, inputs=("x",), outputs=("y",))
+    res = comp.compare([rec], [dataclasses.replace(rec, name="b")], ["linear"])
+    if fail == "json":
+        def no_space(*a, **k):
+            raise OutputError("cannot write compensation.json: no space left on the device")
+        monkeypatch.setattr(comp, "atomic_write_json", no_space)
+    else:
+        import matplotlib.figure
+
+        def no_space(self, *a, **k):
+            raise OSError(errno.ENOSPC, "No space left on device")
+        monkeypatch.setattr(matplotlib.figure.Figure, "savefig", no_space)
+    with pytest.raises(OutputError, match="no space left"):
+        comp.write_outputs(res, [rec], tmp_path / "out")
+    assert list((tmp_path / "out").iterdir()) == []
