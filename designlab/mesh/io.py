@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from designlab.atomic import atomic_path
+from designlab.atomic import atomic_write_bytes
 from designlab.errors import DataError
 from designlab.mesh.tetmesh import TetMesh
 
@@ -71,9 +71,15 @@ def write_vtu(mesh: TetMesh, path: str | os.PathLike, point_data: dict | None = 
         grid.cell_data[k] = np.concatenate([v, np.full((n_extra,) + v.shape[1:], np.nan)])
     for k, v in (field_data or {}).items():
         grid.field_data[k] = list(v) if isinstance(v, (list, tuple)) else v
-    with atomic_path(path) as tmp:
-        grid.save(tmp, binary=True)
-    return path
+    # VTK's file writer corrupts memory when the disk fills (an abort, a segfault): the file
+    # is made in memory, as pyvista's save would write it, and written here
+    from pyvista.core.utilities.writer import XMLUnstructuredGridWriter
+
+    writer = XMLUnstructuredGridWriter(path, grid)
+    writer._apply_kwargs_safely(texture=None, data_format="binary", compression="zlib")
+    writer.writer.WriteToOutputStringOn()
+    writer.writer.Write()
+    return atomic_write_bytes(path, writer.writer.GetOutputString().encode())
 
 
 def read_vtu(path: str | os.PathLike) -> TetMesh:
