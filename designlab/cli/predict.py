@@ -61,7 +61,12 @@ def _monte_carlo(part: str, out: Path, overrides: dict, settings: dict, spec, ex
     console.print(t)
     for err, n in summary["failed_errors"].items():
         warn(f"{n} builds: {err}", label="failed:")
-    report = write_uncertainty_report(out, summary, params=overrides, settings=settings or None)
+    try:
+        report = write_uncertainty_report(out, summary, params=overrides,
+                                          settings=settings or None)
+    except OSError:   # the summary and its report or neither (the samples stay for a resume)
+        (out / "uncertainty.json").unlink(missing_ok=True)
+        raise
     console.print(f"wrote {out / 'uncertainty.json'}, {report}", markup=False, highlight=False)
 
 
