@@ -27,8 +27,21 @@ from designlab.version import __version__
 
 app = typer.Typer(add_completion=True, no_args_is_help=True, pretty_exceptions_enable=False,
                   help="Design, predict and learn 3D-printed force sensors (units: mm, N, MPa, s).")
-console = Console()
-err_console = Console(stderr=True)
+class _Console(Console):
+    """A console that shows control characters in printed text as escapes (``\\x1b``): a path
+    or name holding an ESC never drives the terminal."""
+
+    def print(self, *objects, **kw) -> None:
+        super().print(*(_visible(o) if isinstance(o, str) else o for o in objects), **kw)
+
+
+def _visible(text: str) -> str:
+    return "".join(c.encode("unicode_escape").decode() if (ord(c) < 32 and c not in "\n\t")
+                   or 127 <= ord(c) < 160 else c for c in text)
+
+
+console = _Console()
+err_console = _Console(stderr=True)
 
 
 def _print_version(value: bool) -> None:

@@ -144,13 +144,15 @@ def _mesh(part: str, set_, config, out: Path, *, order: int, edge_length, qualit
 
 
 def _mesh_table(part: str, order: int, rep: dict) -> Table:
-    table = Table(title=f"{part}: {rep['n_cells']} TET{4 if order == 1 else 10} cells, "
+    from rich.markup import escape   # a part's name may be a file name: never markup
+
+    table = Table(title=f"{escape(part)}: {rep['n_cells']} TET{4 if order == 1 else 10} cells, "
                         f"{rep['n_points']} nodes, {rep['dof']} DOF, {rep['seconds']:.1f} s "
                         f"({rep['mesher']})")
     for col in ("region", "material", "cells", "volume mm^3", "body mm^3", "error %"):
         table.add_column(col, justify="left" if col in ("region", "material") else "right")
     for name, r in rep["regions"].items():
-        table.add_row(name, rep["materials"][name], str(r["cells"]), f"{r['volume_mm3']:.4g}",
+        table.add_row(escape(name), escape(rep["materials"][name]), str(r["cells"]), f"{r['volume_mm3']:.4g}",
                       f"{r['body_volume_mm3']:.4g}", f"{r['volume_error_percent']:+.2f}")
     return table
 
