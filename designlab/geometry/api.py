@@ -79,8 +79,9 @@ class PartAPI:
 
     def render(self, path: str | Path, size: tuple[int, int] = (900, 675)) -> Path:
         """A PNG of the part (bodies coloured, bought parts see-through) at ``path``."""
-        from designlab.geometry.render import render_bodies
+        from designlab.geometry.render import check_size, render_bodies
 
+        check_size(size)      # before the part is built
         path = Path(path)
         render_bodies(self.build(), path, size=size, title=type(self).__name__)
         return path

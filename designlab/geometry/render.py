@@ -20,6 +20,7 @@ from typing import Mapping
 import numpy as np
 import trimesh
 
+from designlab.errors import ParameterError
 from designlab.geometry.body import Body
 from designlab.geometry.tessellate import tessellate
 
@@ -176,7 +177,25 @@ def render_bodies(bodies: Mapping[str, Body], path: str | Path, size: tuple[int,
                   title: str = "", tolerance: float = 0.1, backend: str = "auto") -> str:
     """Write a PNG of ``bodies`` to ``path``; returns the backend used (``pyvista`` or
     ``matplotlib``). ``backend="auto"`` prefers pyvista when an X display can be had."""
+    check_size(size)
     return render_items(_meshes(bodies, tolerance), path, size, title, backend)
+
+
+#: largest render side, px (20000 x 20000 exhausted the X server and killed the interpreter)
+MAX_RENDER_PX = 8000
+
+
+def check_size(size) -> tuple[int, int]:
+    """``size`` as (width, height): two whole numbers of pixels, 64 to :data:`MAX_RENDER_PX`."""
+    try:
+        w, h = size
+    except (TypeError, ValueError):
+        w = h = None
+    if not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool)
+               and 64 <= v <= MAX_RENDER_PX for v in (w, h)):
+        raise ParameterError("size", size, f"(width, height) in whole pixels, 64 to "
+                             f"{MAX_RENDER_PX} each")
+    return int(w), int(h)
 
 
 def portable_items(bodies: Mapping[str, Body], tolerance: float = 0.1) -> list[tuple]:
@@ -192,6 +211,7 @@ def render_items(items, path: str | Path, size: tuple[int, int] = (1200, 900), t
                  backend: str = "auto") -> str:
     """:func:`render_bodies` of tessellated bodies: ``(Body, trimesh)`` pairs or the
     :func:`portable_items` triples."""
+    check_size(size)
     items = [it if len(it) == 2 else (it[0], trimesh.Trimesh(it[1], it[2], process=False))
              for it in items]
     path = Path(path)

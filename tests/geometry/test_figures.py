@@ -167,3 +167,14 @@ def test_fingertip_paper_comparison_figure_has_the_shared_look():
         assert len({(ln.get_color(), ln.get_marker()) for ln in lines}) == 3
     finally:
         plt.close(fig)
+
+
+def test_a_render_size_out_of_range_is_refused_before_any_work():
+    """20000 x 20000 px exhausted the X server and killed the interpreter: a ParameterError."""
+    from designlab.errors import ParameterError
+    from designlab.geometry.render import check_size, render_items
+
+    assert check_size((900, 675)) == (900, 675)
+    for size in ((20000, 20000), (900, 675.5), (10, 10), "ab", (900,), (True, 900)):
+        with pytest.raises(ParameterError, match="size=.*whole pixels, 64 to 8000 each"):
+            render_items([], "never.png", size=size)
