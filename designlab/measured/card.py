@@ -16,6 +16,7 @@ from designlab.errors import DataError
 from designlab.params import _short, did_you_mean
 
 MAX_RATE_HZ = 100_000.0
+MAX_CHANNELS = 64          #: channels of one card (a 3000-channel card ran past 5 minutes)
 
 # canonical unit first; factor to canonical (temperature: (scale, offset))
 UNITS: dict[str, dict[str, float | tuple[float, float]]] = {
@@ -298,6 +299,15 @@ def _channels(card: Mapping[str, Any], where: str, tspec: Any
                                 "without '/', '\\' or control characters (it names output "
                                 "files)")
             channels[name] = (group, make_channel(name, spec, where, tspec))
+    if len(channels) > MAX_CHANNELS:   # every input against every output: the work explodes
+        raise DataError(f"{where}: {len(channels)} channels are declared; at most "
+                        f"{MAX_CHANNELS} in [inputs] and [outputs] together")
+    seen: dict[str, str] = {}
+    for name, (_, ch) in channels.items():
+        if ch.column in seen:       # one signal counted as several: a singular fit
+            raise DataError(f"{where}: channels '{seen[ch.column]}' and '{name}' both read "
+                            f"column '{ch.column}'; allowed: one channel per column")
+        seen[ch.column] = name
     if not any(g == "outputs" for g, _ in channels.values()):
         raise DataError(f"{where}: [outputs] declares no channel")
     return channels

@@ -410,3 +410,17 @@ def test_values_that_break_the_numbers_are_named(tmp_path, change, message):
     with pytest.raises(DataError) as exc:
         load_card(card(tmp_path, body))
     assert message in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_a_card_with_too_many_channels_or_one_column_twice_is_refused(tmp_path):
+    """3000 channels (or inputs all reading one column) ran past 5 minutes or fitted one
+    signal several times: refused before any file is read."""
+    many = "\n".join(f'c{i} = {{ column = "P", unit = "mm" }}' for i in range(70))
+    body = BASIC.format(punit="mm").replace("[inputs]\n", "[inputs]\n" + many + "\n", 1)
+    with pytest.raises(DataError, match="72 channels are declared; at most 64"):
+        load_card(card(tmp_path, body))
+    body = BASIC.format(punit="mm").replace(
+        "[inputs]\n", '[inputs]\nagain = { column = "P", unit = "mm" }\n', 1)
+    with pytest.raises(DataError, match="channels 'again' and 'displacement' both read "
+                                        "column 'P'"):
+        load_card(card(tmp_path, body, "c2.toml"))
