@@ -29,7 +29,10 @@ METRICS: dict[str, tuple[str, str]] = {
     "printed_volume_mm3": ("printed volume", "mm³"),
     "min_wall_mm": ("thinnest wall", "mm"),
     "printable": ("printable", "yes/no"),
-    "linearity_percent_span": ("non-linearity", "% of span"),
+    # one number over several channels: its definition goes with it
+    "linearity_percent_span": ("non-linearity (largest loading-branch deviation from a line "
+                               "over every channel, in % of that channel's span, noise-only "
+                               "channels included)", "% of span"),
     "axial_share_through_sensors": ("share of an axial force reaching the sensors", ""),
     "K_f_target_error": ("largest relative error of k_x, k_y, k_z vs the target", ""),
     "k_x_N_per_m": ("stiffness k_x", "N/m"),
