@@ -36,7 +36,7 @@ from designlab.measured import narx
 from designlab.measured.dataset import MAX_CARD_SAMPLES
 from designlab.measured.linear_fit import as_2d
 from designlab.calibration.metrics import ncc, rmse, wilcoxon
-from designlab.errors import DataError, ParameterError
+from designlab.errors import DataError, OutputError, ParameterError
 from designlab.params import rng, validate
 
 MODELS = ("linear", "mpl", "narx")
@@ -365,6 +365,9 @@ def write_outputs(result: CompensationResult, records: Sequence[Record],
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     jpath, ppath = out / "compensation.json", out / "compensation.png"
+    for p in (jpath, ppath):   # the one rename that can fail once both are written
+        if p.is_dir():
+            raise OutputError(f"cannot write {p}: it is a directory")
     import matplotlib.pyplot as plt
 
     fig = plot(result, records)

@@ -230,7 +230,7 @@ def test_records_beyond_the_card_budget_are_refused(monkeypatch):
         comp.compare([rec], [dataclasses.replace(rec, name="b")], ["linear"])
 
 
-@pytest.mark.parametrize("fail", ["json", "png"])
+@pytest.mark.parametrize("fail", ["json", "png", "folder"])
 def test_outputs_are_written_as_a_pair_or_not_at_all(tmp_path, monkeypatch, fail):
     """A full disk while writing either file leaves neither (the JSON stood alone before)."""
     import errno
@@ -241,6 +241,12 @@ def test_outputs_are_written_as_a_pair_or_not_at_all(tmp_path, monkeypatch, fail
     rec = comp.Record(name="a", u=np.sin(3 * t)[:, None], y=2 * np.sin(3 * t)[:, None] + 0.1,
                       dt=0.01, inputs=("x",), outputs=("y",))
     res = comp.compare([rec], [dataclasses.replace(rec, name="b")], ["linear"])
+    if fail == "folder":   # a folder by the plot's name: the JSON stood alone
+        (tmp_path / "out" / "compensation.png").mkdir(parents=True)
+        with pytest.raises(OutputError, match="compensation.png: it is a directory"):
+            comp.write_outputs(res, [rec], tmp_path / "out")
+        assert [p.name for p in (tmp_path / "out").iterdir()] == ["compensation.png"]
+        return
     if fail == "json":
         def no_space(*a, **k):
             raise OutputError("cannot write compensation.json: no space left on the device")
