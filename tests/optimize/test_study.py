@@ -204,3 +204,12 @@ def test_optuna_dashboard_serves_the_study_of_a_run(tmp_path):
                          "wsgi.url_scheme": "http"}, lambda s, h, *a: status.append(s)))
     assert status[0].startswith("200") and STUDY_NAME in json.loads(body)["study_summaries"][0][
         "study_name"]
+
+
+def test_the_load_cell_example_config_loads():
+    from designlab.optimize.space import load_sweep_config
+    from designlab.optimize.study import check_method
+
+    cfg = load_sweep_config(Path(__file__).parents[2] / "examples" / "optimize_load_cell.toml")
+    check_method("tpe", cfg)
+    assert cfg.part.endswith("load_cell.py") and list(cfg.constraints) == ["min_safety_factor"]
