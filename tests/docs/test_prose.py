@@ -1,5 +1,5 @@
-"""Prose stays free of history: no dates, "slow phase" or issue numbers in designlab/ (code and
-templates), README.md and docs/ (outside docs/notes/; CHANGELOG.md holds the history)."""
+"""Prose stays free of history: no dates, "slow phase" or issue numbers in designlab/ (code,
+templates and data files), README.md and docs/ (outside docs/notes/; CHANGELOG.md holds the history)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 PATTERN = re.compile(r"20[0-9]{2}-[01][0-9]-[0-3][0-9]|slow phase|[Ii]ssue [0-9]+")
-SUFFIXES = {".py", ".html", ".j2", ".jinja", ".md", ".txt", ".css", ".js"}
+SUFFIXES = {".py", ".html", ".j2", ".jinja", ".md", ".txt", ".css", ".js", ".json"}
 
 
 def _files(root: Path):
