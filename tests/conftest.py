@@ -75,3 +75,19 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
             f"{item.nodeid} took {wall_s:.1f} s, over the fast tier's {limit_s:g} s limit: "
             f"mark it @pytest.mark.slow (or set {FAST_TEST_LIMIT_ENV} on a loaded machine)"
         )
+
+
+@pytest.fixture
+def run_cli(capsys):
+    """``run_cli(args) -> (exit code, stdout, stderr)`` of ``designlab ARGS`` in this process."""
+    from designlab.cli import main
+
+    def run(args):
+        try:
+            main([str(a) for a in args])
+            rc = 0
+        except SystemExit as exc:
+            rc = exc.code
+        cap = capsys.readouterr()
+        return rc, cap.out, cap.err
+    return run

@@ -132,41 +132,29 @@ def test_bad_size_counts(bad, match):
         sz.SizesRequest(sizes=bad).count()
 
 
-def _cli(args, capsys):
-    from designlab.cli import main
-
-    try:
-        main([str(a) for a in args])
-        rc = 0
-    except SystemExit as exc:
-        rc = exc.code
-    cap = capsys.readouterr()
-    return rc, cap.out, cap.err
-
-
 @pytest.mark.parametrize("args, name", [
     (["--sizes", "0"], "--sizes"), (["--sizes", "many"], "--sizes"),
     (["--population", "kids"], "--population"), (["--fingers", "3"], "--fingers"),
     (["--fit-by", "girth"], "--fit-by"), (["--target-strain", "2"], "--target-strain"),
     (["--seed", "-1"], "--seed"),
     (["--fingers-csv", "MISSING"], "--fingers-csv")])
-def test_cli_bad_input_is_one_line_exit_2_nothing_written(tmp_path, capsys, args, name):
+def test_cli_bad_input_is_one_line_exit_2_nothing_written(tmp_path, run_cli, args, name):
     if "MISSING" in args:
         f = tmp_path / "f.csv"
         f.write_text("width,length\n15,25\n")
         args = [a if a != "MISSING" else f for a in args]
     out = tmp_path / "out"
-    rc, _, err = _cli(["strap-sizes", *args, "--out", out], capsys)
+    rc, _, err = run_cli(["strap-sizes", *args, "--out", out])
     assert rc == 2
     assert name in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
 
 
 @pytest.mark.slow
-def test_cli_writes_the_sizes_and_their_3mf(tmp_path, capsys):
+def test_cli_writes_the_sizes_and_their_3mf(tmp_path, run_cli):
     out = tmp_path / "s"
-    rc, _, err = _cli(["strap-sizes", "--population", "men", "--sizes", "2", "--fingers", "200",
-                       "--out", out], capsys)
+    rc, _, err = run_cli(["strap-sizes", "--population", "men", "--sizes", "2", "--fingers", "200",
+                       "--out", out])
     assert rc == 0, err
     import json
 
@@ -194,10 +182,10 @@ def test_wearer_settings_map_the_finger_like_fit_strap():
 @pytest.mark.parametrize("part, finger, setting", [
     ("fingertip", "16,14,25", []), ("strap", "16,14", []),
     ("strap", "16,14,25", ["--setting", "finger_radius=8"]), ("strap", "nope.stl", [])])
-def test_predict_finger_bad_input_exit_2(tmp_path, capsys, part, finger, setting):
+def test_predict_finger_bad_input_exit_2(tmp_path, run_cli, part, finger, setting):
     # (a finger outside the wrap model's range is refused by fit.Finger, naming the size)
     out = tmp_path / "p"
-    rc, _, err = _cli(["predict", part, "--finger", finger, *setting, "--out", out], capsys)
+    rc, _, err = run_cli(["predict", part, "--finger", finger, *setting, "--out", out])
     assert rc == 2 and "--finger" in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
 

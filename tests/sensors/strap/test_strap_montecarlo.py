@@ -109,28 +109,15 @@ def test_inputs_move_what_they_should(ctx):
     assert mc.build(ctx, NOMINAL | {"finger_perimeter_scale": 1.05}, 0) == base
 
 
-def _cli(args, capsys):
-    from designlab.cli import main
-
-    try:
-        main([str(a) for a in args])
-        rc = 0
-    except SystemExit as exc:
-        rc = exc.code
-    cap = capsys.readouterr()
-    return rc, cap.out, cap.err
-
-
 @pytest.mark.slow
-def test_predict_strap_samples_runs_and_bad_input_is_one_line(tmp_path, capsys):
+def test_predict_strap_samples_runs_and_bad_input_is_one_line(tmp_path, run_cli):
     cfg = tmp_path / "mc.toml"
     cfg.write_text('[uncertainty]\nseed = 3\n'
                    'gauge_factor_scale = { dist = "normal", mean = 1.0, std = 0.1, lo = 0.7 }\n'
                    'tissue_stiffness = { dist = "uniform", lo = 0.002, hi = 0.03 }\n')
     out = tmp_path / "mc"
-    rc, _, err = _cli(["predict", "strap", "--samples", 12, "--uncertainty", cfg, "--out", out,
-                       "--workers", 1, "--setting", "edge_length=2.0", "--setting", "order=1"],
-                      capsys)
+    rc, _, err = run_cli(["predict", "strap", "--samples", 12, "--uncertainty", cfg, "--out", out,
+                       "--workers", 1, "--setting", "edge_length=2.0", "--setting", "order=1"])
     assert rc == 0, err
     doc = json.loads((out / "uncertainty.json").read_text())
     s = doc
@@ -145,11 +132,11 @@ def test_predict_strap_samples_runs_and_bad_input_is_one_line(tmp_path, capsys):
                         ('[uncertainty]\ntpu_modulus_scale = { dist = "normal", mean = 1.0, '
                          'std = -0.1 }\n', "uncertainty.tpu_modulus_scale.std")):
         cfg.write_text(table)
-        rc, _, err = _cli(["predict", "strap", "--samples", 4, "--uncertainty", cfg,
-                           "--out", tmp_path / "bad"], capsys)
+        rc, _, err = run_cli(["predict", "strap", "--samples", 4, "--uncertainty", cfg,
+                           "--out", tmp_path / "bad"])
         assert rc == 2 and len(err.strip().splitlines()) == 1 and says in err, err
-    rc, _, err = _cli(["predict", "strap", "--samples", 4, "--measured", cfg,
-                       "--out", tmp_path / "bad2"], capsys)
+    rc, _, err = run_cli(["predict", "strap", "--samples", 4, "--measured", cfg,
+                       "--out", tmp_path / "bad2"])
     assert rc == 2 and "--measured" in err
 
 
