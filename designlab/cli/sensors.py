@@ -19,14 +19,14 @@ from designlab.errors import ParameterError
 def sensors_cmd():
     """The sensors designlab knows: the built-in three and those installed packages add
     (entry-point group ``designlab.sensors``)."""
-    from designlab.sensors.registry import BUILT_IN, SENSORS, _entry_points
+    from designlab.sensors.registry import BUILT_IN, SENSORS, entry_points
 
     table = Table(title="sensors")
     for col in ("name", "kind", "from"):
         table.add_column(col)
     for name, s in SENSORS.items():
         table.add_row(name, "built in" if name in BUILT_IN else "definition", s.paper)
-    for name, ep in _entry_points().items():
+    for name, ep in entry_points().items():
         if name not in SENSORS:
             table.add_row(name, "installed definition", ep.value)
     console.print(table)

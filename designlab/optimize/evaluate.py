@@ -28,11 +28,6 @@ def geometry_metrics(part_name: str, part) -> dict[str, Any]:
             "printability_problems": [f"{r.body}: {p}" for r in reports for p in r.problems]}
 
 
-#: metrics of the generic virtual test (sensor definitions) that a sweep row carries
-GENERIC_METRICS = ("sensitivity_norm", "condition_number_scaled", "force_error", "noise_budget",
-                   "cross_talk_percent")
-
-
 def evaluate_design(task: dict[str, Any]) -> dict[str, Any]:
     """One design of a sweep -> flat-ish metrics dict (see module docstring)."""
     from designlab.predict.run import predict
@@ -59,8 +54,10 @@ def evaluate_design(task: dict[str, Any]) -> dict[str, Any]:
     out.update({k: v for k, v in sections.items() if k in always or v is not None})
     if pred.stress is not None:
         out["min_safety_factor"] = pred.min_safety_factor
-    if "sensitivity_norm" in pred.metrics:      # a sensor definition's generic virtual test
-        out.update({k: pred.metrics[k] for k in GENERIC_METRICS if k in pred.metrics})
+    from designlab.sensors.registry import get_sensor
+
+    out.update({k: pred.metrics[k] for k in get_sensor(part_name).row_metrics
+                if k in pred.metrics})
     if pred.K_f is not None:
         K = pred.K_f
         out["K_f"] = K.tolist()

@@ -386,23 +386,17 @@ class SensorDefinition(PartAPI):
     # ---- the part interface every command uses ----
     def solids(self) -> dict[str, "Solid"]:
         """:meth:`bodies`, built and checked once per design (each a solid with a library
-        material, no two overlapping)."""
-        cached = self.__dict__.get("_solids")
+        material, no two overlapping): copies of a design (a sweep's, the report's) share
+        them."""
+        key = (type(self), repr(self))
+        cached = _SOLIDS.get(key)
         if cached is None:
-            key = (type(self), tuple(sorted((k, repr(v)) for k, v in vars(self).items()
-                                            if not k.startswith("_"))))
-            cached = _SOLIDS.get(key)
-            if cached is None:
-                cached = self.bodies()
-                check_bodies(cached)
-                _SOLIDS[key] = cached
-                while len(_SOLIDS) > 8:
-                    _SOLIDS.pop(next(iter(_SOLIDS)))
-            object.__setattr__(self, "_solids", cached)
+            cached = self.bodies()
+            check_bodies(cached)
+            _SOLIDS[key] = cached
+            while len(_SOLIDS) > 8:
+                _SOLIDS.pop(next(iter(_SOLIDS)))
         return cached
-
-    def __getstate__(self) -> dict:
-        return {k: v for k, v in self.__dict__.items() if k != "_solids"}
 
     def build(self) -> dict[str, Body]:
         """The bodies as designlab's parts give them (:meth:`solids`)."""
@@ -424,8 +418,7 @@ class SensorDefinition(PartAPI):
         return tuple(f.name for f in dataclasses.fields(self) if f.metadata.get("moves_load"))
 
 
-#: the last designs' bodies by (class, parameters): copies of a design (a sweep's, the report's)
-#: build their geometry once
+#: the last designs' bodies by (class, the design's repr: its parameters)
 _SOLIDS: dict = {}
 
 _PALETTE = ((0.85, 0.55, 0.2), (0.3, 0.55, 0.8), (0.5, 0.7, 0.4), (0.75, 0.75, 0.75),

@@ -41,7 +41,7 @@ def get_sensor(name: str) -> Sensor:
         return SENSORS[name]
     except (KeyError, TypeError):
         pass
-    if isinstance(name, str) and (_entry_points().get(name) or looks_like_definition(name)):
+    if isinstance(name, str) and (entry_points().get(name) or looks_like_definition(name)):
         return SENSORS[resolve(name)]
     inherited = _inherited().get(name) if isinstance(name, str) else None
     if inherited:
@@ -52,7 +52,7 @@ def get_sensor(name: str) -> Sensor:
 
 
 def known_names() -> list[str]:
-    return list(dict.fromkeys([*SENSORS, *_entry_points()]))
+    return list(dict.fromkeys([*SENSORS, *entry_points()]))
 
 
 def register(cls: type, spec: str = "") -> str:
@@ -119,7 +119,7 @@ def resolve(value: str) -> str:
         value = canonical(value)
     if value in _LOADED:
         return _LOADED[value]
-    eps = _entry_points()
+    eps = entry_points()
     if value in eps:
         cls = eps[value].load()
         name = register(cls, f"entry point {value}")
@@ -189,11 +189,11 @@ def _load_file(path: Path):
 _EPS: dict | None = None
 
 
-def _entry_points() -> dict:
+def entry_points() -> dict:
     """{name: entry point} of the ``designlab.sensors`` group (read once)."""
     global _EPS
     if _EPS is None:
-        from importlib.metadata import entry_points
+        from importlib.metadata import entry_points as _group
 
-        _EPS = {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+        _EPS = {ep.name: ep for ep in _group(group=ENTRY_POINT_GROUP)}
     return _EPS

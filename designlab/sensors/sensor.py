@@ -52,6 +52,7 @@ class Sensor:
                paper at the paper's design and protocol (``designlab validate``): one
                :class:`Goal` per compared number; ``details`` (a dict) receives the detailed
                comparison (JSON-able), ``out`` (a folder, or None) its figures; None: none
+    row_metrics: report keys a sweep's row carries beside the ones every prediction has
     """
 
     name: str
@@ -72,6 +73,7 @@ class Sensor:
     plot_groups: tuple[tuple[str, ...], ...] = ()
     plots_before_finish: frozenset[str] = frozenset()
     validate: Callable[..., list["Goal"]] | None = None
+    row_metrics: tuple[str, ...] = ()
 
     @property
     def part(self) -> type:

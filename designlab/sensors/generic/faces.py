@@ -19,7 +19,14 @@ _LOCAL_FACES6 = np.array([[a, b, c, _EDGE[tuple(sorted((a, b)))], _EDGE[tuple(so
 
 def outer_facets(mesh: TetMesh) -> tuple[np.ndarray, np.ndarray]:
     """(triangles (k, 3) or (k, 6) with outward corner order, owning cell (k,)) of the mesh's
-    outer boundary."""
+    outer boundary; found once per mesh (every face of a definition selects from them)."""
+    memo = mesh.__dict__.get("_outer_facets")
+    if memo is None:
+        memo = mesh.__dict__["_outer_facets"] = _outer_facets(mesh)
+    return memo
+
+
+def _outer_facets(mesh: TetMesh) -> tuple[np.ndarray, np.ndarray]:
     local = _LOCAL_FACES if mesh.order == 1 else _LOCAL_FACES6
     faces = mesh.cells[:, local].reshape(-1, local.shape[1])
     owner = np.repeat(np.arange(mesh.n_cells), 4)
@@ -40,13 +47,18 @@ def face_key(face: Face) -> str:
 def select(mesh: TetMesh, face: Face, what: str) -> np.ndarray:
     """The outer facets (k, 3) of ``face``; a one-line error naming ``what`` when the body does
     not exist or the face selects nothing."""
+    return select_owned(mesh, face, what)[0]
+
+
+def select_owned(mesh: TetMesh, face: Face, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`select`'s facets and the cell each belongs to."""
     names = list(mesh.region_names.values())
     if face.body not in names:
         raise ParameterError(f"{what}.body", face.body, "a body of the sensor: " + ", ".join(names))
     tri, owner = outer_facets(mesh)
     rid = mesh.region_id(face.body)
     on_body = mesh.region[owner] == rid
-    tri = tri[on_body]
+    tri, owner = tri[on_body], owner[on_body]
     p = mesh.points
     c = p[tri[:, :3]].mean(axis=1)
     nrm = np.cross(p[tri[:, 1]] - p[tri[:, 0]], p[tri[:, 2]] - p[tri[:, 0]])
@@ -68,7 +80,7 @@ def select(mesh: TetMesh, face: Face, what: str) -> np.ndarray:
     if not ok.any():
         raise ParameterError(what, _describe(face), f"a plane x . n = at where the body has facets "
                              f"(they lie at {np.unique(np.round(d[nrm @ n > 0.98], 3))[:6].tolist()})")
-    return tri[ok]
+    return tri[ok], owner[ok]
 
 
 def region_nodes(mesh: TetMesh, where: Face | Region, what: str) -> np.ndarray:

@@ -20,7 +20,7 @@ from designlab.fem.model import Model
 from designlab.mesh.meshing import MeshResult, mesh_part_detailed
 from designlab.mesh.tetmesh import TetMesh
 from designlab.sensors import definition as d
-from designlab.sensors.generic.faces import region_nodes, select
+from designlab.sensors.generic.faces import region_nodes, select, select_owned
 
 COMPONENTS = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 UNITS = ("N", "N", "N", "N mm", "N mm", "N mm")
@@ -171,7 +171,8 @@ def _gauge_operator(model: Model, t: d.StrainGauge, what: str) -> sp.csr_matrix:
     from designlab.fem.elements import tet_element
 
     mesh = model.mesh
-    tri = select(mesh, t.face, f"{what}.face")[:, :3]
+    tri, owner = select_owned(mesh, t.face, f"{what}.face")
+    tri = tri[:, :3]
     p = mesh.points
     a, b, c = p[tri[:, 0]], p[tri[:, 1]], p[tri[:, 2]]
     n = np.cross(b - a, c - a).sum(0)
@@ -186,7 +187,7 @@ def _gauge_operator(model: Model, t: d.StrainGauge, what: str) -> sp.csr_matrix:
     u_s = np.linspace(-0.5, 0.5, GRID_SAMPLES[0]) * t.length_mm
     v_s = np.linspace(-0.5, 0.5, GRID_SAMPLES[1]) * t.width_mm
     pts = np.array([ctr + u * e1 + v * e2 for u in u_s for v in v_s])
-    cells = _cells_under(mesh, tri, pts, what, t)
+    cells = owner[_facets_under(p, tri, pts, what, t)]
     el = tet_element(mesh.cells.shape[1])
     rows_c, vals = [], []
     for x, e in zip(pts, cells):
@@ -205,13 +206,8 @@ def _gauge_operator(model: Model, t: d.StrainGauge, what: str) -> sp.csr_matrix:
                          shape=(1, model.n_dofs))
 
 
-def _cells_under(mesh: TetMesh, tri: np.ndarray, pts: np.ndarray, what: str, t) -> np.ndarray:
-    """The owning cell of the face triangle under each point (within the face's plane)."""
-    from designlab.sensors.generic.faces import outer_facets
-
-    all_tri, owner = outer_facets(mesh)
-    key = {tuple(sorted(r[:3])): o for r, o in zip(all_tri.tolist(), owner.tolist())}
-    p = mesh.points
+def _facets_under(p: np.ndarray, tri: np.ndarray, pts: np.ndarray, what: str, t) -> np.ndarray:
+    """The index of the face triangle under each point (within the face's plane)."""
     a, b, c = p[tri[:, 0]], p[tri[:, 1]], p[tri[:, 2]]
     v0, v1 = b - a, c - a
     d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
@@ -228,7 +224,7 @@ def _cells_under(mesh: TetMesh, tri: np.ndarray, pts: np.ndarray, what: str, t) 
         if inside[k] < -1e-6 or h > 1e-3 * (1.0 + np.linalg.norm(x)):
             raise ParameterError(f"{what}.center", tuple(t.center), f"a point whose "
                                  f"{t.length_mm:g} x {t.width_mm:g} mm grid lies on its face")
-        out.append(key[tuple(sorted(tri[k].tolist()))])
+        out.append(k)
     return np.asarray(out)
 
 

@@ -28,4 +28,6 @@ def sensor_record(cls: type) -> Sensor:
         + (("condition_number_scaled",) if getattr(cls, "moment_scale_mm", None) else ()),
         uncertainty=monte_carlo_model(cls),
         apply_model=apply_model,
+        row_metrics=("sensitivity_norm", "condition_number_scaled", "force_error", "noise_budget",
+                     "cross_talk_percent"),
     )

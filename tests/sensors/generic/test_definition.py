@@ -116,7 +116,6 @@ def test_dipole_field_on_its_axis_matches_the_closed_form():
     (('return [dl.Clamped(dl.Face("beam", normal=(-1, 0, 0)))]', "return []"), "supports"),
 ])
 def test_bad_definitions_name_the_item(tmp_path, edit, item):
-    from designlab.geometry.parts import make_part
     from designlab.sensors.registry import load_class
 
     text = LOAD_CELL.read_text()
@@ -126,14 +125,11 @@ def test_bad_definitions_name_the_item(tmp_path, edit, item):
     part = load_class(str(f))()
     with pytest.raises(ParameterError, match=item):
         _run(part, edge=4.0)
-    del make_part
 
 
 def test_load_only_parameters_share_the_fem():
     """A parameter that only moves the load point reuses the FEM, and the reading is exactly
     linear in where the load acts (the same face, a shifted point)."""
-    from dataclasses import field
-
     class Moving(dl.SensorDefinition):
         name = "moving_load"
         at_x: float = dl.param(40.0, 10, 70, unit="mm", moves_load=True)
@@ -162,7 +158,6 @@ def test_load_only_parameters_share_the_fem():
     k = [x.report["sensitivity"]["gauge"]["top_Fz"] for x in r]
     assert k[2] - k[1] == pytest.approx(k[1] - k[0], rel=1e-9)
     assert abs(k[2]) > abs(k[0])
-    del field
 
 
 @pytest.mark.slow
