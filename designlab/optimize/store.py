@@ -12,9 +12,9 @@ Every file is written to a temporary name and renamed, so an interrupted sweep (
 leaves only complete files; the key (a hash of part, parameters, settings, protocol and the
 designlab version) names both files, so a resumed sweep never duplicates a design. Temporary
 names (``.KEY.RANDOM.tmp``) never match the store's own names (``KEY.parquet``, ``KEY.json``),
-and :meth:`ResultStore.recover` removes those a killed run left, in ``fem/`` too (under the
-directory's lock, :func:`designlab.atomic.out_lock`, so never another live run's). JSON is
-written by :func:`designlab.atomic.atomic_write_json` (its one NaN rule: null).
+and :meth:`ResultStore.recover` removes those a killed run left, at the folder's top level and
+in ``fem/`` and ``chosen/`` too (under the directory's lock, :func:`designlab.atomic.out_lock`,
+so never another live run's). JSON is written by :func:`designlab.atomic.atomic_write_json` (its one NaN rule: null).
 """
 
 from __future__ import annotations
@@ -77,11 +77,13 @@ class ResultStore:
         self.fem_dir = self.root / "fem"
 
     def recover(self) -> dict[str, int]:
-        """After a kill: remove temporary files (of rows, cache and the FEM stages in
-        ``fem/``), and row or cache files that cannot be read (a file system that lost a
+        """After a kill: remove temporary files (of the folder's own files: the table, the
+        report, ``run.json``; of rows, cache, the FEM stages in ``fem/`` and the chosen design's
+        files in ``chosen/``), and row or cache files that cannot be read (a file system that lost a
         write); those designs are evaluated again (an unreadable FEM stage is computed again
         by :class:`~designlab.fem.cache.FEMCache` itself). Returns counts."""
-        temps = sum(len(sweep_temps(d)) for d in (self.rows_dir, self.cache_dir, self.fem_dir))
+        temps = sum(len(sweep_temps(d)) for d in (self.root, self.rows_dir, self.cache_dir,
+                                                  self.fem_dir, self.root / "chosen"))
         temps += len([p.unlink() for p in self.rows_dir.glob(".*.tmp.parquet")])  # old naming
         broken = 0
         for p in self._row_files():

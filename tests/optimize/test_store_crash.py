@@ -193,6 +193,25 @@ def test_temporary_names_never_match_the_store(tmp_path, reference):
     assert _table(tmp_path) == reference
 
 
+@pytest.mark.slow
+def test_a_kill_at_the_table_write_leaves_a_temp_the_resume_removes(tmp_path, reference):
+    """kill -9 while the consolidated table (``OUT/results.parquet``, the write after the last
+    row) is written: its temporary file at the folder's top level is removed by the resume,
+    and a top-level temp of a live writer (its PID runs) is kept."""
+    proc = _spawn(tmp_path, "after_temp", N_WRITES + 1)
+    assert proc.wait(timeout=120) == -signal.SIGKILL
+    dead = [p for p in tmp_path.iterdir() if ".tmp" in p.name]
+    assert len(dead) == 1 and dead[0].name.startswith(".results.")
+    live = tmp_path / f".report.{os.getpid()}.abcdefgh.tmp.html"
+    live.write_bytes(b"<html>")
+    res = run_sweep(sweep_config(CFG), tmp_path, evaluator=quadratic, executor=LocalExecutor(1))
+    assert res.reused == N_DESIGNS and res.new == 0
+    assert not dead[0].exists() and live.exists()
+    live.unlink()
+    assert [p.name for p in tmp_path.rglob("*") if ".tmp" in p.name] == []
+    assert _table(tmp_path) == reference
+
+
 FEM_SCRIPT = """
 import os, signal
 import numpy as np
