@@ -48,6 +48,22 @@ def split_names(values: Optional[List[str]]) -> list[str]:
     return [v.strip() for item in values or [] for v in item.split(",") if v.strip()]
 
 
+def check_scheduler(address: str, timeout_s: float = 10.0) -> None:
+    """A Dask scheduler answers at ``address`` (a client connects and closes again), checked
+    before a command writes anything into its ``--out``."""
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ParameterError("--scheduler", address,
+                             "Dask installed: pip install 'designlab[cluster]'") from None
+    try:
+        client = Client(address, timeout=f"{timeout_s:g}s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise ParameterError("--scheduler", address,
+                             f"the address of a reachable Dask scheduler ({exc})") from None
+    client.close()
+
+
 def make_executor(scheduler: Optional[str], workers: Optional[int]):
     """``--scheduler`` (a Dask address) or local worker processes."""
     from designlab.optimize.executors import DaskExecutor, LocalExecutor
@@ -55,6 +71,7 @@ def make_executor(scheduler: Optional[str], workers: Optional[int]):
     if scheduler:
         if not scheduler.startswith(("tcp://", "tls://", "inproc://", "ucx://")):
             raise ParameterError("--scheduler", scheduler, "a Dask address like tcp://HOST:PORT")
+        check_scheduler(scheduler)
         return DaskExecutor(scheduler)
     return LocalExecutor(workers)
 

@@ -166,6 +166,7 @@ def optimize(ctx: typer.Context,
                                             "results in --out (its design rows; the caches stay).")):
     """Optimise a design (surrogate/DE, or Pareto for several objectives) and export the winner."""
     from designlab.geometry.export import parse_formats
+    from designlab.optimize.optimizer import check_method as check_optimize_method
     from designlab.optimize.optimizer import optimize as run_optimize
     from designlab.optimize.report import write_report
     from designlab.optimize.robust import band_lines, load_sweep
@@ -182,6 +183,8 @@ def optimize(ctx: typer.Context,
     cfg, evaluator = load_sweep(config)      # [uncertainty]: robust (Monte Carlo per design)
     if method in SAMPLERS:
         check_method(method, cfg)
+    else:
+        check_optimize_method(method, cfg)
     executor = make_executor(scheduler, workers)
     start_sweep_run(ctx, out, "optimize", config, cfg, overwrite, evaluator)
     try:

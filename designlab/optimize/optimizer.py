@@ -76,10 +76,11 @@ def _unit(dims: tuple[Dimension, ...], x: np.ndarray) -> np.ndarray:
     return (x - lo) / np.where(hi > lo, hi - lo, 1.0)
 
 
-def optimize(config: SweepConfig, out: str | Path, *, method: str = "auto",
-             evaluator: Callable | None = None, executor=None, maxiter: int = 10,
-             popsize: int = 6, seed: int = 0, progress=None) -> OptimizeResult:
-    """Optimise ``config.objectives`` over ``config.dimensions`` (see module docstring)."""
+def check_method(method: str, config: SweepConfig) -> str:
+    """The method ``optimize`` runs for ``config`` (``auto`` resolved), or a one-line
+    :class:`ParameterError` when the config cannot use it: no objective, several objectives
+    for a single-objective method, value lists for a continuous one. Callers check this
+    before anything is written."""
     if method not in METHODS:
         raise ParameterError("method", method, "one of " + ", ".join(METHODS))
     names = list(config.objectives)
@@ -92,6 +93,15 @@ def optimize(config: SweepConfig, out: str | Path, *, method: str = "auto",
     if any(d.values for d in config.dimensions) and method in ("surrogate", "de"):
         raise ParameterError("parameters", [d.name for d in config.dimensions if d.values][0],
                              "ranges (not value lists) for continuous optimisation")
+    return method
+
+
+def optimize(config: SweepConfig, out: str | Path, *, method: str = "auto",
+             evaluator: Callable | None = None, executor=None, maxiter: int = 10,
+             popsize: int = 6, seed: int = 0, progress=None) -> OptimizeResult:
+    """Optimise ``config.objectives`` over ``config.dimensions`` (see module docstring)."""
+    method = check_method(method, config)
+    names = list(config.objectives)
     evaluator = evaluator or default_evaluator
     executor = executor or LocalExecutor()
     store = ResultStore(out)

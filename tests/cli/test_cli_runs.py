@@ -360,3 +360,53 @@ def test_a_misspelt_protocol_key_gets_the_close_one(toml, needle, tmp_path, caps
     errors = [line for line in capsys.readouterr().err.splitlines() if line.startswith("error:")]
     assert e.value.code == 2 and not (tmp_path / "o").exists()
     assert len(errors) == 1 and needle in errors[0] and "(did you mean '" in errors[0]
+
+
+@pytest.mark.parametrize("args, text", [
+    (["optimize", "{two}", "--method", "surrogate"], "exactly one objective for method surrogate"),
+    (["optimize", "{none}"], "at least one objective"),
+    (["optimize", "{two}", "--method", "de"], "exactly one objective for method de"),
+    (["sweep", "{a}", "--scheduler", "tcp://127.0.0.1:1"], "reachable Dask scheduler"),
+    (["optimize", "{a}", "--scheduler", "tcp://127.0.0.1:1"], "reachable Dask scheduler"),
+])
+@pytest.mark.slow
+def test_objectives_the_method_cannot_use_or_no_scheduler_write_nothing(
+        args, text, cheap_sweeps, tmp_path, capsys, monkeypatch):
+    """Objectives the optimiser cannot use and an unreachable scheduler are refused before
+    ``run.json`` (or anything else) is written: no new folder, and a folder holding a run
+    keeps every file as it was."""
+    import functools
+
+    import designlab.cli.options as options
+
+    monkeypatch.setattr(options, "check_scheduler",   # the unreachable address fails sooner
+                        functools.partial(options.check_scheduler, timeout_s=0.5))
+    a, _ = cheap_sweeps
+    two, none = tmp_path / "two.toml", tmp_path / "none.toml"
+    two.write_text(CFG_A + 'printed_volume_mm3 = "min"\n')
+    none.write_text(CFG_A.split("[objectives]")[0])
+    paths = {"a": a, "two": two, "none": none}
+    argv = [str(x).format(**paths) for x in args]
+    out = tmp_path / "fresh"
+    rc, _, se = _run([*argv, "--out", out, "--workers", "1"], capsys)
+    assert rc == 2 and text in se and se.count("error:") == 1, se
+    assert not out.exists()
+    used = tmp_path / "used"                  # a folder of the same config's sweep
+    cfg = {"a": a, "two": two, "none": none}[args[1].strip("{}")]
+    assert _run(["sweep", cfg, "--out", used, "--workers", "1"], capsys)[0] == 0
+    before = {p: (p.stat().st_mtime_ns, p.read_bytes()) for p in used.rglob("*") if p.is_file()}
+    rc, _, se = _run([*argv, "--out", used, "--workers", "1"], capsys)
+    assert rc == 2 and text in se
+    assert {p: (p.stat().st_mtime_ns, p.read_bytes())
+            for p in used.rglob("*") if p.is_file()} == before
+
+
+def test_a_reachable_scheduler_passes_the_check():
+    """The scheduler check connects to a live scheduler and lets it be."""
+    distributed = pytest.importorskip("distributed")
+    from designlab.cli.options import check_scheduler
+
+    with distributed.LocalCluster(n_workers=1, processes=False, dashboard_address=None) as cl:
+        check_scheduler(cl.scheduler_address)
+        with distributed.Client(cl.scheduler_address) as client:   # still serving
+            assert client.submit(sum, [1, 2]).result() == 3
