@@ -102,6 +102,10 @@ METRIC_FAMILIES = ("hysteresis_percent.", "sensitivity.", "timings_s.",
                    "linearity_percent_span.", "electrical.", "mesh_convergence.", "force_error.",
                    "noise_budget.", "cross_talk_percent.")
 SETTINGS = ("model", "K_f_target_N_per_m")
+#: largest magnitude of an objective's target: the distance |value - target| stays far below
+#: the 1e12 the optimiser gives a failed or infeasible design, and a metric's differences stay
+#: resolved in it (at 1e308 every distance was the same number, or overflowed to inf)
+MAX_TARGET = 1e9
 
 
 def _number(name: str, v: Any, allowed: str = "a finite number") -> float:
@@ -177,11 +181,10 @@ def _direction(name: str, spec: Any) -> Any:
         return spec
     if isinstance(spec, dict) and set(spec) == {"target"}:
         t = spec["target"]
-        if isinstance(t, list) and t:
-            for i, x in enumerate(t):
-                _number(f"objectives.{name}.target[{i}]", x)
-            return spec
-        _number(f"objectives.{name}.target", t)
+        allowed = (f"one finite number, |target| <= {MAX_TARGET:g} in the metric's unit (every "
+                   "metric of a design is a single number)")
+        if abs(_number(f"objectives.{name}.target", t, allowed)) > MAX_TARGET:
+            raise ParameterError(f"objectives.{name}.target", _short(t), allowed)
         return spec
     raise ParameterError(f"objectives.{name}", _short(spec), '"min", "max" or {target = value}')
 
@@ -305,8 +308,7 @@ def objective_value(value: float, spec: Any) -> float:
         return float(value)
     if spec == "max":
         return -float(value)
-    t = np.asarray(spec["target"], float)
-    return float(np.linalg.norm(np.asarray(value, float) - t))
+    return abs(float(value) - float(spec["target"]))
 
 
 def feasible(metrics: dict[str, Any], constraints: dict[str, Any]) -> bool:

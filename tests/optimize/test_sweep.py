@@ -39,11 +39,35 @@ def test_grid_lhs_sobol_designs():
                                        ({"parameters": {"h": [3, 1]}}, "parameters.h.range"),
                                        ({"objectives": {"x": "smallest"}}, "objectives.x"),
                                        ({"fixed": {"h": 1.0}}, "fixed.h"),
-                                       ({"colour": 1}, "colour")])
+                                       ({"colour": 1}, "colour"),
+                                       # every metric is one number: a list target ranked
+                                       # designs by a distance to no value the user asked for
+                                       ({"objectives": {"condition_number": {"target": [2, 6]}}},
+                                        "objectives.condition_number.target"),
+                                       ({"objectives": {"condition_number": {"target": 1e308}}},
+                                        "objectives.condition_number.target"),
+                                       ({"objectives": {"condition_number": {"target": -2e9}}},
+                                        "objectives.condition_number.target")])
 def test_bad_configs(bad, name):
     with pytest.raises(ParameterError) as e:
         sweep_config({**CFG, **bad})
     assert e.value.name == name
+
+
+def test_a_target_picks_the_design_nearest_to_it(tmp_path):
+    """``{target = x}`` ranks designs by |value - x|: the design whose condition number is the
+    target is chosen, at the largest target allowed too."""
+    from designlab.optimize.space import MAX_TARGET
+
+    cfg = {"part": "fingertip", "method": "grid", "fixed": {"r": 7.0},
+           "parameters": {"h": {"values": [0.0, 1.0, 2.0, 3.0]}}}
+    # condition number 1 + (h - 2)^2 + 1: 6, 3, 2, 3; the farthest target: the largest value
+    for target, chosen in ((2.0, 2.0), (6.0, 6.0), (MAX_TARGET, 6.0)):
+        c = sweep_config({**cfg, "objectives": {"condition_number": {"target": target}}})
+        res = run_sweep(c, tmp_path / str(target), evaluator=quadratic,
+                        executor=LocalExecutor(1))
+        best = next(r for r in res.rows if r["key"] == res.best_key)
+        assert best["condition_number"] == chosen
 
 
 def test_pareto_mask():
