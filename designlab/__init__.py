@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 from designlab.version import __version__
 
 #: the public sensor definition (designlab.sensors.definition)
-_DEFINITION = ("SensorDefinition", "param", "Solid", "Face", "Region", "Clamped", "ElasticSupport",
+_DEFINITION = ("SensorDefinition", "Physics", "param", "Solid", "Face", "Region", "Clamped", "ElasticSupport",
                "ElasticInterface", "ForceSensor", "StrainGauge", "DisplacementProbe",
                "RotationProbe", "CapacitiveGap", "Magnet", "LoadPoint", "LoadState", "Staircase",
                "Wrenches")
@@ -25,12 +25,15 @@ _DEFINITION = ("SensorDefinition", "param", "Solid", "Face", "Region", "Clamped"
 __all__ = ["__version__", "Fingertip", "Strap", "Flexure", "PARTS", "SENSORS", "Prediction",
            "predict", "write_prediction", "get_material", "MATERIALS", *_DEFINITION]
 
+#: the built-in sensors' definitions (designlab.sensors.registry.API_CLASSES)
+_BUILT_IN = ("Fingertip", "Strap", "Flexure")
+
 if TYPE_CHECKING:
     from designlab.fem.materials import MATERIALS, get_material
-    from designlab.geometry.fingertip import CantileverFingertip as Fingertip
-    from designlab.geometry.flexure import SpringFlexure as Flexure
     from designlab.geometry.parts import PARTS
-    from designlab.geometry.strap import ArchStrap as Strap
+    from designlab.sensors.fingertip.definition import CantileverFingertip as Fingertip
+    from designlab.sensors.flexure.definition import SpringFlexure as Flexure
+    from designlab.sensors.strap.definition import ArchStrap as Strap
     from designlab.predict.record import Prediction, write_prediction
     from designlab.predict.run import predict
     from designlab.sensors.registry import SENSORS
@@ -38,18 +41,12 @@ if TYPE_CHECKING:
 
 def __getattr__(name: str) -> Any:
     """The API names, imported when first used (``import designlab`` stays light)."""
-    if name == "Fingertip":
-        from designlab.geometry.fingertip import CantileverFingertip
+    if name in _BUILT_IN:
+        # a built-in sensor's definition (its CAD part's parameters, its declarations, its
+        # physics): a designer subclasses it to change what it is made of or reads
+        from designlab.sensors.registry import API_CLASSES
 
-        return _with_api(CantileverFingertip)
-    if name == "Strap":
-        from designlab.geometry.strap import ArchStrap
-
-        return _with_api(ArchStrap)
-    if name == "Flexure":
-        from designlab.geometry.flexure import SpringFlexure
-
-        return _with_api(SpringFlexure)
+        return API_CLASSES[name]
     if name == "PARTS":
         from designlab.geometry.parts import PARTS
 
@@ -76,14 +73,6 @@ def __getattr__(name: str) -> Any:
 
         return getattr(_m, name)
     raise AttributeError(f"module 'designlab' has no attribute {name!r}")
-
-
-def _with_api(cls: type) -> type:
-    """``cls`` once :mod:`designlab.geometry.parts` has given the part classes their
-    ``params()``/``show()`` methods (importing it does)."""
-    import designlab.geometry.parts  # noqa: F401
-
-    return cls
 
 
 def __dir__() -> list[str]:

@@ -54,6 +54,8 @@ def params_table(cls: type) -> str:
 
 
 def part_section(name: str, cls: type) -> str:
+    # the CAD part (a built-in sensor's definition derives from it and adds its declarations)
+    cls = next((c for c in cls.__mro__ if c.__module__.startswith("designlab.geometry.")), cls)
     module = sys.modules[cls.__module__]
     paras = _paragraphs(module.__doc__)
     about = [paras[0]] if paras else []
@@ -62,8 +64,9 @@ def part_section(name: str, cls: type) -> str:
     lines = [
         f"## {name}",
         "",
-        f"`designlab.geometry.parts.PARTS[\"{name}\"]` = `{cls.__module__}.{cls.__name__}`; "
-        f"in Python `designlab.{_facade_name(cls)}`.",
+        f"The CAD part `{cls.__module__}.{cls.__name__}`; in Python the sensor "
+        f"`designlab.{_facade_name(cls)}` (its definition: the part with its supports, "
+        f"transducers, loads and physics).",
         "",
         f"![{name} at its defaults]({IMG.format(name=name)})",
         "",
@@ -89,7 +92,8 @@ def _facade_name(cls: type) -> str:
     import designlab
 
     for k in designlab.__all__:
-        if k[:1].isupper() and getattr(designlab, k, None) is cls:
+        obj = getattr(designlab, k, None)
+        if k[:1].isupper() and isinstance(obj, type) and issubclass(obj, cls):
             return k
     return cls.__name__
 

@@ -39,8 +39,11 @@ def make_part(name: str, overrides: Mapping[str, str | float] | None = None,
 
 def part_name(part) -> str:
     """Registry name of a part instance (``"strap"``, ``"fingertip"``, ``"flexure"``)."""
+    for k, cls in PARTS.items():          # its own class first, then a class it derives from
+        if type(part) is cls:
+            return k
     for k, cls in PARTS.items():
-        if isinstance(part, cls):
+        if isinstance(part, cls) or issubclass(cls, type(part)):
             return k
     raise ParameterError("part", type(part).__name__, "one of " + ", ".join(PARTS))
 

@@ -230,11 +230,14 @@ TRANSDUCERS = (ForceSensor, StrainGauge, DisplacementProbe, RotationProbe, Capac
 class LoadPoint:
     """Where loads act: a point ``at`` (mm, inside the part's bounding box; default the face's
     centroid) tied to ``face`` by a distributing coupling. A load acting elsewhere (a hanging
-    mass's centre of gravity) is given as a wrench about this point."""
+    mass's centre of gravity) is given as a wrench about this point. ``direction``: the way a
+    weight hung here pulls in the part's frame (a cord over a pulley); None: gravity, as the
+    protocol turns the part."""
 
     name: str
     face: Face
     at: tuple[float, float, float] | None = None
+    direction: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -249,11 +252,13 @@ class LoadState:
 
 @dataclass(frozen=True)
 class Staircase:
-    """The papers' hanging-weight staircase: at ``load``, for each gravity direction in
-    ``directions`` (the part turned), weights ``weights_g`` hung one after another and taken off
-    in reverse, each held ``hold_s`` and read at its end; ``cycles`` loops per direction."""
+    """The papers' hanging-weight staircase: at ``load`` (a load point, or several taken in
+    turn), for each gravity direction in ``directions`` (the part turned), weights ``weights_g``
+    hung one after another and taken off in reverse, each held ``hold_s`` and read at its end;
+    ``cycles`` loops per direction. A load point with its own ``direction`` is pulled along
+    it whatever the gravity direction."""
 
-    load: str
+    load: str | tuple[str, ...]
     weights_g: tuple[float, ...]
     directions: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, -1.0),)
     hold_s: float = 10.0
@@ -266,17 +271,26 @@ class Staircase:
                 x, bool) and np.isfinite(x) and x >= 0 for x in w):
             raise ParameterError("weights_g", w, "a non-empty list of finite masses >= 0 (g)")
 
-    def states(self) -> list[LoadState]:
+    @property
+    def load_names(self) -> tuple[str, ...]:
+        return (self.load,) if isinstance(self.load, str) else tuple(self.load)
+
+    def states(self, pulls: dict | None = None) -> list[LoadState]:
+        """The held loads in order; ``pulls``: {load point: its own direction} (the load
+        points' ``direction``)."""
         w = [float(x) for x in self.weights_g]
         path = w + w[-2::-1] + [0.0]
         out = []
-        for k, d in enumerate(self.directions):
-            dv = np.asarray(d, float) / np.linalg.norm(d)
-            for c in range(self.cycles):
-                for i, m in enumerate(path):
-                    f = tuple(float(v) for v in m * 1e-6 * G_MM_S2 * dv)   # g -> t, x mm/s^2 = N
-                    up = "up" if i < len(w) else "down"
-                    out.append(LoadState(self.load, f, label=f"d{k} c{c} {m:g} g {up}"))
+        for name in self.load_names:
+            for k, d in enumerate(self.directions):
+                d = (pulls or {}).get(name) or d
+                dv = np.asarray(d, float) / np.linalg.norm(d)
+                for c in range(self.cycles):
+                    for i, m in enumerate(path):
+                        f = tuple(float(v) for v in m * 1e-6 * G_MM_S2 * dv)  # g -> t x mm/s^2
+                        up = "up" if i < len(w) else "down"
+                        tag = f"{name} " if len(self.load_names) > 1 else ""
+                        out.append(LoadState(name, f, label=f"{tag}d{k} c{c} {m:g} g {up}"))
         return out
 
     def loops(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
@@ -285,7 +299,7 @@ class Staircase:
         w = np.asarray(self.weights_g, float)
         n, per = len(w), 2 * len(w)
         out = []
-        for loop in range(len(self.directions) * self.cycles):
+        for loop in range(len(self.load_names) * len(self.directions) * self.cycles):
             s0 = loop * per
             first = -1 if loop % self.cycles == 0 else s0 - 1
             out.append((np.r_[0.0, w], np.r_[first, s0 + np.arange(n)],
@@ -325,6 +339,29 @@ class Wrenches:
         return cls(load, tuple(rows), tuple(labels), hold_s)
 
 
+# ----------------------------------------------------------------------------- plug-in physics
+
+@dataclass(frozen=True)
+class Physics:
+    """A sensor's own physics, plugged into its definition (``physics = Physics(...)``): a
+    virtual test that the declared bodies, supports, transducers and loads alone do not give
+    (frictional contact with a bolt preload, a spring's beam chain, a worn strap's electrical
+    model). It runs in place of the generic virtual test and names its protocol and settings;
+    its hooks are those of :class:`designlab.sensors.sensor.Sensor` (``run``, ``plots`` and
+    ``gains`` required; the others optional, as the record documents them). The definition's
+    declarations stay what the sensor is: its parameters, bodies and materials, supports,
+    transducers, loads and protocol."""
+
+    name: str
+    paper: str
+    protocol: type
+    settings: type
+    run: Any
+    plots: Any
+    gains: Any
+    hooks: dict = field(default_factory=dict)
+
+
 # ----------------------------------------------------------------------------- the definition
 
 class SensorDefinition(PartAPI):
@@ -338,6 +375,8 @@ class SensorDefinition(PartAPI):
                      numbers (None: no scaled figure)
     normalise_rows_by: a load component (``"Fz"``): the report adds each channel's sensitivity
                      row divided by its entry for it, a shape free of the channels' gains
+    physics:     a :class:`Physics` plug-in that runs in place of the generic virtual test
+                 (None: the generic test)
     """
 
     name: ClassVar[str] = ""
@@ -346,6 +385,7 @@ class SensorDefinition(PartAPI):
     source: ClassVar[str] = ""
     moment_scale_mm: ClassVar[float | None] = None
     normalise_rows_by: ClassVar[str | None] = None
+    physics: ClassVar[Physics | None] = None
 
     def __init_subclass__(cls, **kw: Any) -> None:
         super().__init_subclass__(**kw)
@@ -416,6 +456,18 @@ class SensorDefinition(PartAPI):
     def load_only(self) -> tuple[str, ...]:
         """The parameters that only move loads (their designs share one FEM)."""
         return tuple(f.name for f in dataclasses.fields(self) if f.metadata.get("moves_load"))
+
+
+def same_design(self, other: Any) -> Any:
+    """``==`` of a built-in sensor's definition: equal to any design of its CAD part (or of a
+    class between) with the same parameters, so a design made either way is the same design."""
+    if not (isinstance(other, type(self)) or isinstance(self, type(other))) \
+            or not dataclasses.is_dataclass(other):
+        return NotImplemented
+    names = [f.name for f in dataclasses.fields(self)]
+    if names != [f.name for f in dataclasses.fields(other)]:
+        return False
+    return all(getattr(self, n) == getattr(other, n) for n in names)
 
 
 #: the last designs' bodies by (class, the design's repr: its parameters)

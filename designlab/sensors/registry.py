@@ -14,18 +14,21 @@ import sys
 from pathlib import Path
 
 from designlab.errors import ParameterError
+from designlab.geometry.parts import PARTS
 from designlab.params import did_you_mean
-from designlab.sensors.fingertip import virtual as fingertip
-from designlab.sensors.strap import virtual as strap
-from designlab.sensors.flexure import virtual as flexure
+from designlab.sensors.fingertip.definition import CantileverFingertip
+from designlab.sensors.flexure.definition import SpringFlexure
+from designlab.sensors.generic.record import sensor_record
 from designlab.sensors.sensor import Sensor
+from designlab.sensors.strap.definition import ArchStrap
 
-SENSORS: dict[str, Sensor] = {s.name: s for s in (
-    strap.SENSOR,
-    fingertip.SENSOR,
-    flexure.SENSOR,
-)}
+#: the built-in sensors: definitions like any other, each with its physics plugged in
+BUILT_IN_DEFINITIONS = (ArchStrap, CantileverFingertip, SpringFlexure)
+SENSORS: dict[str, Sensor] = {cls.name: sensor_record(cls) for cls in BUILT_IN_DEFINITIONS}
+PARTS.update({cls.name: cls for cls in BUILT_IN_DEFINITIONS})
 BUILT_IN = tuple(SENSORS)
+#: the built-in definitions by their names in the Python API (``dl.Fingertip``)
+API_CLASSES = {"Fingertip": CantileverFingertip, "Strap": ArchStrap, "Flexure": SpringFlexure}
 ENTRY_POINT_GROUP = "designlab.sensors"
 #: environment variable carrying {name: spec} of the definitions this process loaded, so that
 #: worker processes it starts (sweeps, Monte Carlo) find them by name
@@ -58,9 +61,7 @@ def known_names() -> list[str]:
 def register(cls: type, spec: str = "") -> str:
     """Add a :class:`~designlab.sensors.definition.SensorDefinition` subclass to ``SENSORS``
     (and its part to ``PARTS``); its name must not be a built-in's. Returns the name."""
-    from designlab.geometry.parts import PARTS
     from designlab.sensors.definition import is_definition
-    from designlab.sensors.generic.record import sensor_record
 
     if not is_definition(cls):
         raise ParameterError("part", spec or getattr(cls, "__name__", cls),

@@ -1,5 +1,6 @@
 """The :class:`Sensor` record: what ``predict``, ``sweep``, ``optimize`` and the CLI need to know
-of one sensor kind. Each sensor module ends with one ``SENSOR = Sensor(...)``;
+of one sensor kind, built from its definition (:mod:`designlab.sensors.generic.record`: the
+generic virtual test's hooks, or those of the physics it plugs in);
 :mod:`designlab.sensors.registry` lists them in ``SENSORS``."""
 
 from __future__ import annotations

@@ -44,7 +44,7 @@ from designlab.sensors.fingertip.model import (
     check_locations, contact_settings, design_protocol, fem_key, mesh_fingertip, wrench_at_ball)
 from designlab.sensors.fingertip.montecarlo import MONTE_CARLO
 from designlab.sensors.protocols import HangingWeightTest
-from designlab.sensors.sensor import Sensor
+from designlab.sensors.definition import Physics
 
 
 @dataclass
@@ -356,7 +356,7 @@ def table_ii_sensor(part, prediction: FingertipPrediction):
     from designlab.geometry.fingertip import CantileverFingertip
     from designlab.sensors.fingertip.contact import CondensedFingertip
 
-    tested, proto = CantileverFingertip.table_ii(), HangingWeightTest()
+    tested, proto = type(part).table_ii(), HangingWeightTest()
     if tested == part and prediction.condensed is not None:
         return lambda: (tested, prediction.condensed)
     settings, materials = prediction.settings, prediction.materials
@@ -540,13 +540,16 @@ def load_cases(*args, **kw):
     return cases(*args, **kw)
 
 
-SENSOR = Sensor(
-    name="fingertip", paper="seed 001 (cantilever fingertip on a ball and three FSS015 sensors)",
-    protocol=HangingWeightTest, settings=FingertipModelSettings, run=run, plots=plots,
-    plot_groups=PLOT_GROUPS, plots_before_finish=PLOTS_BEFORE_FINISH, gains=gains, finish=finish,
-    design_protocol=design_protocol,
-    cached=True, apply_model=apply_model, load_cases=load_cases, uncertainty=MONTE_CARLO,
-    validate=validate,
-    convergence=("condition_number", "hysteresis_percent.overall",
-                 "hysteresis_percent.overall_noise_free",
-                 "hysteresis_percent.by_group_noise_free.G1"))
+#: the fingertip's physics (:class:`~designlab.sensors.definition.Physics`), plugged into its
+#: definition (:class:`designlab.sensors.fingertip.definition.CantileverFingertip`): the
+#: frictional contact at the ball with the bolt preload (contact=false: the linear test)
+BALL_CONTACT = Physics(
+    name="ball contact", paper="seed 001 (cantilever fingertip on a ball and three FSS015 sensors)",
+    protocol=HangingWeightTest, settings=FingertipModelSettings, run=run, plots=plots, gains=gains,
+    hooks=dict(
+        plot_groups=PLOT_GROUPS, plots_before_finish=PLOTS_BEFORE_FINISH, finish=finish,
+        design_protocol=design_protocol, cached=True, apply_model=apply_model,
+        load_cases=load_cases, uncertainty=MONTE_CARLO, validate=validate,
+        convergence=("condition_number", "hysteresis_percent.overall",
+                     "hysteresis_percent.overall_noise_free",
+                     "hysteresis_percent.by_group_noise_free.G1")))

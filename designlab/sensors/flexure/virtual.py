@@ -1,4 +1,5 @@
-"""The seed 002 spring flexure's sensor record ``SENSOR`` on top of its virtual wrench test
+"""The seed 002 spring flexure's physics :data:`BEAM_CHAIN` (its definition's plug-in) on top of
+its virtual wrench test
 (:mod:`designlab.sensors.flexure.model`): the plots, the loop gains, the force-test finish and
 the loop -> predict glue. The model's names are re-exported here
 (``designlab.sensors.flexure.virtual.run`` etc.)."""
@@ -16,7 +17,7 @@ from designlab.sensors.flexure.montecarlo import MONTE_CARLO
 from designlab.sensors.flexure.model import (FlexureModelSettings, FlexurePrediction, run)
 from designlab.sensors.flexure.spring import TWIST, WRENCH
 from designlab.sensors.flexure.validation import validate
-from designlab.sensors.sensor import Sensor
+from designlab.sensors.definition import Physics
 
 
 # ------------------------------------------------------------------------------------ plots
@@ -84,8 +85,15 @@ def apply_model(*args, **kw):
     return apply(*args, **kw)
 
 
-SENSOR = Sensor(
-    name="flexure", paper="seed 002 (fingertip on a helical spring flexure, Visiflex)",
+def _meshed(settings) -> bool:
+    return settings.truth == "fem"
+
+
+#: the flexure's physics (:class:`~designlab.sensors.definition.Physics`), plugged into its
+#: definition (:class:`designlab.sensors.flexure.definition.SpringFlexure`): the spring's
+#: closed form or its beam chain with coil contact and friction (``truth``)
+BEAM_CHAIN = Physics(
+    name="beam chain", paper="seed 002 (fingertip on a helical spring flexure, Visiflex)",
     protocol=FlexureWrenchTest, settings=FlexureModelSettings, run=run, plots=plots,
-    gains=gains, finish=finish, meshed=lambda settings: settings.truth == "fem",
-    apply_model=apply_model, uncertainty=MONTE_CARLO, validate=validate)
+    gains=gains, hooks=dict(finish=finish, meshed=_meshed, apply_model=apply_model,
+                            uncertainty=MONTE_CARLO, validate=validate))

@@ -59,10 +59,17 @@ def select_owned(mesh: TetMesh, face: Face, what: str) -> tuple[np.ndarray, np.n
     rid = mesh.region_id(face.body)
     on_body = mesh.region[owner] == rid
     tri, owner = tri[on_body], owner[on_body]
-    p = mesh.points
+    ok = pick(mesh.points, tri, face, what)
+    return tri[ok], owner[ok]
+
+
+def pick(points: np.ndarray, tri: np.ndarray, face: Face, what: str) -> np.ndarray:
+    """Which triangles (k, >= 3 corner ids into ``points``, outward order) of one body's
+    boundary ``face`` selects; a one-line error naming ``what`` when none."""
+    p = points
     c = p[tri[:, :3]].mean(axis=1)
     nrm = np.cross(p[tri[:, 1]] - p[tri[:, 0]], p[tri[:, 2]] - p[tri[:, 0]])
-    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
     n = np.asarray(face.normal, float)
     n = n / np.linalg.norm(n)
     ok = nrm @ n >= np.cos(np.radians(face.angle_deg))
@@ -80,7 +87,7 @@ def select_owned(mesh: TetMesh, face: Face, what: str) -> tuple[np.ndarray, np.n
     if not ok.any():
         raise ParameterError(what, _describe(face), f"a plane x . n = at where the body has facets "
                              f"(they lie at {np.unique(np.round(d[nrm @ n > 0.98], 3))[:6].tolist()})")
-    return tri[ok], owner[ok]
+    return ok
 
 
 def region_nodes(mesh: TetMesh, where: Face | Region, what: str) -> np.ndarray:

@@ -1,12 +1,20 @@
 """The :class:`~designlab.sensors.sensor.Sensor` record of a sensor definition: what ``predict``,
-``sweep``, ``optimize`` and the CLI need, from the generic virtual test."""
+``sweep``, ``optimize`` and the CLI need, from the generic virtual test or from the physics the
+definition plugs in (:class:`~designlab.sensors.definition.Physics`)."""
 
 from __future__ import annotations
 
+import dataclasses
+
+from designlab.errors import ParameterError
 from designlab.sensors.generic import virtual as g
 from designlab.sensors.generic.loop import apply_model
 from designlab.sensors.generic.montecarlo import monte_carlo_model
 from designlab.sensors.sensor import Sensor
+
+#: the record's fields a Physics may set in its hooks
+HOOKS = tuple(f.name for f in dataclasses.fields(Sensor)
+              if f.name not in ("name", "paper", "protocol", "settings", "run", "plots", "gains"))
 
 
 def _run(part, protocol, settings, progress=None, **_):
@@ -15,6 +23,9 @@ def _run(part, protocol, settings, progress=None, **_):
 
 def sensor_record(cls: type) -> Sensor:
     """The record of definition class ``cls``."""
+    physics = getattr(cls, "physics", None)
+    if physics is not None:
+        return _physics_record(cls, physics)
     return Sensor(
         name=cls.name,
         paper=cls.source or "the designer's definition",
@@ -31,3 +42,13 @@ def sensor_record(cls: type) -> Sensor:
         row_metrics=("sensitivity_norm", "condition_number_scaled", "force_error", "noise_budget",
                      "cross_talk_percent"),
     )
+
+
+def _physics_record(cls: type, physics) -> Sensor:
+    unknown = sorted(set(physics.hooks) - set(HOOKS))
+    if unknown:
+        raise ParameterError(f"{cls.__name__}.physics.hooks", ", ".join(unknown),
+                             "hooks of the sensor record: " + ", ".join(HOOKS))
+    return Sensor(name=cls.name, paper=physics.paper, protocol=physics.protocol,
+                  settings=physics.settings, run=physics.run, plots=physics.plots,
+                  gains=physics.gains, **physics.hooks)

@@ -97,6 +97,15 @@ def _stage(defn, settings, progress) -> tuple[dict, bool]:
     return st, False
 
 
+def protocol_states(defn) -> list:
+    """The held loads of the definition's protocol (a staircase's pulled along its load
+    points' own directions)."""
+    proto = defn.protocol()
+    if isinstance(proto, d.Staircase):
+        return proto.states({lp.name: lp.direction for lp in defn.loads() if lp.direction})
+    return proto.states()
+
+
 def _unit_wrenches(defn, stage, states) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """(W (n_states, n_cases) in the unit cases at the faces' centroids, P (n_states, 6 n_loads)
     the loads at the load points as the protocol states them, their names)."""
@@ -210,7 +219,7 @@ def run(part, protocol: DefinitionProtocol | None = None, settings=None, progres
     stage, reused = _stage(part, settings, say)
     proto = part.protocol()
     hold = protocol.hold_s or proto.hold_s
-    states = proto.states()
+    states = protocol_states(part)
     W, P_all, names = _unit_wrenches(part, stage, states)
     visco = bool(settings.viscoelastic and _relaxes(stage["model"]))
     if visco:
@@ -303,7 +312,7 @@ def load_cases(part, protocol, settings, result: GenericResult, cache=None) -> l
     size = np.linalg.norm(P / scale, axis=1)
     picks = [int(k) for k in np.argsort(-size, kind="stable")[:MAX_STRESS_STATES] if size[k] > 0]
     n3 = 3 * result.mesh.n_points
-    states = part.protocol().states()
+    states = protocol_states(part)
     out = []
     for k in picks:
         s = states[k]

@@ -1,4 +1,4 @@
-"""The seed 000 arch strap as a sensor: its record :data:`SENSOR` (the registry's) and the hooks
+"""The seed 000 arch strap as a sensor: its physics :data:`WORN_STRAP` (its definition's plug-in) and the hooks
 that run on the virtual test's result (plots, the loop's gains, the stress load cases, the
 force-error test); the model itself is :mod:`designlab.sensors.strap.model`. Details:
 docs/models/strap_modules.md.
@@ -16,7 +16,8 @@ from designlab.errors import ParameterError
 from designlab.sensors.strap.montecarlo import MONTE_CARLO
 from designlab.sensors.strap.validation import validate
 from designlab.sensors.protocols import StrapLoadTest
-from designlab.sensors.sensor import Sensor, linear_sensor_model
+from designlab.sensors.definition import Physics
+from designlab.sensors.sensor import linear_sensor_model
 from designlab.sensors.strap.model import (
     CHANNELS, StrapModelSettings, StrapPrediction, evaluate, pad_frame,
     run)
@@ -217,8 +218,11 @@ def finish(report: dict[str, Any], prediction: StrapPrediction, part, protocol) 
     report["force_error_test"] = run_strap_force_test(report, test)
 
 
-SENSOR = Sensor(
-    name="strap", paper="seed 000 (TPU arch strap with two printed strain-gauge traces)",
+#: the strap's physics (:class:`~designlab.sensors.definition.Physics`), plugged into its
+#: definition (:class:`designlab.sensors.strap.definition.ArchStrap`): the strap worn around
+#: the finger (the wrap, the finger's support), the traces' piezoresistive divider readout
+WORN_STRAP = Physics(
+    name="worn strap", paper="seed 000 (TPU arch strap with two printed strain-gauge traces)",
     protocol=StrapLoadTest, settings=StrapModelSettings, run=run, plots=plots, gains=gains,
-    apply_model=apply_model, finish=finish, cached=True, load_cases=load_cases,
-    uncertainty=MONTE_CARLO, validate=validate)
+    hooks=dict(apply_model=apply_model, finish=finish, cached=True, load_cases=load_cases,
+               uncertainty=MONTE_CARLO, validate=validate))
