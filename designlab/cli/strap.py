@@ -104,6 +104,7 @@ def strap_sizes(population: str = typer.Option("all", "--population", help="all 
                 fingers_csv: Optional[Path] = typer.Option(None, "--fingers-csv", help="Measured fingers (CSV: width, depth[, length, perimeter] in mm): replaces the table and the depth assumption."),
                 fit_by: str = typer.Option("perimeter", "--fit-by", help="perimeter (a girth at the strap) | breadth (a caliper)."),
                 target_strain: Optional[float] = typer.Option(None, "--target-strain", help="Initial strain each size is cut for (default: the paper's medium slot on the reference finger)."),
+                pulp_model: str = typer.Option("p50", "--pulp-model", help="off | p50 | p5,p50,p95: the population's fingers (perimeter percentiles) at which the hyperelastic pulp model runs (two nonlinear solves each)."),
                 overwrite: bool = typer.Option(False, "--overwrite", help="Write into an --out that holds another command's run (same-named files are replaced).")):
     """Strap sizes for a population: the fingers each size fits, their initial strain and
     sum-channel sensitivity, the paper's three slots on the same fingers, a 3MF per size."""
@@ -112,8 +113,10 @@ def strap_sizes(population: str = typer.Option("all", "--population", help="all 
     from designlab.sensors.strap import sizes as sz
 
     check_out(out, "strap-sizes", overwrite=overwrite)
-    request = sz.SizesRequest(sizes=sizes, fit_by=fit_by, target_strain=target_strain)
+    request = sz.SizesRequest(sizes=sizes, fit_by=fit_by, target_strain=target_strain,
+                              pulp_model=pulp_model)
     request.count()
+    request.pulp_percentiles()
     pop = (pp.from_csv(fingers_csv) if fingers_csv is not None
            else pp.draw(population, fingers, seed))
     with progress_bar("strap-sizes") as bar:
@@ -121,7 +124,8 @@ def strap_sizes(population: str = typer.Option("all", "--population", help="all 
     run = write_run(out, "strap-sizes", {
         "population": pop.group, "fingers": pop.size, "seed": seed,
         "fingers_csv": str(fingers_csv) if fingers_csv else None, "sizes": sizes,
-        "fit_by": fit_by, "target_strain": res["target_initial_strain"]})
+        "fit_by": fit_by, "target_strain": res["target_initial_strain"],
+        "pulp_model": pulp_model})
     console.print(_sizes_table(
         f"{res['sizes']} strap sizes, {pop.group} ({pop.size} fingers), target strain "
         f"{res['target_initial_strain']:.3g}: {100 * res['share_within_goal']:.1f} % within "
@@ -132,6 +136,12 @@ def strap_sizes(population: str = typer.Option("all", "--population", help="all 
         f"within, {100 * sl['slack_share']:.1f} % slack", sl["rows"], "slot"))
     for a in res["assumptions"]:
         console.print(plain(("assumption:", "bold"), " ", a), highlight=False)
+    for r in res["pulp_model"]["fingers"]:
+        b = r["band"]["hyperelastic_over_present"]
+        console.print(plain(("pulp model:", "bold"), " ", f"p{r['percentile']} finger (size "
+                            f"{r['size']}): sum sensitivity x {b['min']:.3g}-{b['max']:.3g} of "
+                            "the table's (hyperelastic pulp, cited modulus range; sizes.md)"),
+                      highlight=False)
     for f in [*res["files"], str(run)]:
         console.print(f"wrote {f}", highlight=False, markup=False)
     next_step(f"open next: {out / 'sizes.md'} (the table), {out / 'size_1'} (the 3MFs, into "

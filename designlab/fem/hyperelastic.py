@@ -9,6 +9,7 @@ against. The energy, stresses and solution method: docs/hyperelastic.md.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -184,6 +185,10 @@ class Continuum:
     neo: np.ndarray              # (m,) bool
     p1: np.ndarray               # (m,) mu (neo) or lam (SVK)
     p2: np.ndarray               # (m,) kappa (neo) or mu (SVK)
+    #: (m, nq, 3, 3) inverse of a stress-free reference stretch G per quadrature point, or
+    #: None (the mesh is stress-free): the elastic part of F is F G^-1 (a prestrain, e.g. a
+    #: band printed shorter than the path it is worn on; :meth:`with_pre`)
+    pre: np.ndarray | None = None
 
     @classmethod
     def of(cls, model: Model, hyper: dict | None) -> "Continuum":
@@ -208,6 +213,26 @@ class Continuum:
                 p1[sel], p2[sel] = mat.lame
         return cls(model, neo, p1, p2)
 
+    def with_pre(self, pre: np.ndarray | None) -> "Continuum":
+        """The same continuum with the inverse reference stretch ``pre`` (m, nq, 3, 3) per
+        quadrature point (None: none). The energy per mesh volume is det(G) W(F G^-1), so
+        P = det(G) P_e(F G^-1) G^-T and A = det(G) A_e G^-1 G^-1 (G^-1 contracted with A_e's
+        second and fourth index)."""
+        if pre is not None:
+            pre = np.asarray(pre, float)
+            want = self.model.basis.dx.shape + (3, 3)
+            if pre.shape != want:
+                raise ParameterError("pre", pre.shape, f"an array of shape {want}")
+            if np.any(~(np.linalg.det(pre) > 0)):
+                raise ParameterError("pre", "det <= 0", "inverse stretches with det > 0")
+        return dataclasses.replace(self, pre=pre)
+
+    def elastic_gradient(self, H: np.ndarray) -> np.ndarray:
+        """H_e = F G^-1 - I of displacement gradients H (m, nq, 3, 3); H without ``pre``."""
+        if self.pre is None:
+            return H
+        return H @ self.pre + (self.pre - _I3)
+
     def displacement_gradient(self, u: np.ndarray) -> np.ndarray:
         """(m, nq, 3, 3) H = du/dX = F - I at the quadrature points; ``u`` (3 n_points,)."""
         b = self.model.basis
@@ -217,6 +242,7 @@ class Continuum:
     def stress(self, H: np.ndarray, tangent: bool):
         """P (m, nq, 3, 3) and A (m, nq, 3, 3, 3, 3) or None at displacement gradients H."""
         nq = H.shape[1]
+        He = self.elastic_gradient(H)
         P = np.empty_like(H)
         A = np.empty(H.shape + (3, 3)) if tangent else None
         for neo, law in ((True, neo_hooke_stress), (False, svk_stress)):
@@ -225,10 +251,18 @@ class Continuum:
                 continue
             p1 = np.repeat(self.p1[sel, None], nq, 1)
             p2 = np.repeat(self.p2[sel, None], nq, 1)
-            Ps, As = law(H[sel], p1, p2, tangent)
+            Ps, As = law(He[sel], p1, p2, tangent)
             P[sel] = Ps
             if tangent:
                 A[sel] = As
+        if self.pre is None:
+            return P, A
+        g = self.pre
+        jg = 1.0 / np.linalg.det(g)                                   # det G
+        P = jg[..., None, None] * (P @ np.swapaxes(g, -1, -2))
+        if tangent:
+            A = jg[..., None, None, None, None] * np.einsum("...iMkN,...JM,...LN->...iJkL",
+                                                            A, g, g, optimize=True)
         return P, A
 
     def internal_force(self, P: np.ndarray) -> np.ndarray:
@@ -450,7 +484,9 @@ def _load_factors(system: System, cases) -> np.ndarray:
 def solve_hyperelastic(model: Model, hyper: dict | None = None, cases=None, steps: int = 5,
                        rtol: float = 1e-9, max_iter: int = 25, max_cuts: int = 8,
                        max_halvings: int = 6, solver: str = "auto",
-                       on_increment=None) -> HyperelasticResult:
+                       on_increment=None, pre: np.ndarray | None = None,
+                       ramp_pre: bool = False, u0: np.ndarray | None = None
+                       ) -> HyperelasticResult:
     """Large-deformation static equilibrium of ``model`` (the method: docs/hyperelastic.md).
 
     hyper: {body: NeoHooke}; other bodies are St-Venant-Kirchhoff with their Material.
@@ -460,7 +496,14 @@ def solve_hyperelastic(model: Model, hyper: dict | None = None, cases=None, step
     configuration (u = 0). ``on_increment(lam, u)``: called after every converged increment
     with the load factor and the displacement (n_dofs,) (e.g. to record a load-response
     curve). An increment that does not converge (or inverts a cell) is cut in half, at most
-    ``max_cuts`` times in a row."""
+    ``max_cuts`` times in a row.
+
+    ``pre``: a prestrain, the inverse stress-free reference stretch per quadrature point
+    (:meth:`Continuum.with_pre`); with ``ramp_pre`` it is applied along with the load factor
+    (G^-1 = I + lam (pre - I): a prestress step), else in full from the start. ``u0``: the
+    displacement (n_dofs,) to start from instead of u = 0 (e.g. a prestressed equilibrium;
+    its prescribed values must be the model's at load factor 0, and the model may have no
+    rigid coupling)."""
     t0 = time.perf_counter()
     if not (isinstance(steps, (int, np.integer)) and steps >= 1):
         raise ParameterError("steps", steps, "an integer >= 1")
@@ -469,18 +512,21 @@ def solve_hyperelastic(model: Model, hyper: dict | None = None, cases=None, step
     system = model.build()
     w = _load_factors(system, cases)
     f_ext = (system.F + system.F_preload) @ w
-    newton = _Newton(system, Continuum.of(model, hyper), f_ext, system.G @ w, solver, rtol,
-                     max_iter, max_halvings)
-    q = np.zeros(system.T.shape[1])
+    cont = Continuum.of(model, hyper)
+    cont = cont.with_pre(pre)
+    newton = _Newton(system, cont.with_pre(_I3 + 0.0 * pre) if ramp_pre and pre is not None
+                     else cont, f_ext, system.G @ w, solver, rtol, max_iter, max_halvings)
+    q, u_prev = _start(system, u0)
     lam, dlam = 0.0, 1.0 / steps
     incs: list[Increment] = []
     cuts = cuts_in_row = 0
-    u_prev = np.zeros(system.n_dofs)
     fi_prev, Kt_prev = newton.forces(u_prev, True)
     while lam < 1.0:
         lam_new = lam + dlam
         if lam_new > 1.0 - 1e-9:         # the last increment ends exactly at 1
             lam_new = 1.0
+        if ramp_pre and pre is not None:
+            newton.cont = cont.with_pre(_I3 + lam_new * (pre - _I3))
         try:
             done = newton.increment(q, lam, lam_new, fi_prev, Kt_prev)
         except ModelError:
@@ -501,6 +547,21 @@ def solve_hyperelastic(model: Model, hyper: dict | None = None, cases=None, step
             on_increment(lam, u_prev)
     return HyperelasticResult(system, newton.cont, u_prev, f_ext, tuple(incs), cuts, rtol,
                               time.perf_counter() - t0, newton.assemblies, newton.kind)
+
+
+def _start(system: System, u0):
+    """(q, u) of the starting displacement: zero, or ``u0`` on a system whose free dofs are a
+    selection (no rigid coupling)."""
+    if u0 is None:
+        return np.zeros(system.T.shape[1]), np.zeros(system.n_dofs)
+    u0 = np.asarray(u0, float)
+    if u0.shape != (system.n_dofs,):
+        raise ParameterError("u0", u0.shape, f"a displacement of shape ({system.n_dofs},)")
+    T = system.T
+    if T.nnz != T.shape[1]:
+        raise ModelError("u0: a start displacement needs a model without rigid couplings")
+    q = np.asarray(T.T @ u0).ravel()
+    return q, T @ q + (u0 - T @ (T.T @ u0))
 
 
 # ---------------------------------------------------------------- CalculiX reference

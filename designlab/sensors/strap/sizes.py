@@ -363,6 +363,47 @@ def size_rows(pop: Population, sizes: list[Size], s0s: list, sources: list[str],
     return rows
 
 
+#: ``--pulp-model``: where the hyperelastic pulp model runs (perimeter percentiles)
+PULP_MODEL_CHOICES = {"off": (), "p50": (50,), "p5,p50,p95": (5, 50, 95)}
+#: the pulp model's mesh edge (mm) in the sizes run (worn_pulp.EDGE_MM's 3 mm differs by
+#: <= 4 % in the ratio, docs/guide/strap_sizes.md)
+PULP_EDGE_MM = 4.0
+
+
+def pulp_model(pop: Population, sizes: list[Size], percentiles, progress) -> dict[str, Any]:
+    """The hyperelastic pulp model (:func:`worn_pulp.worn_pulp`) at the fingers of the
+    population's perimeter ``percentiles``, each on the size that serves it at its initial
+    strain: the sum sensitivity with the hyperelastic pulp against the present model's, at
+    the ends of the cited pulp modulus (a band)."""
+    from designlab.sensors.strap.worn_pulp import ASSUMPTIONS, worn_pulp
+
+    rows = []
+    for q in percentiles:
+        i = int(np.argmin(np.abs(pop.perimeter - np.percentile(pop.perimeter, q))))
+        size = next(s for s in sizes if i in set(s.members.tolist()))
+        P = float(pop.perimeter[i])
+        eps = float(strains(size.part, np.array([P]))[0])
+        progress(f"pulp model at the p{q} finger")
+        r = worn_pulp(size.part, P / (2 * math.pi), initial_strain=max(eps, 0.0),
+                      edge_length=PULP_EDGE_MM)
+        rows.append({"percentile": q, "perimeter_mm": P, "size": size.index,
+                     "initial_strain_rigid": eps,
+                     "present_sum_F_n_V_per_N": r["present_sum_F_n_V_per_N"],
+                     "band": r["band"],
+                     "by_modulus": [{k: v for k, v in m.items() if k != "solves"}
+                                    for m in r["by_modulus"]],
+                     "cells": r["cells"]})
+    return {"fingers": rows, "edge_length_mm": PULP_EDGE_MM,
+            "what": "the worn strap on a nearly incompressible neo-Hookean pulp: the wrap as a "
+                    "geometrically nonlinear prestress step, then a small F_n increment; "
+                    "hyperelastic_over_present is the pulp model's factor on the sum "
+                    "sensitivity of the tables (the present model: linear Winkler springs "
+                    "times the closed-form prestrain factor), nonlinear_over_linear the same "
+                    "pulp linear against nonlinear; min / max over the cited pulp moduli",
+            "assumptions": list(ASSUMPTIONS) if rows else [],
+            "computed": bool(rows)}
+
+
 @dataclass(frozen=True)
 class SizesRequest:
     """What to size: N sizes or ``"auto"``, fitted by perimeter or breadth, at a target
@@ -371,6 +412,16 @@ class SizesRequest:
     sizes: int | str = 5
     fit_by: str = "perimeter"
     target_strain: float | None = None
+    #: the population's perimeter percentiles at which the hyperelastic pulp model runs
+    #: (:data:`PULP_MODEL_CHOICES`: "off", "p50" or "p5,p50,p95")
+    pulp_model: str = "p50"
+
+    def pulp_percentiles(self) -> tuple[int, ...]:
+        """The percentiles of :attr:`pulp_model`; one-line error otherwise."""
+        if self.pulp_model not in PULP_MODEL_CHOICES:
+            raise ParameterError("--pulp-model", self.pulp_model,
+                                 " | ".join(PULP_MODEL_CHOICES))
+        return PULP_MODEL_CHOICES[self.pulp_model]
 
     def count(self) -> int | None:
         """N, or None for auto; one-line error otherwise."""
@@ -393,6 +444,7 @@ def plan_sizes(pop: Population, request: SizesRequest) -> dict[str, Any]:
 
     trace = get_material("PI-ETPU")
     n = request.count()
+    request.pulp_percentiles()
     _measure(pop, request.fit_by)
     target = default_target() if request.target_strain is None else float(request.target_strain)
     check_target(target, trace)
@@ -436,6 +488,7 @@ def strap_sizes(pop: Population, request: SizesRequest, out=None, *, fem: bool =
     s0_paper = fem_sensitivity(ArchStrap(), P50, mats) if fem else None
     slots = paper_slots(pop, target, trace, s0_paper)
     within = sum(r["fingers"] for r in rows if r["within_goal"]) / pop.size
+    pulp = pulp_model(pop, sizes, request.pulp_percentiles() if fem else (), say)
     result = {
         "population": pop.describe(), "target_initial_strain": target,
         "target_source": "the paper's medium slot on the reference finger (rigid finger)"
@@ -446,6 +499,7 @@ def strap_sizes(pop: Population, request: SizesRequest, out=None, *, fem: bool =
                  "spread": "p5-p95 of the initial strain over a size's fingers, percent of "
                            "their mean"},
         "share_within_goal": within, "size_table": rows, "paper_slots": slots,
+        "pulp_model": pulp,
         "model": {"strain": "rigid finger: path around the finger's perimeter over the "
                             "strap's engaged length (prestrain.initial_strain)",
                   "sensitivity": "the strap model's fast path: unstrained sum sensitivity "
@@ -539,5 +593,26 @@ def markdown(result: dict[str, Any]) -> str:
              f"{100 * sl['slack_share']:.1f} %.", "", *table_head("slot"),
              *table_lines(sl["rows"], "slot"), "", "Assumptions:", "",
              *(f"- {a}" for a in result["assumptions"]), "",
-             f"Sensitivity: {result['model']['sensitivity']}.", ""]
+             f"Sensitivity: {result['model']['sensitivity']}.", "",
+             *pulp_lines(result.get("pulp_model"))]
     return "\n".join(lines)
+
+
+def pulp_lines(pm: dict | None) -> list[str]:
+    """The pulp model's markdown: per finger the band of its factors on the sensitivity."""
+    if not pm or not pm["computed"]:
+        return []
+    lines = ["## The pulp model", "", pm["what"] + ".", "",
+             "| finger | size | initial strain (rigid) | gauge strain worn | hyperelastic / "
+             "present | linear solid / present | nonlinear / linear |", "|---|---|---|---|---|---|---|"]
+    for r in pm["fingers"]:
+        b = r["band"]
+
+        def rng(k, f=".3g"):
+            return f"{b[k]['min']:{f}}-{b[k]['max']:{f}}"
+        lines.append(f"| p{r['percentile']} ({r['perimeter_mm']:.1f} mm) | {r['size']} | "
+                     f"{r['initial_strain_rigid']:.3g} | {rng('gauge_strain_worn')} | "
+                     f"{rng('hyperelastic_over_present')} | {rng('linear_solid_over_present')} "
+                     f"| {rng('nonlinear_over_linear')} |")
+    return lines + ["", "Pulp model assumptions:", "", *(f"- {a}" for a in pm["assumptions"]),
+                    ""]

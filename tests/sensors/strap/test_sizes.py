@@ -137,7 +137,7 @@ def test_bad_size_counts(bad, match):
     (["--population", "kids"], "--population"), (["--fingers", "3"], "--fingers"),
     (["--fit-by", "girth"], "--fit-by"), (["--target-strain", "2"], "--target-strain"),
     (["--seed", "-1"], "--seed"),
-    (["--fingers-csv", "MISSING"], "--fingers-csv")])
+    (["--fingers-csv", "MISSING"], "--fingers-csv"), (["--pulp-model", "p7"], "--pulp-model")])
 def test_cli_bad_input_is_one_line_exit_2_nothing_written(tmp_path, run_cli, args, name):
     if "MISSING" in args:
         f = tmp_path / "f.csv"
@@ -163,6 +163,11 @@ def test_cli_writes_the_sizes_and_their_3mf(tmp_path, run_cli):
     assert all(r["sum_F_n_V_per_N"]["p50"] > 0 for r in doc["size_table"])
     assert (out / "size_1" / "size_1.3mf").is_file() and (out / "size_2" / "size_2.3mf").is_file()
     assert (out / "run.json").is_file() and (out / "sizes.md").is_file()
+    pm = doc["pulp_model"]                   # the hyperelastic pulp at the p50 finger
+    assert pm["computed"] and [r["percentile"] for r in pm["fingers"]] == [50]
+    band = pm["fingers"][0]["band"]["hyperelastic_over_present"]
+    assert 0 < band["min"] <= band["max"] < 2 and pm["assumptions"]
+    assert "## The pulp model" in (out / "sizes.md").read_text()
 
 
 # ---------------------------------------------------------------- predict strap --finger
