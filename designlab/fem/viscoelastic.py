@@ -100,8 +100,9 @@ class _FullMarch:
     factorisation) and the step loop carrying the history forces z_t per time constant."""
 
     def __init__(self, model: Model, system: System, history: History, solver: str,
-                 batch: bool, forces: bool):
+                 batch: bool, forces: bool, factor_each_step: bool = False):
         self.model, self.system, self.history = model, system, history
+        self.factor_each_step = factor_each_step
         self.solver, self.batch, self.forces = solver, batch, forces
         self.t = history.t
         self.nsteps = len(self.t)
@@ -164,7 +165,8 @@ class _FullMarch:
         key = round(dt, 12)
         if key not in self.cache:
             K, Kr = self._stiffness(dt)
-            if key == self.main_dt or self.main is None or self.main.kind == "amg":
+            if key == self.main_dt or self.main is None or self.main.kind == "amg" \
+                    or self.factor_each_step:
                 lin = self._factorize(Kr)
                 if key == self.main_dt:
                     self.main = lin
@@ -280,7 +282,7 @@ def _check_method(method: str, rom_tol: float, rom_max: int, rom_basis: int | No
 def solve_history(model: Model, history: History, solver: str = "auto",
                   check: bool = True, batch: bool = False, forces: bool = True,
                   method: str = "full", rom_tol: float = ROM_TOL, rom_max: int = ROM_MAX,
-                  rom_basis: int | None = None) -> HistoryResult:
+                  rom_basis: int | None = None, factor_each_step: bool = False) -> HistoryResult:
     """March ``history`` with the exact exponential update.
 
     The internal variables are carried as nodal forces, one vector per time constant; time
@@ -304,6 +306,10 @@ def solve_history(model: Model, history: History, solver: str = "auto",
         rom_tol: the reduced march's certified relative residual.
         rom_max: the reduced march's largest basis.
         rom_basis: the starting basis' size (default ``_ROM_START``, then enriched).
+        factor_each_step: factorise every step size the history has (the instantaneous
+            response at t = 0 among them) instead of solving the other step sizes by CG
+            preconditioned with the main step's factorisation: cheaper when many load columns
+            share a few such steps (each column is one CG solve).
 
     Returns:
         The :class:`HistoryResult` (a ``ReducedHistoryResult`` for the reduced march); its
@@ -317,7 +323,7 @@ def solve_history(model: Model, history: History, solver: str = "auto",
     if unknown:
         raise ParameterError("history case", sorted(unknown)[0],
                              "one of the model's load cases: " + ", ".join(system.cases))
-    full = _FullMarch(model, system, history, solver, batch, forces)
+    full = _FullMarch(model, system, history, solver, batch, forces, factor_each_step)
     why = reduced_ineligible(method, full.nsteps, full.A, full.nb, full.has_G, full.main)
     if why is None:
         ctx = full.context()

@@ -104,10 +104,9 @@ class PrintedFT(dl.SensorDefinition):
             th = 90.0 * k
             parts.append(polar_box(40.55, th - 45, 2, 4.9, 8.0, H_ARM))
             parts.append(polar_box(33.4, th, 6, 3.8, 9.0, H_ARM))
-        element = parts[0]
-        for p in parts[1:]:
-            element = element + p
-        element = element - ring          # the outer blocks reach 1 mm into the ring
+        # one fuse of every piece (one boolean, not one per piece), then the ring cut away:
+        # the outer blocks reach 1 mm into the ring
+        element = parts[0].fuse(*parts[1:]).clean() - ring
         carrier = Compound([self._fin(k, s) for k in range(4) for s in (1, -1)])
         turn = Rot(180, 0, 0)   # T -> S
         return {"element": dl.Solid(turn * element, self.material),

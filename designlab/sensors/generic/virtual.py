@@ -144,7 +144,8 @@ def _history(stage, W: np.ndarray, hold: float, solver: str) -> np.ndarray:
     sub = _steps_per_hold(stage["model"], hold)
     t = hold * np.arange(m * sub + 1) / sub
     hist = History(t, {c: np.ones(len(t)) for c in stage["cases"]})
-    res = solve_history(stage["model"], hist, solver=solver, forces=False, batch=True)
+    res = solve_history(stage["model"], hist, solver=solver, forces=False, batch=True,
+                        factor_each_step=True)
     U = np.asarray(res.U)[:, :, ::sub]                          # (n_dofs, n_cases, m + 1)
     R = _read_steps(stage["read"], U)
     if m < n:       # every Prony term has decayed to round-off: the response stays put
