@@ -20,7 +20,7 @@ from designlab.version import __version__
 _DEFINITION = ("SensorDefinition", "Physics", "param", "Solid", "Face", "Region", "Clamped", "ElasticSupport",
                "ElasticInterface", "ForceSensor", "StrainGauge", "DisplacementProbe",
                "RotationProbe", "CapacitiveGap", "Magnet", "LoadPoint", "LoadState", "Staircase",
-               "Wrenches")
+               "Wrenches", "step_solids")
 
 __all__ = ["__version__", "Fingertip", "Strap", "Flexure", "PARTS", "SENSORS", "Prediction",
            "predict", "write_prediction", "get_material", "MATERIALS", *_DEFINITION]

@@ -21,6 +21,7 @@ import numpy as np
 from designlab.errors import ParameterError
 from designlab.geometry.api import PartAPI
 from designlab.geometry.body import Body
+from designlab.geometry.step_import import step_solids  # noqa: F401 (public: dl.step_solids)
 from designlab.params import rng, validate
 
 G_MM_S2 = 9810.0   # standard gravity, mm/s^2 (9.81 m/s^2: the shared protocols' g)
