@@ -140,8 +140,12 @@ def _predict_once(part: str, out: Path, overrides: dict, settings: dict, protoco
                                               measured=records,
                                               progress=lambda s: bar(f"predict {part}: {s}"))
     console.print(_prediction_table(part, prediction))
-    if get_sensor(part).validate is not None:
-        console.print(f"the paper's own sensor against its tables: designlab validate {part} "
+    check = get_sensor(part).validate
+    if check is not None:       # a subclass of a built-in names the built-in it derives from
+        from designlab.sensors.registry import SENSORS
+
+        paper = next(n for n, s in SENSORS.items() if s.validate is check)
+        console.print(f"the paper's own sensor against its tables: designlab validate {paper} "
                       "--out DIR", markup=False, highlight=False)
     for w in prediction.warnings:
         warn(w)

@@ -147,3 +147,20 @@ def test_a_designer_subclasses_a_built_in_and_keeps_its_physics():
 
     assert Wide.physics is dl.Fingertip.physics
     assert Wide(base_radius=12).transducers()[0].name == "sensor_1"
+
+
+@pytest.mark.slow
+def test_predict_runs_a_subclass_of_a_built_in_with_its_physics(tmp_path, run_cli):
+    import json
+
+    src = tmp_path / "wide_finger.py"
+    src.write_text("import designlab as dl\n\n\nclass WideFingertip(dl.Fingertip):\n"
+                   "    name = 'wide_fingertip'\n"
+                   "    base_radius: float = dl.param(12.0, 6, 20, unit='mm', doc='wider')\n")
+    rc, out, err = run_cli(["predict", src, "--out", tmp_path / "run", "--setting",
+                            "mesh_convergence=false", "--setting", "contact=false"])
+    assert rc == 0, err
+    assert "designlab validate fingertip" in " ".join(out.split())
+    pred = json.loads((tmp_path / "run" / "prediction.json").read_text())
+    assert pred["design"]["params"]["base_radius"] == 12.0
+    assert pred["model"].startswith("linear") and pred["condition_number"] > 1
