@@ -1,12 +1,12 @@
-"""Loop benchmark: `designlab loop` on the 600 s stretch log (goal: well under 30 s, the NARX
-peer included).
+"""Loop benchmark: `designlab loop` on the 600 s stretch log (goal: under 60 s on a 2-core
+machine with its peers, the NARX network and gradient-boosted trees, and the backward pass).
 
 Times the stages of one loop on multisine_600s_1 (training, ~6,300 samples at 10 Hz after
 resampling) validated on multisine_300s_2: reading the card (repair + resampling), the
 stretch-fem base (FEM stiffness of the specimen), and the greedy effect search for force and
 resistance, with the NARX peer (the default) side by side with the same loop without it and
-with the plain NARX fit alone (seed 000's network, both outputs: what the peer costs). Peers
-in the same run: the loop with the closed-form base (no FEM), the loop from the `linear` base,
+with the plain NARX fit alone (seed 000's network, both outputs: what the peer costs), and each
+peer's fit time inside the loop (per output). Peers in the same run: the loop with the closed-form base (no FEM), the loop from the `linear` base,
 and the loop at the logs' own ~12 Hz rate. Prints one table.
 
 Run from the project root:  OMP_NUM_THREADS=1 python benchmarks/bench_loop.py
@@ -14,6 +14,7 @@ Run from the project root:  OMP_NUM_THREADS=1 python benchmarks/bench_loop.py
 
 from __future__ import annotations
 
+import math
 import os
 import tempfile
 import time
@@ -63,6 +64,13 @@ def main() -> None:
             rows.append(("  plain NARX fit alone (both outputs)", t_n, perr,
                          ", ".join(f"{o}: {info['iterations']} iterations"
                                    for o, (_, info) in peers.items())))
+            for o, r in res.report["outputs"].items():
+                for p in r["peers"]:
+                    rows.append((f"  peer {p['kind']} of {o} (inside the loop)", p["time_s"],
+                                 f"{p['error']:.4g} {r['unit']}",
+                                 "best" if p["kind"] == r["best_peer"] else ""))
+                dropped = ", ".join(d["key"] for d in r["dropped"]) or "nothing"
+                rows.append((f"  backward pass on {o}", float("nan"), f"dropped {dropped}", ""))
             with tempfile.TemporaryDirectory() as tmp:
                 _, t_w = timed(lambda: write_outputs(res, tmp))
             rows.append(("write loop.json, model.json, plots", t_w, "", ""))
@@ -80,10 +88,11 @@ def main() -> None:
     w = max(len(r[0]) for r in rows)
     print(f"{'stage':<{w}}  {'time (s)':>8}  result")
     for name, t, res_text, eff in rows:
-        print(f"{name:<{w}}  {t:8.2f}  {res_text}" + (f"  [{eff}]" if eff else ""))
+        when = f"{'-':>8}" if math.isnan(t) else f"{t:8.2f}"   # nan: not timed on its own
+        print(f"{name:<{w}}  {when}  {res_text}" + (f"  [{eff}]" if eff else ""))
     loop_t = next(r[1] for r in rows if r[0] == "loop, base stretch-fem")
-    print(f"{'loop of the 600 s log, peer included (goal well under 30 s)':<{w}}  "
-          f"{loop_t:8.2f}  {'OK' if loop_t < 30 else 'SLOW'}")
+    print(f"{'loop of the 600 s log, peers included (goal under 60 s)':<{w}}  "
+          f"{loop_t:8.2f}  {'OK' if loop_t < 60 else 'SLOW'}")
     print(f"{'card -> loop -> outputs':<{w}}  {total:8.2f}")
 
 

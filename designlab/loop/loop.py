@@ -4,7 +4,8 @@
 :mod:`designlab.loop.model`), tries every applicable mechanism of the effect library
 (:mod:`designlab.loop.effects`) on the residual of the training data and adds the best one
 that cross-validation shows to lower the held-out error by more than noise, until nothing
-helps. How the comparison is made is in ``docs/models/loop_selection.md``; loop.json and the
+helps; the backward pass (:mod:`designlab.loop.backward`) then removes the effects that no
+longer account for more than noise beside the others. How the comparison is made is in ``docs/models/loop_selection.md``; loop.json and the
 plots are :mod:`designlab.loop.report`.
 """
 
@@ -21,6 +22,15 @@ from threadpoolctl import threadpool_limits
 from designlab.calibration.metrics import rmse
 from designlab.errors import DataError, ModelError
 from designlab.loop import effects as fx
+from designlab.loop.backward import (
+    FIT_ERRORS,
+    Affine,
+    Rule,
+    backward_step,
+    chain,
+    joint,
+    refit_chain,
+)
 from designlab.loop.base_models import fit_base
 from designlab.loop.model import SensorModel, convert_units
 from designlab.loop.peers import fit_peers
@@ -127,43 +137,10 @@ def acceptable(cv: dict, n_se: float, min_relative: float) -> bool:
                 and (cv["relative"] > n_se * cv["standard_error"] or every))
 
 
-#: what a failing fit raises (a singular or non-finite system, NNLS out of iterations)
-FIT_ERRORS = (ModelError, np.linalg.LinAlgError, FloatingPointError, ValueError, RuntimeError)
-
-
-class _Affine(fx.Effect):
-    """No regressors: the refit of the base's affine part alone (per-run intercepts with
-    several training runs). The baseline of every cross-validated comparison."""
-
-    def grid(self, ctx):
-        return [{}]
-
-    def features(self, ctx, theta):
-        return np.zeros((len(ctx.data), 0))
-
-
-def joint(effect: fx.Effect) -> bool:
-    """Whether a candidate is fitted jointly with the refittable effects already accepted
-    (regressors of the data alone, free or constrained coefficients, nothing beyond them)."""
-    t = type(effect)
-    return (not t.uses_prediction and not t.fixed_coefficients and t.intercept
-            and t.extra is fx.Effect.extra)
-
-
 def _members(effect: fx.Effect, tail: list[fx.Fitted]) -> tuple[list[fx.Effect], list]:
     """The members and settings of a joint fit of ``effect`` (its grid) with ``tail`` (their
     settings kept); an effect with its own solver (a constrained density) goes first."""
     return [f.effect for f in tail] + [effect], [[f.theta] for f in tail] + [None]
-
-
-def _chain(fitted: list[fx.Fitted], ctx: fx.Context) -> np.ndarray:
-    """Prediction of ``ctx.yhat`` plus ``fitted`` applied in order."""
-    y = ctx.yhat
-    for f in fitted:
-        c = fx.Context(ctx.data, ctx.output, y, ctx.base_inputs, ctx.measured, ctx.cache,
-                       per_run=ctx.per_run)
-        y = y + fx.contribution(f, c)
-    return y
 
 
 def cross_validate(effect: fx.Effect, ctx: fx.Context, y: np.ndarray,
@@ -188,7 +165,7 @@ def cross_validate(effect: fx.Effect, ctx: fx.Context, y: np.ndarray,
                 if joint(effect):
                     members, thetas = _members(effect, tail)
                     fitted = fx.fit_group(members, ctx, y - ctx.yhat, rows, thetas)
-                    pred = _chain(fitted, ctx)
+                    pred = chain(fitted, ctx)
                 else:
                     c0 = fx.Context(ctx.data, ctx.output, base, ctx.base_inputs, ctx.measured,
                                     ctx.cache, per_run=ctx.per_run)
@@ -219,10 +196,10 @@ def baselines(ctx: fx.Context, y: np.ndarray, blocks, tail: list[fx.Fitted]
     the base's affine part (per-run intercepts with several runs) fitted on the block's rows."""
     out = []
     for rows, _ in blocks:
-        members = [f.effect for f in tail] + [_Affine()]
+        members = [f.effect for f in tail] + [Affine()]
         fitted = fx.fit_group(members, ctx, y - ctx.yhat, rows,
                               [[f.theta] for f in tail] + [None])
-        out.append(_chain(fitted, ctx))
+        out.append(chain(fitted, ctx))
     return out
 
 
@@ -383,7 +360,6 @@ class _Selection:
         self.tail_start = self.n_loaded   # effects from here on are refitted with each candidate
         self.run_offsets: dict | None = None
         self.dropped: list[dict] = []    # effects the backward pass removed
-        self.tail_before: dict[str, int] = {}   # tail_start before each accepted effect
 
     def _predicted(self, yhat: np.ndarray, yhat_all: np.ndarray) -> None:
         self.yhat, self.yhat_all = yhat, yhat_all
@@ -405,90 +381,49 @@ class _Selection:
             self._finish_runs()
 
     def _backward(self, n_se: float, min_relative: float) -> bool:
-        """One step of the backward pass over the jointly refitted effects: each is
-        cross-validated against the others refitted without it; the one that helps least is
-        dropped (the others refitted on all the training data) when it no longer passes the
-        acceptance rule or the others already leave only noise. False when none is dropped."""
+        """One step of the backward pass (:mod:`designlab.loop.backward`): the selected effects
+        refitted together with each left out in turn; the one that accounts for least of the
+        held-out error is removed when that is no more than the noise floor (or the others
+        leave only noise, or the forward rule no longer accepts it), the others refitted on all
+        the training data. A loaded model's own effects and those taken first stay. False when
+        none is removed."""
         o, y = self.o, self.y
-        group = self.model.effects[o][self.tail_start:]
-        if not group:
-            return self._backward_last(n_se, min_relative)
-        frozen = self.model.predict(self.train, o, y, upto=self.tail_start)
-        ctx = self._context(frozen)
-        checks = []
-        for j, f in enumerate(group):
-            rest = group[:j] + group[j + 1:]
-            try:
-                cv = cross_validate(f.effect, ctx, y, self.blocks, rest,
-                                    baselines(ctx, y, self.blocks, rest))
-            except FIT_ERRORS:
-                continue
-            if cv.get("skipped"):
-                continue
-            floor = cv["error_without"] <= AT_FLOOR * self.floor_fit
-            if floor or not acceptable(cv, n_se, min_relative):
-                checks.append((cv["relative"], j, cv, floor))
-        if not checks:
+        effects = self.model.effects[o][self.n_loaded:]
+        removable = {a["key"] for a in self.accepted} - {
+            f.effect.key for f in effects if type(f.effect).first}
+        if not removable:
             return False
-        _, j, cv, floor = min(checks, key=lambda c: c[0])
-        rest = group[:j] + group[j + 1:]
+        frozen = self.model.predict(self.train, o, y, upto=self.n_loaded)
+        affine = self.fitted_base or self.per_run
+        rule = Rule(self.floor_fit, AT_FLOOR, lambda cv: acceptable(cv, n_se, min_relative))
+        step = backward_step(effects, removable, frozen, self._context, y, self.blocks, affine,
+                             rule)
+        if step is None:
+            return False
+        j, cv = step
+        rest = effects[:j] + effects[j + 1:]
         try:
+            refit = refit_chain(rest, frozen, self._context, y, np.ones(len(self.train), bool),
+                                affine=False)
+            trial = SensorModel(self.model.base, {
+                **self.model.effects, o: self.model.effects[o][:self.n_loaded] + refit.fitted})
             with np.errstate(all="raise"):
-                refit = fx.fit_group([f.effect for f in rest], ctx, y - frozen,
-                                     np.ones(len(self.train), bool),
-                                     [[f.theta] for f in rest]) if rest else []
-                trial = SensorModel(self.model.base, {**self.model.effects,
-                                                      o: self.model.effects[o][:self.tail_start]
-                                                      + refit})
                 yhat, yhat_all = trial.predict(self.train, o, y), trial.predict(self.data, o,
                                                                                  self.y_all)
         except FIT_ERRORS:
             return False
         self.model.effects[o] = trial.effects[o]
+        self.tail_start = self.n_loaded + refit.open_start
         self._predicted(yhat, yhat_all)
-        self._dropped(group[j].effect.key, cv, floor)
-        self._refitted_parameters(refit)
+        self._dropped(effects[j].effect.key, cv)
+        self._refitted_parameters(refit.fitted)
         return True
 
-    def _backward_last(self, n_se: float, min_relative: float) -> bool:
-        """The backward pass on the last effect when it was fitted on top of the model (not
-        jointly): cross-validated as when it was accepted, against the model before it."""
-        o, y, effects = self.o, self.y, self.model.effects[self.o]
-        if (len(effects) <= self.n_loaded or effects[-1].effect.key not in self.tail_before
-                or type(effects[-1].effect).first):
-            return False      # a loaded model's own zero and gain error stay (taken first)
-        last = effects[-1]
-        start = self.tail_before[last.effect.key]
-        frozen = self.model.predict(self.train, o, y, upto=start)
-        ctx = self._context(frozen)
-        tail = effects[start:-1]
-        try:
-            # the baseline of its round: the model before it, refitted as the round refitted it
-            refit = self.fitted_base or bool(tail) or self.per_run
-            cv = cross_validate(last.effect, ctx, y, self.blocks, tail,
-                                baselines(ctx, y, self.blocks, tail if refit else []))
-        except FIT_ERRORS:
-            return False
-        if cv.get("skipped"):
-            return False
-        floor = cv["error_without"] <= AT_FLOOR * self.floor_fit
-        if not floor and acceptable(cv, n_se, min_relative):
-            return False
-        self.model.effects[o] = effects[:-1]
-        self.tail_start = start
-        self._predicted(self.model.predict(self.train, o, y),
-                        self.model.predict(self.data, o, self.y_all))
-        self._dropped(last.effect.key, cv, floor)
-        return True
-
-    def _dropped(self, key: str, cv: dict, floor: bool) -> None:
-        """Record an effect the backward pass removed."""
-        self.dropped.append({"key": key, "cv": cv, "why": (
-            "the other effects leave only noise without it" if floor else
-            "no longer lowers the held-out error by more than noise beside the others")})
+    def _dropped(self, key: str, cv: dict) -> None:
+        """Record an effect the backward pass removed, with its numbers and why."""
+        self.dropped.append({"key": key, "why": cv["why"], "cv": cv})
         self.accepted = [a for a in self.accepted if a["key"] != key]
         self.stages = [st for st in self.stages if st["key"] != key]
-        self.tail_before.pop(key, None)
 
     def _round(self, n_se: float, min_relative: float, progress: Progress | None) -> bool:
         """Every candidate cross-validated; the best acceptable one fitted on all the training
@@ -613,7 +548,6 @@ class _Selection:
             chosen, f, cv, corr, rmse(y, yhat), rmse(y, yhat_new),
             refitted if joint(chosen) else [], e_b, e_a))
         self.model.effects[self.o] = new_effects
-        self.tail_before[chosen.key] = self.tail_start
         if joint(chosen) and fx.group_member(chosen):
             self._refitted_parameters(group)
         else:

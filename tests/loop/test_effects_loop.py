@@ -101,6 +101,10 @@ def case(name: str, seed: int = 1):
         x = growing_cycles(T, seg)
         inputs["displacement"] = x
         y = 0.2 + 0.3 * x - 0.15 * x * (1 - np.exp(-(mullins_max(x, seg) - x) / 1.0))
+    elif name == "damage":          # Miehe's damage: the gain falls with the running maximum
+        x = growing_cycles(T, seg)
+        inputs["displacement"] = x
+        y = 0.2 + 0.3 * x * (1 - 0.5 * (1 - np.exp(-mullins_max(x, seg) / 4.0)))
     elif name == "pi_hysteresis":
         g = 10.0 * (x / 10.0) ** 2
         w = np.geomspace(0.05, 5.0, 8)
@@ -138,7 +142,7 @@ def case(name: str, seed: int = 1):
 
 
 EFFECTS = ["relaxation", "piezo_relaxation", "drift", "thermal", "hysteresis", "nonlinearity",
-           "moment_arm", "parallel_path", "lag", "cross_axis", "qlv", "mullins",
+           "moment_arm", "parallel_path", "lag", "cross_axis", "qlv", "mullins", "damage",
            "pi_hysteresis", "mpl_cells", "friction_arm", "cross_gain"]
 
 
@@ -168,7 +172,7 @@ def test_candidate_order_and_reasons():
                          "temperature": x2 + 20, "location": x},
                      {"resistance": x + x2}, segment=(t > 50).astype(int))
     cands, skipped = fx.library(ds, "resistance", ("displacement",))
-    per = ["hysteresis", "pi_hysteresis", "mullins", "nonlinearity", "mpl_cells",
+    per = ["hysteresis", "pi_hysteresis", "mullins", "damage", "nonlinearity", "mpl_cells",
            "parallel_path"]
     assert [c.key for c in cands] == [
         *[f"{e}[displacement]" for e in per], "friction_arm[displacement]",
@@ -181,8 +185,8 @@ def test_candidate_order_and_reasons():
     assert skipped["qlv[displacement_y]"].startswith("electrical output")
     ds, _ = case("cross_axis")
     cands, skipped = fx.library(ds.train(), "force", ("displacement",))
-    per = ["relaxation", "qlv", "hysteresis", "pi_hysteresis", "mullins", "nonlinearity",
-           "mpl_cells", "parallel_path"]
+    per = ["relaxation", "qlv", "hysteresis", "pi_hysteresis", "mullins", "damage",
+           "nonlinearity", "mpl_cells", "parallel_path"]
     assert [c.key for c in cands] == [
         *[f"{e}[displacement]" for e in per], *[f"{e}[displacement_y]" for e in per],
         "cross_axis[displacement_y]", "cross_gain[displacement_y]", "gain_offset",
@@ -248,10 +252,10 @@ def test_a_new_effect_is_one_class(square_effect):
     keys = [c.key for c in cands]
     assert keys == ["relaxation[displacement]", "qlv[displacement]", "hysteresis[displacement]",
                     "pi_hysteresis[displacement]", "mullins[displacement]",
-                    "nonlinearity[displacement]", "mpl_cells[displacement]",
-                    "parallel_path[displacement]", "square[displacement]", "gain_offset",
-                    "input_gains", "drift", "lag"]
-    sq = cands[8]
+                    "damage[displacement]", "nonlinearity[displacement]",
+                    "mpl_cells[displacement]", "parallel_path[displacement]",
+                    "square[displacement]", "gain_offset", "input_gains", "drift", "lag"]
+    sq = cands[9]
     x = train.inputs["displacement"]
     ctx = fx.Context(train, "force", 0.2 + 0.3 * x, ("displacement",), train.outputs["force"])
     f = fx.fit(sq, ctx, train.outputs["force"] - ctx.yhat, np.ones(len(train), bool))
@@ -293,6 +297,19 @@ def test_parameters_are_recovered():
     taus, g = e["parameters"]["tau_s"], e["parameters"]["g"]
     k = int(np.argmax(np.abs(g)))
     assert 4.0 < taus[k] < 16.0 and g[k] == pytest.approx(0.12, rel=0.3)
+
+
+@pytest.mark.slow
+def test_damage_parameters_are_recovered():
+    """The planted damage ``d = 0.5 (1 - exp(-alpha / 4 mm))`` on a gain of 0.3 N/mm: the
+    saturation scale (refined between the grid's 0.3 and 1 of the range) and the softening
+    ``-d_inf x gain = -0.15 N/mm`` come back."""
+    ds, base = case("damage")
+    out = run_loop(ds, base, peer=False).report["outputs"]["force"]
+    assert [e["name"] for e in out["effects"]] == ["damage"], out["verdict"]
+    p = out["effects"][0]["parameters"]
+    assert not p["linear_limit"] and p["eta"] == pytest.approx(4.0, rel=0.05)
+    assert p["softening"] == pytest.approx(-0.15, rel=0.05)
 
 
 @pytest.mark.parametrize("seed", [1, *(pytest.param(k, marks=pytest.mark.slow)

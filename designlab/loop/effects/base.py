@@ -162,6 +162,8 @@ class Effect:
     #                                      order); the order changes the greedy selection
     first: ClassVar[bool] = False        # taken before any other passing candidate (a loaded
     #                                      model's own error, which others would absorb)
+    refine: ClassVar[str] = ""           # a positive scalar setting refined between the grid's
+    #                                      neighbours of the best one (AIC, log scale)
 
     def __init_subclass__(cls, **kw):
         super().__init_subclass__(**kw)
@@ -354,6 +356,9 @@ def fit_group(members: list[Effect], ctx: Context, residual: np.ndarray, rows: n
     order = own + [i for i in range(len(members)) if i not in own]
     try:
         best, why = _best_setting(members, grids, ctx, N, r, rows, n, fixed, order)
+        if best is not None:
+            searched = [thetas is None or thetas[i] is None for i in range(len(members))]
+            best = _refined(members, grids, searched, best, ctx, N, r, rows, n, fixed, order)
     finally:
         ctx.cache.pop("rows", None)
     if best is None:
@@ -379,6 +384,56 @@ def _best_setting(members: list[Effect], grids: list, ctx: Context, N: np.ndarra
         if best is None or aic < best[0]:
             best = (aic, combo, widths, coef, sse)
     return best, why
+
+
+def _neighbours(grid: list[dict], theta: dict, key: str) -> tuple[float, float] | None:
+    """The grid's values of setting ``key`` next to ``theta``'s (the other settings equal),
+    as (lower, upper) bounds of a refinement; None when ``theta[key]`` is no positive float."""
+    v = theta.get(key)
+    if not isinstance(v, float) or not v > 0:
+        return None
+    rest = {k: repr(x) for k, x in theta.items() if k != key}
+    vals = sorted({g[key] for g in grid if isinstance(g.get(key), float) and g[key] > 0
+                   and {k: repr(x) for k, x in g.items() if k != key} == rest})
+    if len(vals) < 2 or v not in vals:
+        return None
+    i = vals.index(v)
+    return vals[max(i - 1, 0)], vals[min(i + 1, len(vals) - 1)]
+
+
+def _refined(members: list[Effect], grids: list, searched: list[bool], best: tuple,
+             ctx: Context, N: np.ndarray, r: np.ndarray, rows: np.ndarray, n: int,
+             fixed: bool, order: list[int]) -> tuple:
+    """``best`` (aic, combo, widths, coef, sse) with the ``refine`` setting of each member whose
+    grid was searched moved to the lowest AIC between its grid neighbours (bounded scalar
+    search on its logarithm, 1 % in the value): a planted time constant or width between two
+    grid values is not left half explained."""
+    from scipy.optimize import minimize_scalar
+
+    for i, m in enumerate(members):
+        key = type(m).refine
+        bounds = _neighbours(grids[i], best[1][i], key) if key and searched[i] else None
+        if bounds is None:
+            continue
+        found = {}
+
+        def aic(log_v: float, i=i, key=key, found=found, start=best[1]) -> float:
+            combo = list(start)
+            combo[i] = {**combo[i], key: float(math.exp(log_v))}
+            got = _fit_combo(members, tuple(combo), ctx, N[rows], r, rows, fixed, order)
+            if isinstance(got, str):
+                return math.inf
+            widths, coef, sse, p = got
+            a = n * math.log(max(sse, 1e-300) / n) + 2 * p
+            found[log_v] = (a, tuple(combo), widths, coef, sse)
+            return a
+
+        minimize_scalar(aic, bounds=(math.log(bounds[0]), math.log(bounds[1])),
+                        method="bounded", options={"xatol": 0.01})
+        top = min(found.values(), key=lambda b: b[0], default=None)
+        if top is not None and top[0] < best[0]:
+            best = top
+    return best
 
 
 def _fit_combo(members: list[Effect], combo: tuple, ctx: Context, Nr: np.ndarray,

@@ -27,10 +27,11 @@ class Mullins(Effect):
     name = "mullins"
     summary = "Mullins softening: softer below the largest input seen so far"
     regressors_doc = "`x_r (1 - exp(-(x_max - x)/m))`, `x_max` (running maximum in the run)"
-    settings_doc = "`m` = 0.03/0.1/0.3/1 of the 1-99 % range"
+    settings_doc = "`m` = 0.03/0.1/0.3/1 of the 1-99 % range, refined between its neighbours"
     applies_doc = "each varying drive input"
     per_input = True
     rank = 25
+    refine = "m"
 
     @classmethod
     def applies(cls, train, output, base_inputs):
