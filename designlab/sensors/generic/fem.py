@@ -336,10 +336,9 @@ def dipole_jacobian(p: np.ndarray, m: np.ndarray, s: np.ndarray, h: float = 1e-4
 # ----------------------------------------------------------------------------- the stage
 
 def fem_stage(defn, settings, progress=None) -> dict[str, Any]:
-    """Mesh, model, unit-load solve and read-out of ``defn``: plain arrays (cacheable) plus the
-    channel table, the mesh and the model."""
-    from designlab.fem.static import solve_static
-
+    """Mesh, model and read-out of ``defn``: the model with its unit load cases, the channel
+    table, the mesh; the unit loads' static solve is :func:`static_response`'s (a
+    viscoelastic run marches instead)."""
     say = progress or (lambda s: None)
     t0 = time.perf_counter()
     say("meshing")
@@ -348,12 +347,24 @@ def fem_stage(defn, settings, progress=None) -> dict[str, Any]:
     t1 = time.perf_counter()
     model, centroids = build_model(mesh, defn)
     read, chans = read_operators(model, defn)
-    say(f"solving {len(model.cases)} unit load cases on {3 * model.mesh.n_points} dofs")
     t2 = time.perf_counter()
-    res = solve_static(model, solver=settings.solver)
-    U = np.asarray(res.U)
-    t3 = time.perf_counter()
     return {"model": model, "mesh": model.mesh, "mesh_result": meshed, "centroids": centroids,
-            "cases": list(res.cases), "U": U, "R": np.asarray(read @ U), "read": read,
-            "channels": chans, "static": res,
-            "timings_s": {"mesh": t1 - t0, "assemble": t2 - t1, "solve": t3 - t2}}
+            "cases": list(model.cases), "read": read, "channels": chans,
+            "timings_s": {"mesh": t1 - t0, "assemble": t2 - t1}}
+
+
+def static_response(stage: dict[str, Any], solver: str, progress=None) -> tuple[np.ndarray,
+                                                                                 np.ndarray]:
+    """(U (n_dofs, n_cases) mm, R (n_channels, n_cases) readings) of the unit load cases with
+    the instantaneous moduli, solved once per stage."""
+    if "U" not in stage:
+        from designlab.fem.static import solve_static
+
+        model = stage["model"]
+        if progress:
+            progress(f"solving {len(model.cases)} unit load cases on {3 * model.mesh.n_points} "
+                     "dofs")
+        res = solve_static(model, solver=solver)
+        stage["U"] = np.asarray(res.U)
+        stage["R"] = np.asarray(stage["read"] @ stage["U"])
+    return stage["U"], stage["R"]
