@@ -128,6 +128,92 @@ def atomic_write_bytes(path: str | Path, data: bytes, *, keep_suffix: bool = Tru
     return Path(path)
 
 
+class FileSet:
+    """Files written as a set: each to a hidden temporary beside its target (a name of
+    :data:`TEMP_NAME`, so :func:`sweep_temps` removes a killed writer's), all moved into place
+    by :meth:`commit` once every one is written; a failure before that removes every temporary
+    (:meth:`abort`), so a full disk leaves the targets as they were. Renames need no space.
+    ``with FileSet() as fs: fs.write_bytes(...)`` commits on success and aborts on error."""
+
+    def __init__(self):
+        self.temps: list[tuple[Path, Path]] = []
+
+    def path(self, target: str | Path, *, keep_suffix: bool = True) -> Path:
+        """A new temporary path for ``target`` (same suffix unless ``keep_suffix=False``)."""
+        target = Path(target)
+        try:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=temp_prefix(target.stem),
+                                       suffix=".tmp" + (target.suffix if keep_suffix else ""))
+        except OSError as exc:
+            raise os_error(target, exc) from None
+        os.close(fd)
+        self.temps.append((Path(tmp), target))
+        return Path(tmp)
+
+    def targets(self) -> list[Path]:
+        """The targets staged so far (not yet in place)."""
+        return [final for _, final in self.temps]
+
+    def write_bytes(self, target: str | Path, data: bytes, *, keep_suffix: bool = True) -> Path:
+        """``data`` for ``target`` (fsynced); one line on a failed write."""
+        tmp = self.path(target, keep_suffix=keep_suffix)
+        try:
+            with open(tmp, "wb") as fh:
+                fh.write(data)
+                fh.flush()
+                os.fsync(fh.fileno())
+        except OSError as exc:
+            raise os_error(Path(target), exc) from None
+        return Path(target)
+
+    def write_json(self, target: str | Path, obj, indent: int = 1) -> Path:
+        """``obj`` as JSON for ``target`` (the rules of :func:`atomic_write_json`)."""
+        import json
+
+        return self.write_bytes(target, json.dumps(jsonable(obj), indent=indent,
+                                                   allow_nan=False).encode())
+
+    def commit(self) -> list[Path]:
+        """Move every temporary into place (usual file mode). An empty one or a folder by a
+        target's name aborts the set before anything moves."""
+        umask = os.umask(0)
+        os.umask(umask)
+        for tmp, final in self.temps:   # what would stop a rename, before the first one
+            problem = ("produced an empty file" if tmp.stat().st_size == 0 else
+                       "it is a directory" if final.is_dir() and not final.is_symlink() else "")
+            if problem:
+                self.abort()
+                raise OutputError(f"{'writing ' if 'empty' in problem else 'cannot write '}"
+                                  f"{final}{' ' if 'empty' in problem else ': '}{problem}")
+        done = []
+        for tmp, final in self.temps:
+            try:
+                os.chmod(tmp, 0o666 & ~umask)
+                os.replace(tmp, final)
+            except OSError as exc:
+                self.abort()
+                raise os_error(final, exc) from None
+            done.append(final)
+        self.temps = []
+        return done
+
+    def abort(self) -> None:
+        """Remove every temporary not yet moved into place."""
+        for tmp, _ in self.temps:
+            tmp.unlink(missing_ok=True)
+        self.temps = []
+
+    def __enter__(self) -> "FileSet":
+        return self
+
+    def __exit__(self, exc_type, *exc) -> None:
+        if exc_type is None:
+            self.commit()
+        else:
+            self.abort()
+
+
 def jsonable(x):
     """Plain JSON types from numpy arrays/scalars, tuples and non-finite floats (-> None)."""
     import math

@@ -91,3 +91,26 @@ def run_cli(capsys):
         cap = capsys.readouterr()
         return rc, cap.out, cap.err
     return run
+
+
+@pytest.fixture
+def disk_full_at(monkeypatch):
+    """``disk_full_at(regex)``: from now on the disk is full for files whose name matches
+    ``regex`` (``os.fsync`` of such a file fails with ENOSPC, as on a full file system where the
+    data reaches the disk at the flush); returns the list of names refused so far."""
+    import errno
+    import re
+
+    real = os.fsync
+    refused: list[str] = []
+
+    def install(pattern: str) -> list[str]:
+        def fsync(fd):
+            name = os.path.basename(os.readlink(f"/proc/self/fd/{fd}"))
+            if re.search(pattern, name):
+                refused.append(name)
+                raise OSError(errno.ENOSPC, "No space left on device")
+            return real(fd)
+        monkeypatch.setattr(os, "fsync", fsync)
+        return refused
+    return install

@@ -11,7 +11,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from designlab.atomic import atomic_write_json, jsonable
+from designlab.atomic import FileSet, atomic_write_json, jsonable
 from designlab.cli.app import (Bar, app, console, err_console, next_step, one_line, plain,
                                progress_bar, warn)
 from designlab.cli.options import check_options, make_executor
@@ -209,11 +209,12 @@ def optimize(ctx: typer.Context,
     summary = {"method": res.method, "chosen_params": chosen_params, "chosen": chosen,
                "choice": choice, "not_distinguishable": ties, "error_bar_unknown": unknown,
                "surrogate": res.surrogate, "files": [str(f) for f in files]}
-    atomic_write_json(out / "optimize.json", summary)
-    write_report(out, res.sweep.rows, cfg, res.sweep.pareto_keys, chosen["key"],
-                 title=f"designlab optimize: {config.name}", tie_keys=ties, choice=choice,
-                 chosen_dir=design_dir, kind="optimize",
-                 uncertainty=getattr(evaluator, "spec", None))
+    with FileSet() as outputs:   # optimize.json and the report: all or none (a full disk)
+        outputs.write_json(out / "optimize.json", summary)
+        write_report(out, res.sweep.rows, cfg, res.sweep.pareto_keys, chosen["key"],
+                     title=f"designlab optimize: {config.name}", tie_keys=ties, choice=choice,
+                     chosen_dir=design_dir, kind="optimize",
+                     uncertainty=getattr(evaluator, "spec", None), files=outputs)
     console.print(choice, highlight=False, markup=False)
     console.print("exported: " + ", ".join(f"{k}={v:.4g}" for k, v in chosen_params.items()),
                   highlight=False, markup=False)

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from designlab.atomic import atomic_write_bytes
+from designlab.atomic import FileSet, atomic_write_bytes
 
 
 def _file_safe(name: str) -> str:
@@ -17,14 +17,19 @@ def _file_safe(name: str) -> str:
     return re.sub(r"[^\w.-]", "_", str(name))
 
 
-def _savefig(fig, path: Path) -> Path:
+def _savefig(fig, path: Path, files: FileSet | None) -> Path:
+    """The figure as PNG at ``path``: staged in ``files`` (written with the set), or now."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
-    atomic_write_bytes(path, buf.getvalue())
+    if files is not None:
+        files.write_bytes(path, buf.getvalue())
+    else:
+        atomic_write_bytes(path, buf.getvalue())
     return path
 
 
-def plot_output(o: str, ser: dict, rep: dict, out: Path) -> list[Path]:
+def plot_output(o: str, ser: dict, rep: dict, out: Path,
+                files: FileSet | None = None) -> list[Path]:
     """The PNG plots of one output into ``out``: the validation time series, one per accepted
     effect, the final residual against its strongest correlate.
 
@@ -33,6 +38,7 @@ def plot_output(o: str, ser: dict, rep: dict, out: Path) -> list[Path]:
         ser: its series (:func:`designlab.loop.report.output_report`).
         rep: its loop.json entry.
         out: the folder.
+        files: the set the plots are staged in (None: each written at once).
 
     Returns:
         The files written.
@@ -41,15 +47,15 @@ def plot_output(o: str, ser: dict, rep: dict, out: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    files = [_timeseries(plt, o, ser, rep, out)]
+    paths = [_timeseries(plt, o, ser, rep, out, files)]
     for k, st in enumerate(ser["stages"], 1):
-        files.append(_effect(plt, o, k, st, rep["unit"], out))
+        paths.append(_effect(plt, o, k, st, rep["unit"], out, files))
     if ser["top_var"] is not None:
-        files.append(_unexplained(plt, o, ser, rep, out))
-    return files
+        paths.append(_unexplained(plt, o, ser, rep, out, files))
+    return paths
 
 
-def _timeseries(plt, o: str, ser: dict, rep: dict, out: Path) -> Path:
+def _timeseries(plt, o: str, ser: dict, rep: dict, out: Path, files: FileSet | None) -> Path:
     unit = rep["unit"]
     fig, ax = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
     x = np.arange(ser["t_val"].size) * (np.median(np.diff(ser["t_val"])) if ser["t_val"].size
@@ -74,12 +80,13 @@ def _timeseries(plt, o: str, ser: dict, rep: dict, out: Path) -> Path:
     ax[1].set_xlabel("validation time (s)")
     ax[1].legend(loc="upper right", fontsize=8)
     fig.tight_layout()
-    path = _savefig(fig, out / f"timeseries_{_file_safe(o)}.png")
+    path = _savefig(fig, out / f"timeseries_{_file_safe(o)}.png", files)
     plt.close(fig)
     return path
 
 
-def _effect(plt, o: str, k: int, st: dict, unit: str, out: Path) -> Path:
+def _effect(plt, o: str, k: int, st: dict, unit: str, out: Path,
+            files: FileSet | None) -> Path:
     fig, ax = plt.subplots(1, 2, figsize=(11, 4.5))
     idx = np.linspace(0, st["regressor"].size - 1, min(st["regressor"].size, 4000)).astype(int)
     r, c = st["residual"][idx], st["contribution"][idx]
@@ -97,18 +104,18 @@ def _effect(plt, o: str, k: int, st: dict, unit: str, out: Path) -> Path:
     fig.suptitle(f"{o} effect {k}: {st['key']}")
     fig.tight_layout()
     safe = _file_safe(st["key"])
-    path = _savefig(fig, out / f"effect_{_file_safe(o)}_{k}_{safe}.png")
+    path = _savefig(fig, out / f"effect_{_file_safe(o)}_{k}_{safe}.png", files)
     plt.close(fig)
     return path
 
 
-def _unexplained(plt, o: str, ser: dict, rep: dict, out: Path) -> Path:
+def _unexplained(plt, o: str, ser: dict, rep: dict, out: Path, files: FileSet | None) -> Path:
     fig, ax = plt.subplots(figsize=(6, 4.5))
     ax.plot(ser["top_values"], ser["residual_val"], ".", ms=2, color="C0")
     ax.set_xlabel(ser["top_var"])
     ax.set_ylabel(f"{o} final residual ({rep['unit']})")
     ax.set_title(f"{o}: unexplained {100 * rep['unexplained_fraction']:.1f} % of variance")
     fig.tight_layout()
-    path = _savefig(fig, out / f"unexplained_{_file_safe(o)}.png")
+    path = _savefig(fig, out / f"unexplained_{_file_safe(o)}.png", files)
     plt.close(fig)
     return path

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from designlab.atomic import atomic_write_json
+from designlab.atomic import FileSet
 from designlab.calibration.metrics import ncc, rmse
 from designlab.loop import effects as fx
 from designlab.loop.model import SensorModel
@@ -340,7 +340,8 @@ def variable_values(data: Dataset, name: str, yhat: np.ndarray) -> np.ndarray:
 
 
 def write_outputs(result: LoopResult, out: str | Path) -> list[Path]:
-    """loop.json, model.json and PNG plots into ``out`` (each written atomically).
+    """loop.json, model.json and PNG plots into ``out``, written as a set
+    (:class:`~designlab.atomic.FileSet`): a full disk leaves none of them half-written.
 
     Returns:
         The files written, plots first.
@@ -348,14 +349,11 @@ def write_outputs(result: LoopResult, out: str | Path) -> list[Path]:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     written: list[Any] = []
-    for o, ser in result.series.items():
-        written += plot_output(o, ser, result.report["outputs"][o], out)
-    p = out / "model.json"
-    result.model.save(p)
-    written.append(p)
-    p = out / "loop.json"
-    atomic_write_json(p, result.report)
-    written.append(p)
+    with FileSet() as files:
+        for o, ser in result.series.items():
+            written += plot_output(o, ser, result.report["outputs"][o], out, files)
+        written.append(files.write_json(out / "model.json", result.model.to_json()))
+        written.append(files.write_json(out / "loop.json", result.report))
     return written
 
 

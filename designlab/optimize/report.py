@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from designlab.atomic import atomic_write_bytes
+from designlab.atomic import FileSet
 from designlab.optimize.space import SweepConfig
 from designlab.optimize.sweep import error_bar
 
@@ -247,9 +247,9 @@ _DESIGNS_LEGEND = ("orange: chosen; blue: not distinguishable from the chosen de
                    "(robust run).")
 
 
-def _write_plots(out: Path, rows, config, pareto_keys, best_key, tie_keys):
-    """``pareto.png`` and ``sensitivity.png`` where there is something to plot: (the files
-    written by name, the report's plot entries)."""
+def _write_plots(out: Path, rows, config, pareto_keys, best_key, tie_keys, files: FileSet):
+    """``pareto.png`` and ``sensitivity.png`` where there is something to plot, staged in
+    ``files``: (the files by name, the report's plot entries)."""
     from designlab.predict.report import png_uri
 
     written: dict[str, Path] = {}
@@ -257,7 +257,7 @@ def _write_plots(out: Path, rows, config, pareto_keys, best_key, tie_keys):
     for name, data in (("pareto", pareto_plot(rows, config, pareto_keys, best_key, tie_keys)),
                        ("sensitivity", sensitivity_plot(rows, config))):
         if data is not None:
-            atomic_write_bytes(out / f"{name}.png", data)
+            files.write_bytes(out / f"{name}.png", data)
             written[name] = out / f"{name}.png"
             images.append({"src": png_uri(data), "caption": _CAPTIONS[name]})
     return written, images
@@ -402,8 +402,10 @@ def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: 
                  best_key: str | None, title: str = "designlab sweep",
                  tie_keys: list[str] = (), *, choice: str | None = None,
                  chosen_dir: Path | None = None, kind: str = "sweep",
-                 uncertainty=None) -> dict[str, Path]:
-    """Write ``pareto.png``, ``sensitivity.png`` and ``report.html`` (the shared template of
+                 uncertainty=None, files: FileSet | None = None) -> dict[str, Path]:
+    """Write ``pareto.png``, ``sensitivity.png`` and ``report.html`` as a set (a full disk
+    leaves none of them half-written; ``files``: a caller's set they join, committed by the
+    caller, e.g. with ``optimize.json``) (the shared template of
     :mod:`designlab.predict.report`, images embedded). ``choice``: why the design was
     chosen (optimize); ``chosen_dir``: the exported chosen design with its ``prediction/``
     (renders, plots, stress, paper comparison, files). A robust run's rows (``mc.*``
@@ -413,7 +415,12 @@ def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: 
     from designlab.predict.report import file_links, render_report
 
     out = Path(out)
-    written, images = _write_plots(out, rows, config, pareto_keys, best_key, tie_keys)
+    if files is None:
+        with FileSet() as own:
+            return write_report(out, rows, config, pareto_keys, best_key, title, tie_keys,
+                                choice=choice, chosen_dir=chosen_dir, kind=kind,
+                                uncertainty=uncertainty, files=own)
+    written, images = _write_plots(out, rows, config, pareto_keys, best_key, tie_keys, files)
     sensor = SENSORS.get(config.part)
     part_cls = sensor.part if sensor is not None else None
     best = next((r for r in rows if r["key"] == best_key), None)
@@ -432,10 +439,11 @@ def write_report(out: Path, rows: list[dict], config: SweepConfig, pareto_keys: 
     if best is not None:
         ctx["scatter"] = _scatter_of_best(best, config, uncertainty)
     ctx["tables"] += _sweep_tables(config, part_cls)
-    files = [out / "results.parquet", out / "optimize.json", *written.values()]
+    links = [out / "results.parquet", out / "optimize.json", *written.values()]
     if chosen_dir is not None and (Path(chosen_dir) / "prediction" / "prediction.json").is_file():
-        files += _add_chosen_prediction(ctx, images, Path(chosen_dir), config, sensor)
-    ctx["files"] = file_links(out, [f for f in files if Path(f).exists()])
-    render_report(out / "report.html", ctx)
+        links += _add_chosen_prediction(ctx, images, Path(chosen_dir), config, sensor)
+    ctx["files"] = file_links(out, [f for f in links if Path(f).exists()
+                                    or Path(f) in files.targets()])
+    render_report(files.path(out / "report.html"), ctx)
     written["html"] = out / "report.html"
     return written

@@ -410,3 +410,42 @@ def test_a_reachable_scheduler_passes_the_check():
         check_scheduler(cl.scheduler_address)
         with distributed.Client(cl.scheduler_address) as client:   # still serving
             assert client.submit(sum, [1, 2]).result() == 3
+
+
+@pytest.mark.parametrize("full", ["pareto", "sensitivity", "report"])
+def test_a_sweep_report_on_a_full_disk_is_all_or_nothing(full, cheap_sweeps, tmp_path, capsys,
+                                                         disk_full_at):
+    """The disk fills while the report set (pareto.png, sensitivity.png, report.html) is
+    written: one line, exit 2, the previous set unchanged (none of it replaced), no temporary
+    file; the store stays for the resume, which writes the set once there is room."""
+    a = tmp_path / "two.toml"     # two objectives: a Pareto plot too
+    a.write_text(CFG_A + 'printed_volume_mm3 = "min"\n')
+    out = tmp_path / "out"
+    assert _run(["sweep", a, "--out", out, "--workers", "1"], capsys)[0] == 0
+    names = ("pareto.png", "sensitivity.png", "report.html")
+    before = {n: ((out / n).stat().st_ino, (out / n).read_bytes()) for n in names}
+    refused = disk_full_at(rf"^\.+{full}\.")
+    rc, _, se = _run(["sweep", a, "--out", out, "--workers", "1"], capsys)
+    assert refused and rc == 2 and se.count("error:") == 1 and "no space left" in se, se
+    assert {n: ((out / n).stat().st_ino, (out / n).read_bytes()) for n in names} == before
+    assert [p.name for p in out.iterdir() if ".tmp" in p.name] == []
+
+
+@pytest.mark.parametrize("full", ["optimize", "pareto", "report"])
+def test_optimize_outputs_on_a_full_disk_are_all_or_nothing(full, cheap_sweeps, tmp_path,
+                                                            capsys, monkeypatch, disk_full_at):
+    """optimize.json and the report set are written together: a full disk while writing any
+    of them leaves none (exit 2, one line, no temporary file)."""
+    import designlab.cli.sweep as cli_sweep
+
+    monkeypatch.setattr(cli_sweep, "_export_chosen", lambda *a, **k: [])   # no FEM here
+    a = tmp_path / "two.toml"
+    a.write_text(CFG_A + 'printed_volume_mm3 = "min"\n')
+    out = tmp_path / "out"
+    refused = disk_full_at(rf"^\.+{full}\.")
+    rc, _, se = _run(["optimize", a, "--out", out, "--workers", "1", "--method", "pareto"],
+                     capsys)
+    assert refused and rc == 2 and se.count("error:") == 1 and "no space left" in se, se
+    left = sorted(p.name for p in out.iterdir())
+    assert left == ["cache", "fem", "results", "results.parquet", "run.json"] or \
+        left == ["cache", "results", "results.parquet", "run.json"], left

@@ -665,3 +665,23 @@ def test_a_peer_worse_than_the_base_gives_no_learnable_fraction(monkeypatch):
     assert out["peer"]["error"] > out["error_before"]
     assert out["explained_of_learnable"] is None
     assert "explained_of_learnable is null" in out["verdict"]
+
+
+@pytest.mark.slow
+def test_outputs_on_a_full_disk_are_all_or_nothing(tmp_path, disk_full_at):
+    """The disk fills at any file of the set (a plot, model.json, loop.json): one line, none of
+    the files written, no temporary file; with room, all of them."""
+    from designlab.errors import OutputError
+
+    ds, base = case("nonlinearity")
+    res = run_loop(ds, base, max_effects=1, peer=False)
+    for k, name in enumerate(("timeseries", "effect", "model", "loop")):
+        out = tmp_path / str(k)
+        refused = disk_full_at(rf"^\.+{name}[._]")
+        with pytest.raises(OutputError, match="no space left on the device"):
+            write_outputs(res, out)
+        assert refused and list(out.iterdir()) == [], (name, list(out.iterdir()))
+    disk_full_at(r"^$")  # room again
+    files = write_outputs(res, tmp_path / "ok")
+    assert sorted(p.name for p in (tmp_path / "ok").iterdir()) == sorted(p.name for p in files)
+    assert {"model.json", "loop.json", "timeseries_force.png"} <= {p.name for p in files}
