@@ -53,6 +53,14 @@ SENSOR_ELEVATION_DEG = 45.0
 CAVITY_FLOOR_DROP = 1.1
 #: minimum printed wall (mm)
 MIN_WALL = 1.0
+#: the ball cavity's radial clearance around the ball (mm)
+CAVITY_CLEARANCE = 0.5
+#: a sensor well starts this far inside the ball's radius, along its axis (mm)
+WELL_FRONT_INSET = 0.7
+#: least skin (mm, two 0.1 mm layers) between the base's top face and a sensor well's highest
+#: corner in the base (:func:`well_top_skin`): the 5 mm wells of a 6 mm ball cut through the
+#: top face (the printability check then failed on the wedges they leave)
+WELL_TOP_SKIN = 0.2
 #: outline features smaller than this are snapped away when building (mm)
 EPS = 1e-3
 
@@ -68,8 +76,9 @@ class CantileverFingertip:
                                                doc="top rounding radius (<= fingertip_radius)"))
     fingertip_radius: float = field(default=9.0, metadata=rng(5.5, 15, unit="mm",
                                                               doc="seed 001: diameter 18"))
-    ball_diameter: float = field(default=9.4, metadata=rng(6, 12, unit="mm",
-                                                           doc="seed 001: 9.4; takes the bolt"))
+    ball_diameter: float = field(default=9.4, metadata=rng(
+        6, 12, unit="mm", doc="seed 001: 9.4; takes the bolt; at least 8.58 with the 5 mm "
+                              "sensors and the 0.5 mm gap (the wells stay under the base's top)"))
     gap: float = field(default=0.5, metadata=rng(0.2, 3, unit="mm",
                                                  doc="fingertip-to-base clearance"))
     base_height: float = field(default=8.0, metadata=rng(
@@ -240,6 +249,7 @@ class CantileverFingertip:
                  f"sensor wells + {MIN_WALL:g} mm floor")
         rho = math.hypot(self.well_depth * c + s2 * c, s2)
         at_least("base_radius", self.base_radius, rho + MIN_WALL, "sensor wells + wall")
+        self._check_well_top(s2)
         at_least("head_diameter", self.head_diameter, self.bolt_diameter + 0.8,
                  "bolt_diameter + 0.8")
         # the ball takes the bolt (radius >= bolt diameter + 0.4): not empty, as ball_diameter >= 6
@@ -248,6 +258,30 @@ class CantileverFingertip:
         base = self.bolt_length - self.bolt_top_z  # cap bottom to ball centre
         within("bolt_length", self.bolt_length, base + lo, base + hi,
                ">= 2 mm thread in the ball, blind hole below its centre")
+
+    def _check_well_top(self, s2: float) -> None:
+        """Each sensor well (half width ``s2``) leaves the ball cavity at least
+        :data:`WELL_TOP_SKIN` under the base's top face. The error names the ball diameter
+        (its least value given the sensors and the gap), or when that exceeds its range the
+        sensor size, then the gap (their largest values given the others)."""
+        if well_top_skin(self.ball_radius, s2, self.gap) >= WELL_TOP_SKIN - 1e-9:
+            return
+        why = f"the sensor wells stay {WELL_TOP_SKIN:g} mm under the base's top face"
+        d_max = self.__dataclass_fields__["ball_diameter"].metadata["hi"]
+        lo = 2 * _bisect(lambda rb: well_top_skin(rb, s2, self.gap), 0.0, 100.0) + 1e-4
+        if lo <= d_max:
+            at_least("ball_diameter", self.ball_diameter, lo,
+                     f"with sensor_size {self.sensor_size:g} mm and gap {self.gap:g} mm, {why}")
+        half = _bisect(lambda h: -well_top_skin(self.ball_radius, h, self.gap), 0.0, s2,
+                       -WELL_TOP_SKIN)
+        size_min = self.__dataclass_fields__["sensor_size"].metadata["lo"]
+        size_max = 2 * (half - self.well_clearance) - 1e-4
+        at_most("sensor_size", self.sensor_size, max(size_max, size_min),
+                f"with ball_diameter {self.ball_diameter:g} mm and gap {self.gap:g} mm, {why}"
+                + ("" if size_max >= size_min else "; even the smallest needs a smaller gap"))
+        at_most("gap", self.gap, self.gap + well_top_skin(self.ball_radius, s2, self.gap)
+                - WELL_TOP_SKIN - 1e-4, f"with ball_diameter {self.ball_diameter:g} mm and "
+                f"sensor_size {self.sensor_size:g} mm, {why}")
 
     # ------------------------------------------------------------------------------ API
     def build(self) -> dict[str, Body]:
@@ -337,6 +371,30 @@ class CantileverFingertip:
         return out
 
 
+def well_top_skin(ball_radius: float, s2: float, gap: float) -> float:
+    """Height (mm) of the base's top face (``-gap``) above a sensor well's highest point in
+    the base: the upper corner edge of the well's square section (half width ``s2``), which
+    runs down and out along the sensor axis at SENSOR_ELEVATION_DEG, where it leaves the ball
+    cavity (radius ``ball_radius + CAVITY_CLEARANCE``) or, if the well starts outside the
+    cavity, at the well's front (``WELL_FRONT_INSET`` inside the ball's radius). Negative: the
+    well cuts through the top face."""
+    th = math.radians(SENSOR_ELEVATION_DEG)
+    rc = ball_radius + CAVITY_CLEARANCE
+    if rc <= s2:
+        return -math.inf
+    radial = math.sqrt(rc ** 2 - s2 ** 2)   # the corner's distance from the axis in its plane
+    t = max((radial - s2 * math.sin(th)) / math.cos(th), ball_radius - WELL_FRONT_INSET)
+    return -gap - (-t * math.sin(th) + s2 * math.cos(th))
+
+
+def _bisect(f, lo: float, hi: float, target: float = WELL_TOP_SKIN) -> float:
+    """Where the increasing ``f`` reaches ``target`` on [lo, hi] (to well below 1e-6 mm)."""
+    for _ in range(80):
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if f(mid) < target else (lo, mid)
+    return hi
+
+
 def _patch(point: np.ndarray, direction: np.ndarray, radius: float) -> FacetSelector:
     def sel(c, n):
         return (np.linalg.norm(c - point, axis=1) <= radius) & (n @ direction < -0.3)
@@ -420,7 +478,7 @@ def _build_fixed(p: CantileverFingertip) -> dict[str, Body]:
     # base: cylinder minus ball cavity, sensor wells, wire channels, bolt clearance hole
     z0, z1 = p.base_z
     base = Pos(0, 0, (z0 + z1) / 2) * Cylinder(p.base_radius, z1 - z0)
-    rc = rb + 0.5
+    rc = rb + CAVITY_CLEARANCE
     # cavity floor CAVITY_FLOOR_DROP below the ball's clearance: there the sensor wells' lower
     # faces cross it more steeply than in the shallow wedge (1.4 mm^2 thinner than the nozzle)
     # of a floor at the clearance (the printability check measures it over the area): 1.1 mm
@@ -429,7 +487,7 @@ def _build_fixed(p: CantileverFingertip) -> dict[str, Body]:
     floor = max(-(rc + CAVITY_FLOOR_DROP), z0 + MIN_WALL)
     base -= Pos(0, 0, (floor + z1 + 1) / 2) * Cylinder(rc, z1 + 1 - floor)
     side = p.sensor_size + 2 * p.well_clearance
-    front = rb - 0.7
+    front = rb - WELL_FRONT_INSET
     sensors = []
     for k, a in enumerate(axes):
         pl = _well_plane(p, a)

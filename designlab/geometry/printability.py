@@ -304,7 +304,9 @@ def check_body(part: str, body: Body, nozzle: float = 0.4, layer: float = 0.1,
                 ("skin", skin, layer, fs.thin_skin_area, f"a {layer:g} mm layer")):
             if not value < 0.99 * need:
                 continue
-            msg = f"{kind} {value:.3g} mm thinner than {text} over {area:.3g} mm^2"
+            # the thin area first and the thinnest point named as such (a bare value after
+            # "wall" reads as a shortfall of a few micrometres)
+            msg = f"{kind} thinner than {text} over {area:.3g} mm^2 (thinnest {value:.3g} mm)"
             # slivers and wedge tips where two cuts meet: the slicer drops them harmlessly
             (problems if area > THIN_AREA_MM2 else warnings).append(msg)
     return BodyReport(**base, volume_mm3=volume, watertight=watertight, manifold=is_manifold,

@@ -341,6 +341,51 @@ def test_fingertip_rejects(kw, name):
     one_line_error(lambda: CantileverFingertip(**kw), name)
 
 
+@pytest.mark.parametrize("kw", [{}, {"ball_diameter": 10.0, "base_height": 9.0,
+                                     "base_radius": 10.0}, {"sensor_size": 4.0, "gap": 0.8}])
+def test_well_top_skin_is_the_cad_skin_over_the_well_corner(kw):
+    """:func:`well_top_skin` against the built base: vertical rays through the base's top face
+    over the first sensor's well (a 0.01 mm grid); the least material between the top face
+    and the next face below is the predicted skin."""
+    from designlab.geometry.fingertip import well_top_skin
+    from designlab.geometry.tessellate import tessellate
+
+    p = CantileverFingertip(**kw)
+    s2 = p.sensor_size / 2 + p.well_clearance
+    mesh = tessellate(p.build()["base"].shape, 0.002, 0.05, check=False)
+    axes, _ = p.sensor_axes()
+    e = -axes[0, :2] / np.linalg.norm(axes[0, :2])      # outward, towards the first sensor
+    w = np.array([-e[1], e[0]])
+    radial, tangential = np.meshgrid(np.arange(2.0, p.ball_radius + 3, 0.01),
+                                     np.linspace(-s2 + 0.005, s2 - 0.005, 9))
+    xy = radial.reshape(-1, 1) * e + tangential.reshape(-1, 1) * w
+    starts = np.column_stack([xy, np.full(len(xy), 5.0)])
+    hits, ray, _ = mesh.ray.intersects_location(starts, np.tile([0.0, 0.0, -1.0], (len(xy), 1)))
+    skins = []
+    for k in np.unique(ray):
+        z = np.sort(hits[ray == k, 2])[::-1]
+        if len(z) > 1 and abs(z[0] + p.gap) < 1e-6:       # through the top face
+            skins.append(z[0] - z[1])
+    assert min(skins) == pytest.approx(well_top_skin(p.ball_radius, s2, p.gap), abs=0.015)
+
+
+def test_the_documented_ball_diameter_end_is_refused_with_the_printable_bound(tmp_path,
+                                                                             capsys):
+    """ball_diameter=6 (the range's lower end) passed the range check, then its 5 mm sensor
+    wells cut through the base's top face and printability failed: refused at once, one line
+    naming the bound, exit 2, nothing written; a 6 mm ball with 2 mm sensors builds."""
+    from designlab.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["export", "fingertip", "--set", "ball_diameter=6", "--out", str(tmp_path / "x")])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and err.count("error:") == 1
+    assert "ball_diameter=6.0 is not allowed: >= 8.58 mm" in err
+    assert not (tmp_path / "x").exists()
+    one_line_error(lambda: CantileverFingertip(gap=1.0), "ball_diameter")
+    CantileverFingertip(ball_diameter=6.0, sensor_size=2.0)
+
+
 # ------------------------------------------------------------------------------- flexure
 @SETTINGS
 @given(flexures())

@@ -169,7 +169,14 @@ test_flexure_space_exhaustive = pytest.mark.exhaustive(_test("flexure", 300))
     (ArchStrap, {"trace_thickness": 0.35}, "trace_thickness", "<= 0.3 mm"),
     (ArchStrap, {"trace_width": 0.4}, "trace_width", "0.8 <= value"),  # never exports
     (CantileverFingertip, {"ball_diameter": 4.0}, "ball_diameter", "6 <= value"),
-    (CantileverFingertip, {"ball_diameter": 6.0}, None, None),
+    # the documented lower end with the default 5 mm sensors: the wells cut through the base's
+    # top face (printability failed, after the range check had passed): the real bound
+    (CantileverFingertip, {"ball_diameter": 6.0}, "ball_diameter", ">= 8.58 mm"),
+    (CantileverFingertip, {"ball_diameter": 8.58}, None, None),
+    (CantileverFingertip, {"ball_diameter": 6.0, "sensor_size": 2.0}, None, None),
+    (CantileverFingertip, {"gap": 1.0}, "ball_diameter", ">= 9.9943 mm"),
+    (CantileverFingertip, {"sensor_size": 10.0, "ball_diameter": 12.0, "base_height": 14.0,
+                           "base_radius": 14.0}, "sensor_size", "<= 8.42"),
     # 8 legs with 4 mm gaps on an 8 mm strap: no single value fits them (it named
     # edge_margin <= -13.8 mm); the bound is the roomiest documented legs, said not to suffice
     (ArchStrap, {"legs": 8, "trace_gap": 4.0, "strap_width": 8.0}, "legs", "<= 2 (the 8 legs"),
