@@ -9,6 +9,9 @@ from __future__ import annotations
 class DesignlabError(Exception):
     """An error the user can fix; its message is a single line."""
 
+    #: the command's exit code when this error ends it
+    exit_code = 2
+
 
 class ParameterError(DesignlabError, ValueError):
     """A parameter value outside its allowed range (or an unknown parameter)."""
@@ -32,3 +35,11 @@ class ModelError(DesignlabError, ValueError):
 
 class OutputError(DesignlabError, OSError):
     """A result file could not be written as asked (an exporter produced nothing)."""
+
+
+class ClusterError(DesignlabError, RuntimeError):
+    """The compute cluster failed under a run (its Dask scheduler was lost): the designs it
+    finished are stored, the ones it did not are named and run by the same command again.
+    Exit code 3: not a bad input, and not a result."""
+
+    exit_code = 3

@@ -158,7 +158,7 @@ def _error(exc: BaseException, prefix: str = "error:") -> None:
 
 def main(argv: Optional[List[str]] = None) -> None:
     """Console-script entry point: run the app; a user error (:class:`DesignlabError`, a bad
-    option) is one line + exit 2; anything else one line naming a log file with the
+    option) is one line + exit 2 (a lost cluster, :class:`~designlab.errors.ClusterError`: 3); anything else one line naming a log file with the
     traceback + exit 1; Ctrl-C exit 130. Messages are printed literally (no rich markup).
     Called without ``argv`` (the ``designlab`` command itself), the process then ends without
     the interpreter's teardown (:func:`_exit_now`)."""
@@ -228,7 +228,7 @@ def _main(argv: Optional[List[str]]) -> None:
             sys.exit(rc)
     except DesignlabError as exc:
         _error(exc)
-        sys.exit(2)
+        sys.exit(exc.exit_code)
     except typer.Exit as exc:
         sys.exit(exc.exit_code)
     except (typer.Abort, KeyboardInterrupt):

@@ -1,6 +1,9 @@
 """Optimisation by an Optuna study, asked and told in batches: each trial's design goes through
 the sweep's evaluator and result store (a design already stored is not computed again), on the
-local pool or a Dask cluster.
+local pool or a Dask cluster. A batch holds one trial per worker (a pool's processes, a
+cluster's worker threads), evaluated at the same time; one pool or client serves every batch.
+The process running the study is its one writer (it asks and tells, under ``out``'s lock): the
+workers only evaluate designs.
 
 The study lives in ``OUT/study.log`` (Optuna's journal file storage: appended, it survives a
 kill and ``optuna-dashboard OUT/study.log`` opens it). A run started again loads the study: the
@@ -12,6 +15,7 @@ holds, as ``Trial.set_constraint`` stores them: the samplers and the dashboard r
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -53,7 +57,8 @@ def check_method(method: str, config: SweepConfig) -> None:
             import torch  # noqa: F401  (Optuna's GP sampler runs on it)
         except ImportError:
             raise ParameterError("--method", method, "a sampler whose dependencies are "
-                                 "installed (gp needs torch: pip install torch)") from None
+                                 "installed (gp needs torch: pip install 'designlab[gp]')"
+                                 ) from None
 
 
 def _sampler(method: str, config: SweepConfig, seed: int):
@@ -196,7 +201,9 @@ def run_study(config: SweepConfig, out: str | Path, method: str = "tpe", *, tria
               seed: int | None = None, progress: Callable[[int, int, dict], Any] | None = None
               ) -> StudyResult:
     """Run the study of ``out`` until it holds ``trials`` finished trials (see module
-    docstring); ``progress(done, total, row)`` after each told trial. One run per ``out`` at
+    docstring); ``progress(done, total, row)`` after each told trial. ``batch`` trials are
+    asked at a time (default: the executor's workers, a Dask cluster's worker threads) and
+    evaluated at once, on one pool or client kept for the whole study. One run per ``out`` at
     a time (:func:`designlab.atomic.out_lock`)."""
     from designlab.atomic import out_lock
 
@@ -204,10 +211,12 @@ def run_study(config: SweepConfig, out: str | Path, method: str = "tpe", *, tria
     if isinstance(trials, bool) or not isinstance(trials, int) or not 1 <= trials <= MAX_TRIALS:
         raise ParameterError("--trials", trials, f"an integer, 1 <= value <= {MAX_TRIALS}")
     out = Path(out)
-    with out_lock(out, "designlab optimize"):
+    executor = executor or LocalExecutor()
+    # one pool (or Dask client) for every batch of the study, when the executor can keep one
+    keep = executor if hasattr(executor, "__enter__") else contextlib.nullcontext()
+    with out_lock(out, "designlab optimize"), keep:
         return _run_study(config, out, method, trials, evaluator or default_evaluator,
-                          executor or LocalExecutor(), batch, config.seed if seed is None else seed,
-                          progress)
+                          executor, batch, config.seed if seed is None else seed, progress)
 
 
 def _run_study(config, out, method, trials, evaluator, executor, batch, seed, progress):

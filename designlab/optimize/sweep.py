@@ -11,7 +11,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from designlab.optimize.executors import LocalExecutor
+from designlab.errors import ClusterError
+from designlab.optimize.executors import LocalExecutor, LostTasks, cluster_lost
 from designlab.optimize.pareto import non_dominated
 from designlab.optimize.space import SweepConfig, feasible, objective_value
 from designlab.optimize.store import ResultStore, design_key, flatten_metrics
@@ -148,11 +149,14 @@ def _run_sweep(config: SweepConfig, out: Path, *, evaluator, executor, progress,
 def _pending(store: ResultStore, tasks: list[dict], config: SweepConfig,
              retry_failed: bool) -> tuple[int, list[dict]]:
     """(designs reused, tasks still to evaluate): a design in the store is reused (with
-    ``retry_failed``, only if it did not fail); one cached (finished) but killed before its
+    ``retry_failed``, only if it did not fail; a design whose row says the cluster was lost,
+    never); one cached (finished) but killed before its
     row was written gets its row now."""
     done_keys = store.keys()
-    if retry_failed:
-        done_keys -= {r["key"] for r in store.rows() if r.get("status") != "ok"}
+    failed = [r for r in store.rows() if r.get("status") != "ok"] if done_keys else []
+    # a design the cluster lost (stored so by an older run) is not done; with retry_failed
+    # no failed design is
+    done_keys -= {r["key"] for r in failed if retry_failed or cluster_lost(r.get("error"))}
     todo = [t for t in tasks if t["key"] not in done_keys]
     reused = len(tasks) - len(todo)
     remaining = []
@@ -169,18 +173,27 @@ def _pending(store: ResultStore, tasks: list[dict], config: SweepConfig,
 def _evaluate(store: ResultStore, executor, evaluator, tasks: list[dict], config: SweepConfig,
               progress: Callable[[int, dict], Any]) -> None:
     """Evaluate ``tasks`` on the executor, storing each row (and its result) as it finishes;
-    ``progress(done, row)`` after each."""
+    ``progress(done, row)`` after each. Designs the executor lost (its cluster failed) get no
+    row: :class:`~designlab.errors.ClusterError` names them after the others are stored, and
+    the same command runs them again."""
     n_done = 0
-    for i, res, err in executor.run(_Timed(evaluator), tasks):
-        t = tasks[i]
-        if err is None:
-            row = _row(t, res["metrics"], None, res["elapsed_s"], config)
-            store.put(t["key"], row, res)
-        else:
-            row = _row(t, {}, err, float("nan"), config)
-            store.put(t["key"], row, None)
-        n_done += 1
-        progress(n_done, row)
+    try:
+        for i, res, err in executor.run(_Timed(evaluator), tasks):
+            t = tasks[i]
+            if err is None:
+                row = _row(t, res["metrics"], None, res["elapsed_s"], config)
+                store.put(t["key"], row, res)
+            else:
+                row = _row(t, {}, err, float("nan"), config)
+                store.put(t["key"], row, None)
+            n_done += 1
+            progress(n_done, row)
+    except LostTasks as lost:
+        keys = [tasks[i]["key"][:8] for i in lost.indices]
+        raise ClusterError(f"{lost.reason}: {len(keys)} of {len(tasks)} designs not run "
+                           f"({', '.join(keys)}); the {n_done} finished are stored in "
+                           f"{store.root}: run the same command again to run the rest"
+                           ) from None
 
 
 def _pareto_and_best(rows: list[dict], config: SweepConfig) -> tuple[list[str], str | None]:

@@ -124,17 +124,12 @@ def test_constraint_violations():
 @pytest.mark.parametrize("args, says", [
     (["--method", "tpee"], "--method"),
     (["--method", "tpe", "--trials", "0"], "--trials"),
-    (["--method", "gp"], "torch"),
+    (["--method", "gp"], "pip install 'designlab[gp]'"),
 ])
-def test_bad_input_one_line_exit_2_nothing_written(tmp_path, capsys, args, says):
+def test_bad_input_one_line_exit_2_nothing_written(tmp_path, capsys, monkeypatch, args, says):
     from designlab.cli import main
 
-    if says == "torch":
-        try:
-            import torch  # noqa: F401
-            pytest.skip("torch is installed: gp runs")
-        except ImportError:
-            pass
+    monkeypatch.setitem(sys.modules, "torch", None)     # as if torch were not installed
     cfg = tmp_path / "s.toml"
     cfg.write_text('part = "fingertip"\n[parameters]\nh = [0.0, 5.0]\n'
                    '[objectives]\ncondition_number = "min"\n')
@@ -213,3 +208,42 @@ def test_the_load_cell_example_config_loads():
     cfg = load_sweep_config(Path(__file__).parents[2] / "examples" / "optimize_load_cell.toml")
     check_method("tpe", cfg)
     assert cfg.part.endswith("load_cell.py") and list(cfg.constraints) == ["min_safety_factor"]
+
+
+@pytest.mark.slow
+def test_the_gp_sampler_runs_a_study_with_torch(tmp_path):
+    """``--method gp`` (Optuna's Gaussian-process sampler, on torch): its trials after the
+    first random ones are the sampler's own and approach the bowl's minimum."""
+    pytest.importorskip("torch")
+    cfg = sweep_config({**CFG, "constraints": {}})
+    res = run_study(cfg, tmp_path, "gp", trials=8, batch=2, executor=LocalExecutor(1),
+                    evaluator=Counting(tmp_path / "c.txt"))
+    assert res.trials == 8 and len(set(_evaluated(tmp_path / "c.txt"))) == 8
+    assert res.info["sampler"] == "gp" and res.sweep.best_key is not None
+
+
+class Pids:
+    """The bowl of :class:`Counting`, logging the process that evaluated each design."""
+
+    def __init__(self, log: Path):
+        self.log = str(log)
+
+    def __call__(self, task):
+        with open(self.log, "a") as f:
+            f.write(f"{os.getpid()} {task['key']}\n")
+        p = task["params"]
+        return {"condition_number": 1.0 + (p["h"] - 2.0) ** 2 + (p["r"] - 8.0) ** 2}
+
+
+@pytest.mark.slow
+def test_a_study_keeps_one_process_pool_for_all_its_batches(tmp_path):
+    """Six batches of two trials on a pool of two workers: one pool is started, and the same
+    (at most two) worker processes evaluate every batch; each design once."""
+    cfg = sweep_config({**CFG, "constraints": {}})
+    ex = LocalExecutor(2)
+    res = run_study(cfg, tmp_path, "random", trials=12, batch=2, executor=ex,
+                    evaluator=Pids(tmp_path / "p.txt"))
+    lines = [ln.split() for ln in (tmp_path / "p.txt").read_text().splitlines()]
+    assert res.trials == 12 and len(lines) == 12 == len({k for _, k in lines})
+    assert ex.pools_started == 1 and len({pid for pid, _ in lines}) <= 2
+    assert ex._pool is None                  # shut down with the study
