@@ -134,7 +134,10 @@ def _values(row: dict[str, Any], config: SweepConfig) -> list[float] | None:
 
 
 def open_study(config: SweepConfig, out: Path, method: str, seed: int = 0):
-    """The study of ``out`` (created, or loaded to resume) with the sampler ``method``."""
+    """The study of ``out`` (created, or loaded to resume) with the sampler ``method``. A
+    loaded study's sampler is seeded with ``seed`` plus its number of trials: the same seed
+    would ask again the random first trials of the run that created it (designs the store
+    has, trials spent on nothing new)."""
     import optuna
     from optuna.storages import JournalStorage
     from optuna.storages.journal import JournalFileBackend
@@ -142,9 +145,13 @@ def open_study(config: SweepConfig, out: Path, method: str, seed: int = 0):
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     out.mkdir(parents=True, exist_ok=True)
     storage = JournalStorage(JournalFileBackend(str(out / STUDY_FILE)))
-    return optuna.create_study(study_name=STUDY_NAME, storage=storage, load_if_exists=True,
-                               sampler=_sampler(method, config, seed),
-                               directions=_directions(config))
+    study = optuna.create_study(study_name=STUDY_NAME, storage=storage, load_if_exists=True,
+                                sampler=_sampler(method, config, seed),
+                                directions=_directions(config))
+    n = len(study.get_trials(deepcopy=False))
+    if n:
+        study.sampler = _sampler(method, config, seed + n)
+    return study
 
 
 def _task(config: SweepConfig, swept: dict[str, float], extra: dict, fem_dir: Path) -> dict:

@@ -176,3 +176,22 @@ def test_a_sweep_whose_scheduler_is_killed_resumes_the_designs_it_lost(tmp_path,
             cluster.scheduler_address))
     assert res.failed == 0 and res.new == len(missing) and res.reused == 8 - len(missing)
     assert sorted(open(log).read().split()[len(first):]) == sorted(missing)
+
+
+def test_a_study_whose_scheduler_is_lost_resumes_its_trials(tmp_path):
+    """The trials of a batch the cluster lost stay running in the study; the same command
+    tells the finished ones from the store and evaluates only the lost ones."""
+    from designlab.optimize.study import run_study
+
+    cfg = sweep_config({**CFG, "method": "lhs",
+                        "parameters": {"h": [0.0, 5.0], "r": [6.0, 9.0]}})
+    out, log = tmp_path / "out", tmp_path / "calls.txt"
+    with pytest.raises(ClusterError, match="2 of 4 designs not run"):
+        run_study(cfg, out, "tpe", trials=8, batch=4, executor=LosingExecutor(2),
+                  evaluator=Logged(log))
+    assert len(open(log).read().split()) == 2
+    res = run_study(cfg, out, "tpe", trials=8, batch=4, executor=LocalExecutor(1),
+                    evaluator=Logged(log))
+    keys = open(log).read().split()
+    assert res.trials == 8 and res.sweep.failed == 0
+    assert len(keys) == 8 == len(set(keys)) == len(res.sweep.rows)
