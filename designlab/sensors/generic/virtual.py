@@ -41,14 +41,32 @@ class DefinitionSettings(FEMSettings):
         "march the protocol through the materials' Prony series (hysteresis); false: "
         "instantaneous elastic readings")))
 
+    def __reduce__(self):
+        # a definition's settings class is made at run time (settings_class): an instance
+        # travels (to a forked or spawned process) as its definition and its values
+        defn = getattr(type(self), "definition", None)
+        if defn is None:
+            return super().__reduce__()
+        return _settings_of, (defn, as_dict(self))
+
+
+#: {definition class: its settings class}, one class per definition
+_SETTINGS: dict[type, type] = {}
+
 
 def settings_class(cls: type) -> type:
     """The settings class of definition ``cls``: its own default edge length."""
-    return dataclasses.make_dataclass(
-        f"{cls.__name__}Settings",
-        [("edge_length", float, field(default=float(cls.edge_length), metadata=rng(
-            0.05, 50, unit="mm", doc="ideal tetrahedron edge length")))],
-        bases=(DefinitionSettings,), frozen=True)
+    if cls not in _SETTINGS:
+        _SETTINGS[cls] = dataclasses.make_dataclass(
+            f"{cls.__name__}Settings",
+            [("edge_length", float, field(default=float(cls.edge_length), metadata=rng(
+                0.05, 50, unit="mm", doc="ideal tetrahedron edge length")))],
+            bases=(DefinitionSettings,), frozen=True, namespace={"definition": cls})
+    return _SETTINGS[cls]
+
+
+def _settings_of(cls: type, values: dict):
+    return settings_class(cls)(**values)
 
 
 @dataclass

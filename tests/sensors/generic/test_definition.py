@@ -238,3 +238,17 @@ def test_the_superposed_march_equals_marching_the_protocol():
     direct = np.asarray(st["read"] @ U).T
     assert np.allclose(res.readings, direct, rtol=1e-9, atol=1e-12 * np.abs(direct).max())
     assert res.report["hysteresis_percent"]["overall"] > 0
+
+
+def test_a_definitions_settings_travel_to_another_process():
+    """predict's forked side process (the coarse mesh of the error bar) and workers receive a
+    definition's settings, whose class is made at run time: pickled, they come back equal and
+    of the same class."""
+    import pickle
+
+    from designlab.sensors.generic import virtual as g
+
+    cls = type(_cell())
+    settings = g.settings_class(cls)(edge_length=3.0, viscoelastic=False)
+    back = pickle.loads(pickle.dumps(settings))
+    assert back == settings and type(back) is g.settings_class(cls) is type(settings)
