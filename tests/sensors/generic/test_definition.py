@@ -252,3 +252,17 @@ def test_a_definitions_settings_travel_to_another_process():
     settings = g.settings_class(cls)(edge_length=3.0, viscoelastic=False)
     back = pickle.loads(pickle.dumps(settings))
     assert back == settings and type(back) is g.settings_class(cls) is type(settings)
+
+
+def test_the_settled_march_gives_the_long_time_displacements():
+    """Once every Prony term has decayed, the unit steps' last response is the relaxed one: the
+    stress cases taken from it equal a solve with the relaxed moduli."""
+    from designlab.fem.viscoelastic import long_time_displacements
+    from designlab.sensors.generic import virtual as g
+
+    part = _cell()
+    res = _run(part, edge=4.0)
+    st = res.stage
+    assert g._settled_holds(st["model"], part.protocol().hold_s) < len(res.loads)
+    ref = long_time_displacements(st["model"])
+    assert np.abs(st["U_long"] - ref).max() <= 1e-8 * np.abs(ref).max()
