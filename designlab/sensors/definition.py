@@ -55,6 +55,15 @@ class Solid:
     rigid: bool = False
 
 
+def solids_from(built: dict[str, Body], names: Sequence[str] | None = None,
+                rigid: Sequence[str] = ()) -> dict[str, Solid]:
+    """A CAD part's bodies (its ``build()``) as Solids: the same shapes, materials, colours and
+    printed flags; ``names``: only these, in the part's order (default: every one); ``rigid``:
+    these move as rigid bodies."""
+    return {n: Solid(b.shape, b.material, b.color, b.printed, rigid=n in rigid)
+            for n, b in built.items() if names is None or n in names}
+
+
 @dataclass(frozen=True)
 class Face:
     """Boundary facets of one body: those whose outward normal is within ``angle_deg`` of

@@ -13,10 +13,22 @@ from __future__ import annotations
 import numpy as np
 
 from designlab.geometry import fingertip as cad
-from designlab.sensors.definition import (same_design, Clamped, Face, ForceSensor, LoadPoint, SensorDefinition,
-                                          Solid, Staircase)
-from designlab.sensors.fingertip.model import (FSS015_STIFFNESS_N_PER_MM, FSS015_V_PER_N,
-                                               LOAD_ONLY_PARAMS)
+from designlab.sensors.definition import (
+    Clamped,
+    Face,
+    ForceSensor,
+    LoadPoint,
+    SensorDefinition,
+    Solid,
+    Staircase,
+    same_design,
+    solids_from,
+)
+from designlab.sensors.fingertip.model import (
+    FSS015_STIFFNESS_N_PER_MM,
+    FSS015_V_PER_N,
+    LOAD_ONLY_PARAMS,
+)
 from designlab.sensors.fingertip.readout import repeatability_sigma_V
 from designlab.sensors.fingertip.virtual import BALL_CONTACT
 from designlab.sensors.protocols import HangingWeightTest
@@ -39,9 +51,7 @@ class CantileverFingertip(cad.CantileverFingertip, SensorDefinition):
         """The printed fingertip (ABS; its silicone skin when it has one), base and cap (ABS),
         the steel ball (rigid: the fingertip sits on it, the sensors and the bolt hold it) and
         the M2.5 bolt (steel)."""
-        built = self.build()
-        return {n: Solid(b.shape, b.material, b.color, b.printed, rigid=n == "ball")
-                for n, b in built.items() if n in LOAD_BODIES}
+        return solids_from(self.build(), LOAD_BODIES, rigid=("ball",))
 
     def supports(self) -> list:
         """The cap's bottom on the robot (the physics sits it on its outer rim:

@@ -8,11 +8,22 @@ chain with coil contact and friction)."""
 from __future__ import annotations
 
 from designlab.geometry import flexure as cad
-from designlab.sensors.definition import (same_design, Clamped, DisplacementProbe, Face, LoadPoint, Region,
-                                          RotationProbe, SensorDefinition, Solid, Wrenches)
+from designlab.sensors.definition import (
+    Clamped,
+    DisplacementProbe,
+    Face,
+    LoadPoint,
+    Region,
+    RotationProbe,
+    SensorDefinition,
+    Solid,
+    Wrenches,
+    same_design,
+    solids_from,
+)
+from designlab.sensors.flexure.virtual import BEAM_CHAIN
 from designlab.sensors.noise import POSE_NOISE_SIGMA_MM
 from designlab.sensors.protocols import FlexureWrenchTest
-from designlab.sensors.flexure.virtual import BEAM_CHAIN
 
 _AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 
@@ -29,8 +40,7 @@ class SpringFlexure(cad.SpringFlexure, SensorDefinition):
 
     def bodies(self) -> dict[str, Solid]:
         """The steel spring (bought) between the printed base and fingertip discs."""
-        return {n: Solid(b.shape, b.material, b.color, b.printed)
-                for n, b in self.build().items()}
+        return solids_from(self.build())
 
     def supports(self) -> list:
         """The base disc's bottom on the frame."""

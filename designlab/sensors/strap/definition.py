@@ -13,10 +13,23 @@ import math
 import numpy as np
 
 from designlab.fem.materials import get_material
-from designlab.fem.transducers import DIVIDER_OHM, johnson_noise_vrms, quantization_noise_vrms
+from designlab.fem.transducers import (
+    DIVIDER_OHM,
+    johnson_noise_vrms,
+    quantization_noise_vrms,
+)
 from designlab.geometry import strap as cad
-from designlab.sensors.definition import (same_design, Clamped, Face, LoadPoint, SensorDefinition, Solid,
-                                          StrainGauge, Wrenches)
+from designlab.sensors.definition import (
+    Clamped,
+    Face,
+    LoadPoint,
+    SensorDefinition,
+    Solid,
+    StrainGauge,
+    Wrenches,
+    same_design,
+    solids_from,
+)
 from designlab.sensors.protocols import StrapLoadTest
 from designlab.sensors.strap.electrical import BANDWIDTH_HZ, SKIN_T_K, gauge_resistance
 from designlab.sensors.strap.model import CHANNELS, LOAD_ONLY_PARAMS
@@ -46,8 +59,7 @@ class ArchStrap(cad.ArchStrap, SensorDefinition):
 
     def bodies(self) -> dict[str, Solid]:
         """The NinjaFlex strap and nail plate, the two PI-ETPU traces embedded in it."""
-        return {n: Solid(b.shape, b.material, b.color, b.printed)
-                for n, b in self.build().items()}
+        return solids_from(self.build())
 
     def _tab_box(self, foot, tangent, normal):
         w = self.strap_width / 2 + 1e-3
@@ -80,7 +92,7 @@ class ArchStrap(cad.ArchStrap, SensorDefinition):
 
     def loads(self) -> list[LoadPoint]:
         """The finger pad at the apex: the strap's bottom within ``contact_length`` of it."""
-        R, (cx, cy) = self.radius, self.center
+        R, cy = self.radius, self.center[1]
         half = self.contact_length / 2
         box = ((-half, cy + R - self.strap_width, -1.0), (half, cy + R + self.strap_width, 1.0))
         return [LoadPoint("pad", Face("strap", (0.0, 0.0, -1.0), box=box),
