@@ -27,8 +27,9 @@ def test_part_api():
 
 @pytest.mark.slow
 def test_facade_names_are_the_part_classes_with_their_api():
-    """``dl.Fingertip``/``dl.Strap``/``dl.Flexure`` are the geometry modules' classes (looked up
-    by class, not by sensor name), the same as ``dl.PARTS`` holds, and carry ``params()`` even
+    """``dl.Fingertip``/``dl.Strap``/``dl.Flexure`` are the built-in sensors' definitions:
+    subclasses of the geometry modules' classes and of ``SensorDefinition`` (looked up by
+    class, not by sensor name), the same as ``dl.PARTS`` holds, and carry ``params()`` even
     when the facade is the first thing imported (a fresh interpreter)."""
     import subprocess
     import sys
@@ -38,7 +39,10 @@ def test_facade_names_are_the_part_classes_with_their_api():
     from designlab.geometry.flexure import SpringFlexure
     from designlab.geometry.strap import ArchStrap
 
-    assert (dl.Fingertip, dl.Strap, dl.Flexure) == (CantileverFingertip, ArchStrap, SpringFlexure)
+    for facade, cad in zip((dl.Fingertip, dl.Strap, dl.Flexure),
+                           (CantileverFingertip, ArchStrap, SpringFlexure)):
+        assert issubclass(facade, cad) and issubclass(facade, dl.SensorDefinition)
+        assert facade() == cad()
     from designlab.sensors.registry import BUILT_IN
 
     assert {dl.PARTS[n] for n in BUILT_IN} == {dl.Fingertip, dl.Strap, dl.Flexure}

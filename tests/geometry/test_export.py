@@ -255,7 +255,8 @@ def test_thin_trace_is_reported():
     thin = {r.body: r for r in check_part("strap", strap_bodies(trace_w=0.3, trace_t=0.05))}
     assert not thin["trace"].ok
     text = " ".join(thin["trace"].problems)
-    assert "wall 0.3 mm" in text and "skin 0.05 mm" in text
+    assert "wall thinner" in text and "(thinnest 0.3 mm)" in text
+    assert "skin thinner" in text and "(thinnest 0.05 mm)" in text
     # an embedded second-extruder line 0.6 mm wide fails (PrusaSlicer drops it, see the slicing
     # test), a 0.6 mm wall of the host material would pass
     r6 = {r.body: r for r in check_part("strap", strap_bodies(trace_w=0.6))}
