@@ -431,6 +431,7 @@ def test_a_sweep_report_on_a_full_disk_is_all_or_nothing(full, cheap_sweeps, tmp
     assert [p.name for p in out.iterdir() if ".tmp" in p.name] == []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("full", ["optimize", "pareto", "report"])
 def test_optimize_outputs_on_a_full_disk_are_all_or_nothing(full, cheap_sweeps, tmp_path,
                                                             capsys, monkeypatch, disk_full_at):
