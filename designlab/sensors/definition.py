@@ -519,7 +519,8 @@ def check_bodies(bodies: Any) -> None:
         for b in names[i + 1:]:
             if not _boxes_meet(boxes[a], boxes[b]):
                 continue
-            common = (bodies[a].shape & bodies[b].shape).volume
+            shared = bodies[a].shape & bodies[b].shape      # None: nothing in common
+            common = 0.0 if shared is None else float(shared.volume)
             if common > 1e-6 * min(vols[a], vols[b]):
                 raise ParameterError(f"bodies.{a}", f"overlaps {b} by {common:.3g} mm^3",
                                      "bodies that touch (bonded by the mesh) but do not overlap")

@@ -79,6 +79,8 @@ def test_overlapping_bodies_are_named():
         check_bodies(bodies)
     touching = {"a": bodies["a"], "b": dl.Solid(Pos(4, 0, 0) * Box(4, 4, 4), "PLA")}
     check_bodies(touching)      # bodies that touch are bonded, not an error
+    # a swept wire standing on a disc: their intersection is no solid at all (None)
+    check_bodies(dl.Flexure().bodies())
 
 
 def test_staircase_loops_pair_each_weight_up_and_down():
