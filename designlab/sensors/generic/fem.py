@@ -48,7 +48,7 @@ def _coupled(model: Model, name: str, face, what: str, at=None):
     return model.distributing_coupling(name, name, ref_point=at)
 
 
-def _supports(model: Model, defn) -> None:
+def _supports(model: Model, defn, rigid: dict[str, Any]) -> None:
     items = defn.supports()
     if not any(isinstance(s, (d.Clamped, d.ElasticSupport)) for s in items):
         raise ParameterError("supports", [type(s).__name__ for s in items],
@@ -56,7 +56,9 @@ def _supports(model: Model, defn) -> None:
     for k, s in enumerate(items):
         what = f"supports[{k}]"
         if isinstance(s, d.Clamped):
-            model.fix(np.unique(select(model.mesh, s.face, f"{what}.face")))
+            nodes = np.unique(select(model.mesh, s.face, f"{what}.face"))
+            # a rigid body's nodes follow its reference point: clamping the face holds it
+            model.fix(rigid[s.face.body] if s.face.body in rigid else nodes)
         elif isinstance(s, d.ElasticSupport):
             ref = _coupled(model, f"support{k}", s.face, f"{what}.face")
             for i, kk in enumerate(s.stiffness_N_per_mm):
@@ -73,11 +75,14 @@ def _supports(model: Model, defn) -> None:
                                  "Clamped, ElasticSupport or ElasticInterface")
 
 
-def _rigid_bodies(model: Model, defn) -> None:
+def _rigid_bodies(model: Model, defn) -> dict[str, Any]:
+    """{body: its rigid coupling's reference point} of the rigid bodies."""
+    out = {}
     for name, s in defn.solids().items():
         if s.rigid:
-            model.rigid(f"rigid_{name}", model.mesh.cells[model.mesh.region
-                                                          == model.mesh.region_id(name)].ravel())
+            out[name] = model.rigid(f"rigid_{name}", model.mesh.cells[
+                model.mesh.region == model.mesh.region_id(name)].ravel())
+    return out
 
 
 def _force_sensor_springs(model: Model, defn) -> None:
@@ -143,8 +148,8 @@ def load_couplings(model: Model, defn) -> dict[str, np.ndarray]:
 def build_model(mesh: TetMesh, defn) -> tuple[Model, dict[str, np.ndarray]]:
     """The linear model of the definition on ``mesh`` and its load points' centroids."""
     model = Model(mesh)
-    _rigid_bodies(model, defn)
-    _supports(model, defn)
+    rigid = _rigid_bodies(model, defn)
+    _supports(model, defn, rigid)
     _force_sensor_springs(model, defn)
     centroids = load_couplings(model, defn)
     return model, centroids

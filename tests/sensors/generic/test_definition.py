@@ -268,3 +268,28 @@ def test_the_settled_march_gives_the_long_time_displacements():
     assert g._settled_holds(st["model"], part.protocol().hold_s) < len(res.loads)
     ref = long_time_displacements(st["model"])
     assert np.abs(st["U_long"] - ref).max() <= 1e-8 * np.abs(ref).max()
+
+
+def test_a_clamped_rigid_body_holds_what_is_bonded_to_it():
+    """A support on a rigid body's face holds the body's reference point (its nodes follow
+    it; fixing them too was a model error): a rigid block clamped at the beam's root reads as
+    the beam clamped at its root face."""
+    from build123d import Box, Pos
+
+    base = _cell()
+    cls = type(base)
+
+    class Blocked(cls):
+        name = "blocked_cell"
+
+        def bodies(self):
+            block = Pos(-2.5, 0, self.thickness / 2) * Box(5.0, self.width, self.thickness)
+            return {**super().bodies(), "block": dl.Solid(block, "PLA", rigid=True)}
+
+        def supports(self):
+            return [dl.Clamped(dl.Face("block", normal=(-1, 0, 0)))]
+
+    a = _run(base, edge=3.0, viscoelastic=False, mesh_convergence=False).report
+    b = _run(Blocked(), edge=3.0, viscoelastic=False, mesh_convergence=False).report
+    ga, gb = a["sensitivity"]["gauge"]["tip_Fz"], b["sensitivity"]["gauge"]["tip_Fz"]
+    assert gb == pytest.approx(ga, rel=0.03)
