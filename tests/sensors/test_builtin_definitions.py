@@ -134,6 +134,7 @@ def test_the_flexure_declares_what_its_beam_chain_runs():
 
     f = dl.Flexure()
     assert f.bodies()["spring"].material == f.material and not f.bodies()["spring"].printed
+    assert [n for n, s in f.bodies().items() if s.rigid] == ["base_disc", "tip_disc"]
     W = FlexureWrenchTest().wrenches()
     assert np.allclose(np.array(f.protocol().wrenches), np.c_[W[:, 3:], W[:, :3]])
     probes = f.transducers()
@@ -164,3 +165,49 @@ def test_predict_runs_a_subclass_of_a_built_in_with_its_physics(tmp_path, run_cl
     pred = json.loads((tmp_path / "run" / "prediction.json").read_text())
     assert pred["design"]["params"]["base_radius"] == 12.0
     assert pred["model"].startswith("linear") and pred["condition_number"] > 1
+
+
+@pytest.mark.slow
+def test_the_generic_test_on_the_flexures_declaration_meets_its_own_fem():
+    """Two code paths, one sensor: the generic virtual test of the flexure's declaration (the
+    spring bonded to its two discs, taken rigid as the flexure's FEM takes its ends; the pose
+    probes on the fingertip disc; loads at the fingertip) against the flexure's own FEM of the
+    spring (K_f_fem at the spring centre, moved to the same load point and probe). Diagonal
+    within 3 %, the rotations per moment (a rigid body's, whatever point reads them) within
+    5 %. The translations' off-diagonal terms depend on where the probe reads (a Region reads
+    the mean of its mesh nodes, pulled towards the refined wire ends) and are not compared."""
+    from designlab.sensors.generic import virtual as g
+    from designlab.sensors.registry import SENSORS
+
+    class Declared(dl.Flexure):
+        name = "flexure_declared"
+        physics = None
+
+        def mesh_bodies(self):
+            return tuple(self.solids())
+
+    part = Declared()
+    rep = g.run(part, settings=g.settings_class(Declared)(viscoelastic=False,
+                                                          mesh_convergence=False)).report
+    chans = [c["name"] for c in rep["channels"]]
+    loads = [x["name"] for x in rep["loads"]]
+    C_gen = np.array([[rep["sensitivity"][c][x] for x in loads] for c in chans])
+
+    flex = SENSORS["flexure"]
+    res = flex.run(dl.Flexure(), flex.protocol(),
+                   flex.settings(truth="fem", mesh_convergence=False))
+    K = np.array(res.report["K_f_fem"])        # SI, rows (m, f), columns (w, v), spring centre
+    K_mm = np.diag([1e3] * 3 + [1] * 3) @ K @ np.diag([1] * 3 + [1e-3] * 3)
+    p = np.asarray(part.spring_center, float)
+    a = np.array(part.loads()[0].at)
+    c = np.array([0.0, 0.0, part.length + part.disc_thickness / 2])
+
+    def skew(r):
+        return np.array([[0, -r[2], r[1]], [r[2], 0, -r[0]], [-r[1], r[0], 0]])
+
+    loads_to_wrench = np.block([[skew(a - p), np.eye(3)], [np.eye(3), np.zeros((3, 3))]])
+    twist_to_reading = np.block([[-skew(c - p), np.eye(3)], [np.eye(3), np.zeros((3, 3))]])
+    C_fem = twist_to_reading @ np.linalg.inv(K_mm) @ loads_to_wrench
+    assert np.allclose(np.diag(C_gen), np.diag(C_fem), rtol=0.03)
+    rot_gen, rot_fem = C_gen[3:, 3:], C_fem[3:, 3:]
+    assert np.linalg.norm(rot_gen - rot_fem) <= 0.05 * np.linalg.norm(rot_fem)
