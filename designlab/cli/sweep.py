@@ -96,14 +96,16 @@ def sweep(ctx: typer.Context,
     executor = make_executor(scheduler, workers)
     start_sweep_run(ctx, out, "sweep", config, cfg, overwrite, evaluator)
     try:
-        with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
-            res = run_sweep(cfg, out, executor=executor, progress=_sweep_callback(bar),
-                            retry_failed=retry_failed, evaluator=evaluator)
+        with FileSet() as outputs:      # results.parquet and the report: all or none
+            with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
+                res = run_sweep(cfg, out, executor=executor, progress=_sweep_callback(bar),
+                                retry_failed=retry_failed, evaluator=evaluator, files=outputs)
+            write_report(out, res.rows, cfg, res.pareto_keys, res.best_key,
+                         title=f"designlab sweep: {config.name}", tie_keys=res.tie_keys,
+                         kind="sweep", uncertainty=getattr(evaluator, "spec", None),
+                         files=outputs)
     except KeyboardInterrupt:
         raise _interrupted()
-    write_report(out, res.rows, cfg, res.pareto_keys, res.best_key,
-                 title=f"designlab sweep: {config.name}", tie_keys=res.tie_keys, kind="sweep",
-                 uncertainty=getattr(evaluator, "spec", None))
     _summary_table(res.rows, cfg, res.pareto_keys, res.best_key, tie_keys=res.tie_keys)
     for line in band_lines(res.rows, cfg, [res.best_key] if res.best_key else None):
         console.print("Monte Carlo band " + line, highlight=False, markup=False)

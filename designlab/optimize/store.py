@@ -150,10 +150,13 @@ class ResultStore:
         rows = [r for r in rows if r.get("key") in order]
         return sorted(rows, key=lambda r: order[r["key"]])
 
-    def consolidate(self, path: Path | None = None) -> Path:
-        """Write the whole table to ``results.parquet`` (atomic)."""
+    def consolidate(self, path: Path | None = None, files=None) -> Path:
+        """Write the whole table to ``results.parquet`` (atomic); ``files`` (a
+        :class:`~designlab.atomic.FileSet`): staged with the set, in place when it commits."""
         path = path or self.root / "results.parquet"
         sink = pa.BufferOutputStream()
         pq.write_table(self.table(), sink)
+        if files is not None:
+            return files.write_bytes(path, sink.getvalue().to_pybytes())
         atomic_write_bytes(path, sink.getvalue().to_pybytes())
         return path

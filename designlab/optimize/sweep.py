@@ -107,20 +107,21 @@ def scores(rows: list[dict[str, Any]], config: SweepConfig) -> np.ndarray:
 
 def run_sweep(config: SweepConfig, out: str | Path, *, evaluator: Evaluator | None = None,
               executor=None, progress: Callable[[int, int, dict], None] | None = None,
-              retry_failed: bool = False) -> SweepResult:
+              retry_failed: bool = False, files=None) -> SweepResult:
     """Evaluate every design not yet in ``out``; ``progress(done, total, row)`` after each.
     One run per ``out`` at a time (:func:`designlab.atomic.out_lock`); a killed run's temporary
-    files are removed first."""
+    files are removed first. ``files`` (a :class:`~designlab.atomic.FileSet`): the table
+    ``results.parquet`` is staged with it (the CLI commits it with the report)."""
     from designlab.atomic import out_lock
 
     out = Path(out)
     with out_lock(out, "designlab sweep"):
         return _run_sweep(config, out, evaluator=evaluator, executor=executor,
-                          progress=progress, retry_failed=retry_failed)
+                          progress=progress, retry_failed=retry_failed, files=files)
 
 
 def _run_sweep(config: SweepConfig, out: Path, *, evaluator, executor, progress,
-               retry_failed: bool) -> SweepResult:
+               retry_failed: bool, files=None) -> SweepResult:
     store = ResultStore(out)
     store.recover()
     evaluator = evaluator or default_evaluator
@@ -134,7 +135,7 @@ def _run_sweep(config: SweepConfig, out: Path, *, evaluator, executor, progress,
     _evaluate(store, executor, evaluator, remaining, config,
               lambda n, row: progress(reused + n, len(tasks), row) if progress else None)
     rows = store.rows([t["key"] for t in tasks])
-    table_path = store.consolidate()
+    table_path = store.consolidate(files=files)
     pareto, best = _pareto_and_best(rows, config)
     warnings = _missing_metric_warnings(rows, config)
     ties, unknown = compare_to_best(rows, config, best) if best is not None else ([], [])
