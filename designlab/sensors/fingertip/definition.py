@@ -25,6 +25,7 @@ from designlab.sensors.definition import (
     solids_from,
 )
 from designlab.sensors.fingertip.model import (
+    FSS015_REPEATABILITY_PERCENT_FS,
     FSS015_STIFFNESS_N_PER_MM,
     FSS015_V_PER_N,
     LOAD_ONLY_PARAMS,
@@ -72,7 +73,7 @@ class CantileverFingertip(cad.CantileverFingertip, SensorDefinition):
                 face_b=Face("base", tuple(a), at=float(f @ a), box=box),
                 axis=tuple(-a), stiffness_N_per_mm=FSS015_STIFFNESS_N_PER_MM,
                 sensitivity_V_per_N=FSS015_V_PER_N,
-                noise_V=repeatability_sigma_V(0.2)))
+                noise_V=repeatability_sigma_V(FSS015_REPEATABILITY_PERCENT_FS)))
         return out
 
     def loads(self) -> list[LoadPoint]:

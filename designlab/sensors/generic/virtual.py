@@ -159,7 +159,8 @@ def _history(stage, W: np.ndarray, hold: float, solver: str) -> np.ndarray:
     from designlab.fem.viscoelastic import solve_history
 
     n = len(W)
-    m = min(n, _settled_holds(stage["model"], hold))
+    settled = _settled_holds(stage["model"], hold)
+    m = min(n, settled)
     sub = _steps_per_hold(stage["model"], hold)
     t = hold * np.arange(m * sub + 1) / sub
     hist = History(t, {c: np.ones(len(t)) for c in stage["cases"]})
@@ -169,7 +170,7 @@ def _history(stage, W: np.ndarray, hold: float, solver: str) -> np.ndarray:
     R = _read_steps(stage["read"], U)
     if m < n:       # every Prony term has decayed to round-off: the response stays put
         R = np.concatenate([R, np.repeat(R[-1:], n - m, axis=0)])
-    if m == _settled_holds(stage["model"], hold):
+    if m == settled:
         # the unit steps have settled: their last response is the long-time one (relaxed
         # moduli; equal to its own solve to 1e-10 on the examples), without a factorisation
         stage.setdefault("U_long", U[:, :, -1].copy())

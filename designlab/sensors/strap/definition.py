@@ -13,11 +13,6 @@ import math
 import numpy as np
 
 from designlab.fem.materials import get_material
-from designlab.fem.transducers import (
-    DIVIDER_OHM,
-    johnson_noise_vrms,
-    quantization_noise_vrms,
-)
 from designlab.geometry import strap as cad
 from designlab.sensors.definition import (
     Clamped,
@@ -31,20 +26,9 @@ from designlab.sensors.definition import (
     solids_from,
 )
 from designlab.sensors.protocols import StrapLoadTest
-from designlab.sensors.strap.electrical import BANDWIDTH_HZ, SKIN_T_K, gauge_resistance
+from designlab.sensors.strap.electrical import channel_noise, gauge_resistance
 from designlab.sensors.strap.model import CHANNELS, LOAD_ONLY_PARAMS
 from designlab.sensors.strap.virtual import WORN_STRAP
-
-#: the divider's supply and the ADC (seed 000 Fig. 3: 5 V, 2.2 kOhm; 16 bit over the supply)
-SUPPLY_V, ADC_BITS = 5.0, 16
-
-
-def channel_noise_V(R_ohm: float) -> float:
-    """One channel's noise (V rms): the divider's Johnson noise at skin temperature over the
-    readout bandwidth and the ADC's quantisation, as the strap's electrical report gives them."""
-    r_src = R_ohm * DIVIDER_OHM / (R_ohm + DIVIDER_OHM)
-    return math.hypot(johnson_noise_vrms(r_src, BANDWIDTH_HZ, SKIN_T_K),
-                      quantization_noise_vrms(SUPPLY_V, ADC_BITS))
 
 
 class ArchStrap(cad.ArchStrap, SensorDefinition):
@@ -87,7 +71,7 @@ class ArchStrap(cad.ArchStrap, SensorDefinition):
             out.append(StrainGauge(ch, Face("strap", (0.0, 0.0, 1.0)), centre,
                                    (math.cos(phi), -math.sin(phi), 0.0), self.gauge_length,
                                    width, gauge_factor=float(trace.gauge_factor), kind="printed",
-                                   noise=channel_noise_V(R0), R0_ohm=R0))
+                                   noise=math.hypot(*channel_noise(R0)), R0_ohm=R0))
         return out
 
     def loads(self) -> list[LoadPoint]:

@@ -97,6 +97,17 @@ def self_heating(part, R: float, R_fixed: float, V_s: float) -> dict[str, float]
             "temperature_rise_K": P * r}
 
 
+def channel_noise(R: float, R_fixed: float = DIVIDER_OHM, adc_bits: int = 16,
+                  adc_full_scale_V: float = SUPPLY_V, bandwidth_hz: float = BANDWIDTH_HZ
+                  ) -> tuple[float, float]:
+    """(Johnson noise of the divider's source resistance at skin temperature over the readout
+    bandwidth, the ADC's quantisation noise), V rms, of one channel: a gauge of ``R`` ohm over
+    ``R_fixed``. Their root sum of squares is the channel's noise."""
+    r_src = R * R_fixed / (R + R_fixed)
+    return (johnson_noise_vrms(r_src, bandwidth_hz, SKIN_T_K),
+            quantization_noise_vrms(adc_full_scale_V, adc_bits))
+
+
 def electrical_report(part, material, sens_sum_Fn: float, sens_diff_Fx: float, *,
                       contact_ohm: float = 0.0, R_fixed: float = DIVIDER_OHM,
                       V_s: float = SUPPLY_V, adc_bits: int = 16,
@@ -117,9 +128,7 @@ def electrical_report(part, material, sens_sum_Fn: float, sens_diff_Fx: float, *
     # both gauges: the same self-heating -> sum channel only
     dV_heat_sum = 2 * gain * tcr * heat["temperature_rise_K"]
     dV_per_K_sum = 2 * gain * tcr
-    r_src = R * R_fixed / (R + R_fixed)
-    v_j = johnson_noise_vrms(r_src, bandwidth_hz, SKIN_T_K)
-    v_q = quantization_noise_vrms(adc_full_scale_V, adc_bits)
+    v_j, v_q = channel_noise(R, R_fixed, adc_bits, adc_full_scale_V, bandwidth_hz)
     v_ch = math.hypot(v_j, v_q)
     v_sd = math.sqrt(2.0) * v_ch                          # sum and difference of 2 channels
     rho, rho_source = resistivity_in_use(contact_ohm, material)
