@@ -35,7 +35,6 @@ import numpy as np
 from build123d import (Axis, Box, CenterArc, Cylinder, Line, Plane, Pos, Sphere, Wire, Face,
                        revolve)
 
-from designlab.errors import ParameterError
 from designlab.geometry.body import Body, FacetSelector
 from designlab.geometry.solids import single_solid
 from designlab.params import at_least, at_most, rng, validate, within
@@ -61,6 +60,10 @@ WELL_FRONT_INSET = 0.7
 #: corner in the base (:func:`well_top_skin`): the 5 mm wells of a 6 mm ball cut through the
 #: top face (the printability check then failed on the wedges they leave)
 WELL_TOP_SKIN = 0.2
+#: wire channel radius (mm) and its leg along the sensor axis below each well floor (mm): the
+#: horizontal leg's top stays a wall's width under the slanted floor
+WIRE_RADIUS = 0.6
+WIRE_DROP = 1.0
 #: outline features smaller than this are snapped away when building (mm)
 EPS = 1e-3
 
@@ -77,7 +80,7 @@ class CantileverFingertip:
     fingertip_radius: float = field(default=9.0, metadata=rng(5.5, 15, unit="mm",
                                                               doc="seed 001: diameter 18"))
     ball_diameter: float = field(default=9.4, metadata=rng(
-        6, 12, unit="mm", doc="seed 001: 9.4; takes the bolt; at least 8.58 with the 5 mm "
+        6, 12, unit="mm", doc="seed 001: 9.4; takes the bolt; at least 9.18 with the 5 mm "
                               "sensors and the 0.5 mm gap (the wells stay under the base's top)"))
     gap: float = field(default=0.5, metadata=rng(0.2, 3, unit="mm",
                                                  doc="fingertip-to-base clearance"))
@@ -375,15 +378,14 @@ def well_top_skin(ball_radius: float, s2: float, gap: float) -> float:
     """Height (mm) of the base's top face (``-gap``) above a sensor well's highest point in
     the base: the upper corner edge of the well's square section (half width ``s2``), which
     runs down and out along the sensor axis at SENSOR_ELEVATION_DEG, where it leaves the ball
-    cavity (radius ``ball_radius + CAVITY_CLEARANCE``) or, if the well starts outside the
-    cavity, at the well's front (``WELL_FRONT_INSET`` inside the ball's radius). Negative: the
-    well cuts through the top face."""
+    cavity (radius ``ball_radius + CAVITY_CLEARANCE``; the well's front face lies inside the
+    cavity, :func:`_well_front`). Negative: the well cuts through the top face."""
     th = math.radians(SENSOR_ELEVATION_DEG)
     rc = ball_radius + CAVITY_CLEARANCE
     if rc <= s2:
         return -math.inf
     radial = math.sqrt(rc ** 2 - s2 ** 2)   # the corner's distance from the axis in its plane
-    t = max((radial - s2 * math.sin(th)) / math.cos(th), ball_radius - WELL_FRONT_INSET)
+    t = (radial - s2 * math.sin(th)) / math.cos(th)
     return -gap - (-t * math.sin(th) + s2 * math.cos(th))
 
 
@@ -418,6 +420,27 @@ def _outline_solid(R: float, h: float, r: float):
         edges.append(Line((R - r, 0, top), (0, 0, top)))
     edges.append(Line((0, 0, top), (0, 0, 0)))
     return revolve(Face(Wire(edges)), Axis.Z, 360)
+
+
+def _well_front(rb: float, rc: float, s2: float) -> float:
+    """Where a sensor well (half width ``s2``) starts along its axis from the ball's centre:
+    WELL_FRONT_INSET inside the ball's radius, or nearer the centre so that the well's front
+    face lies a tenth of a millimetre inside the ball cavity (radius ``rc``) at every corner:
+    a front face crossing the cavity's wall leaves a 45 deg wedge thinner than a wall there."""
+    c = math.cos(math.radians(SENSOR_ELEVATION_DEG))
+    return min(rb - WELL_FRONT_INSET, math.sqrt(max((rc - 0.1) ** 2 - s2 ** 2, 0.0)) / c - s2)
+
+
+def _wire_hole(p: CantileverFingertip, rc: float, s2: float) -> tuple[float, float]:
+    """``(radius, offset)`` of the wire hole in a well floor of half width ``s2``: offset (mm)
+    from the floor's centre up its slope, so that the hole stays a nozzle's width (0.4 mm)
+    outside the ball cavity (radius ``rc``) and inside the floor; the radius is WIRE_RADIUS, or
+    what fits between the two (at least half of it)."""
+    c = math.cos(math.radians(SENSOR_ELEVATION_DEG))
+    cavity = (rc + 0.4 - p.well_depth * c) / c  # the cavity's wall + a nozzle, along the slope
+    free = s2 - max(cavity, -s2)
+    r = min(WIRE_RADIUS, max(free / 2, WIRE_RADIUS / 2))
+    return r, max(0.0, cavity + r)
 
 
 def _well_plane(p: CantileverFingertip, axis: np.ndarray) -> Plane:
@@ -481,26 +504,36 @@ def _build_fixed(p: CantileverFingertip) -> dict[str, Body]:
     rc = rb + CAVITY_CLEARANCE
     # cavity floor CAVITY_FLOOR_DROP below the ball's clearance: there the sensor wells' lower
     # faces cross it more steeply than in the shallow wedge (1.4 mm^2 thinner than the nozzle)
-    # of a floor at the clearance (the printability check measures it over the area): 1.1 mm
-    # leaves 0.44 mm^2 below one layer and keeps 83 % of each well's seat (deeper floors bite
-    # the seats); never closer than MIN_WALL to the base's bottom
+    # of a floor at the clearance (the printability check measures it over the area); 1.1 mm
+    # keeps 83 % of each well's seat (deeper floors bite the seats); never closer than MIN_WALL
+    # to the base's bottom
     floor = max(-(rc + CAVITY_FLOOR_DROP), z0 + MIN_WALL)
     base -= Pos(0, 0, (floor + z1 + 1) / 2) * Cylinder(rc, z1 + 1 - floor)
     side = p.sensor_size + 2 * p.well_clearance
-    front = rb - WELL_FRONT_INSET
+    s2 = side / 2
+    front = _well_front(rb, rc, s2)
     sensors = []
     for k, a in enumerate(axes):
         pl = _well_plane(p, a)
         depth = p.well_depth - front
         base -= pl * Pos(0, 0, front + depth / 2) * Box(side, side, depth)
-        # wire channel: horizontal, radial, from the well floor out through the wall
-        f = -p.well_depth * a
-        radial = np.array([f[0], f[1], 0.0]) / math.hypot(f[0], f[1])
-        start = math.hypot(f[0], f[1]) - 0.5
+        # wire channel: WIRE_DROP along the sensor axis through the well floor, then horizontal
+        # and radial out through the wall, a ball at the bend. Each leg meets its face square
+        # (the floor; the outer wall), and the hole sits up the floor's slope, a nozzle's width
+        # outside the ball cavity (a horizontal channel out of the 45 deg floor, or a hole
+        # crossing the cavity's wall at 45 deg, leaves a wedge thinner than a layer or a wall)
+        r_wire, up = _wire_hole(p, rc, s2)
+        slope = np.array([0.0, 0.0, 1.0]) - a[2] * a
+        top = -p.well_depth * a + up * slope / np.linalg.norm(slope)
+        bend = top - WIRE_DROP * a
+        base -= Plane(origin=tuple(top - WIRE_DROP / 2 * a + 0.25 * a), z_dir=tuple(a)) * Cylinder(
+            r_wire, WIRE_DROP + 0.5)
+        base -= Pos(*bend) * Sphere(r_wire)
+        radial = np.array([bend[0], bend[1], 0.0]) / math.hypot(bend[0], bend[1])
+        start = math.hypot(bend[0], bend[1])
         length = p.base_radius + 1.0 - start
-        ch = Plane(origin=tuple(np.array([0, 0, f[2]]) + radial * (start + length / 2)),
-                   z_dir=tuple(radial)) * Cylinder(0.6, length)
-        base -= ch
+        base -= Plane(origin=tuple(np.array([0, 0, bend[2]]) + radial * (start + length / 2)),
+                      z_dir=tuple(radial)) * Cylinder(r_wire, length)
         body = pl * Pos(0, 0, rb + p.button_radius + p.sensor_thickness / 2) * Box(
             p.sensor_size, p.sensor_size, p.sensor_thickness)
         button = pl * Pos(0, 0, rb + p.button_radius) * Sphere(p.button_radius)

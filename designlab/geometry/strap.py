@@ -317,6 +317,11 @@ class ArchStrap:
         within("pad_width", self.pad_width, w,
                min((n - 1) * (w + g) - g, field_range(ArchStrap, "pad_width")[1]),
                "trace_width to outer leg spacing - trace_gap")
+        # pad_length is measured on the arch's centreline; the pad is shortest at its inner edge
+        r_in = self.radius + float(self.leg_offsets[0]) - self.pad_width / 2
+        at_least("pad_length", self.pad_length, MIN_TRACE * self.radius / r_in,
+                 f"a {MIN_TRACE:g} mm printed line at the inner pad edge (radius {r_in:.4g} mm; "
+                 f"the centreline's is {self.radius:.4g} mm)")
         if 0 < self.lead_length < 0.1:  # a lead shorter than that is a sliver, not a lead
             at_least("lead_length", self.lead_length, 0.1, "or 0: no lead")
         if n > 2:

@@ -380,7 +380,7 @@ def test_the_documented_ball_diameter_end_is_refused_with_the_printable_bound(tm
         main(["export", "fingertip", "--set", "ball_diameter=6", "--out", str(tmp_path / "x")])
     err = capsys.readouterr().err
     assert e.value.code == 2 and err.count("error:") == 1
-    assert "ball_diameter=6.0 is not allowed: >= 8.58 mm" in err
+    assert "ball_diameter=6.0 is not allowed: >= 9.182 mm" in err
     assert not (tmp_path / "x").exists()
     one_line_error(lambda: CantileverFingertip(gap=1.0), "ball_diameter")
     CantileverFingertip(ball_diameter=6.0, sensor_size=2.0)

@@ -6,7 +6,6 @@ through unchanged."""
 
 from __future__ import annotations
 
-import resource
 import subprocess
 import sys
 from pathlib import Path

@@ -221,7 +221,6 @@ def _abort(*args):
 @pytest.mark.slow
 def test_fTetWild_abort_is_contained(monkeypatch):
     """fTetWild runs in a forked child: a C++ abort there is a MeshingError here."""
-    import os
 
     monkeypatch.setattr(meshing, "_attempts", lambda h, eps, e: [(h, eps, e)])
     monkeypatch.setattr(meshing, "_tetwild_call", _abort)

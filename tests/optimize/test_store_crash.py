@@ -22,7 +22,7 @@ from designlab.errors import DesignlabError
 from designlab.optimize.executors import LocalExecutor
 from designlab.optimize.space import sweep_config
 from designlab.optimize.sweep import run_sweep
-from sweep_fixtures import quadratic, slow_quadratic
+from sweep_fixtures import quadratic
 
 HERE = Path(__file__).parents[1]  # tests/, where sweep_fixtures.py is
 CFG = {"part": "fingertip", "method": "grid",

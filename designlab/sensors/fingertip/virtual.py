@@ -353,7 +353,6 @@ def table_ii_sensor(part, prediction: FingertipPrediction):
     ``(design, CondensedFingertip)`` (its FEM from ``prediction.cache``, computed once). The
     prediction's own when the design is that sensor."""
     from designlab.fem.cache import FEMCache, timed_stage
-    from designlab.geometry.fingertip import CantileverFingertip
     from designlab.sensors.fingertip.contact import CondensedFingertip
 
     tested, proto = type(part).table_ii(), HangingWeightTest()
