@@ -139,8 +139,12 @@ class FileSet:
         self.temps: list[tuple[Path, Path]] = []
 
     def path(self, target: str | Path, *, keep_suffix: bool = True) -> Path:
-        """A new temporary path for ``target`` (same suffix unless ``keep_suffix=False``)."""
+        """A new temporary path for ``target`` (same suffix unless ``keep_suffix=False``); a
+        target staged again replaces its earlier temporary (the last one written commits)."""
         target = Path(target)
+        for tmp, final in [t for t in self.temps if t[1] == target]:
+            tmp.unlink(missing_ok=True)
+            self.temps.remove((tmp, final))
         try:
             target.parent.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=temp_prefix(target.stem),

@@ -11,7 +11,7 @@ from rich.table import Table
 
 from designlab.cli.app import app, console, next_step, progress_bar, warn
 from designlab.cli.options import check_options, make_executor, part_arg, part_config, sensor_names
-from designlab.atomic import out_lock
+from designlab.atomic import FileSet, out_lock
 from designlab.cli.runs import check_out
 from designlab.errors import ParameterError
 from designlab.params import load_toml, parse_sets
@@ -45,13 +45,22 @@ def _check_monte_carlo(workers, model, protocol, measured) -> None:
 
 def _monte_carlo(part: str, out: Path, overrides: dict, settings: dict, spec, executor) -> None:
     """Run the Monte Carlo of ``spec``'s virtual builds and print and write its summary."""
+    # the summary and its report or neither (the samples stay for a resume)
+    with FileSet() as outputs:
+        report = _monte_carlo_into(outputs, part, out, overrides, settings, spec, executor)
+    console.print(f"wrote {out / 'uncertainty.json'}, {report}", markup=False, highlight=False)
+
+
+def _monte_carlo_into(outputs, part: str, out: Path, overrides: dict, settings: dict, spec,
+                      executor) -> Path:
     from designlab.optimize.montecarlo import monte_carlo
     from designlab.predict.report import write_uncertainty_report
     from designlab.predict.uncertainty import summary_rows
 
     with progress_bar(f"{part}: virtual builds", spec.samples, transient=False) as bar:
         summary = monte_carlo(part, spec, out, params=overrides, settings=settings or None,
-                              executor=executor, progress=lambda d, n: bar(completed=d, total=n))
+                              executor=executor, progress=lambda d, n: bar(completed=d, total=n),
+                              files=outputs)
     t = Table(title=f"{part}: {summary['ok']} builds ({summary['failed']} failed), "
                     f"FEM solves {summary['fem']['solves_this_run']}")
     for col in ("metric", "mean", "5 %", "95 %", "driven by"):
@@ -61,13 +70,8 @@ def _monte_carlo(part: str, out: Path, overrides: dict, settings: dict, spec, ex
     console.print(t)
     for err, n in summary["failed_errors"].items():
         warn(f"{n} builds: {err}", label="failed:")
-    try:
-        report = write_uncertainty_report(out, summary, params=overrides,
-                                          settings=settings or None)
-    except OSError:   # the summary and its report or neither (the samples stay for a resume)
-        (out / "uncertainty.json").unlink(missing_ok=True)
-        raise
-    console.print(f"wrote {out / 'uncertainty.json'}, {report}", markup=False, highlight=False)
+    return write_uncertainty_report(out, summary, params=overrides, settings=settings or None,
+                                    files=outputs)
 
 
 def _calibration_rows(prediction) -> list[Row]:

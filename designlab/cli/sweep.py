@@ -169,7 +169,6 @@ def optimize(ctx: typer.Context,
     """Optimise a design (surrogate/DE, or Pareto for several objectives) and export the winner."""
     from designlab.geometry.export import parse_formats
     from designlab.optimize.optimizer import check_method as check_optimize_method
-    from designlab.optimize.optimizer import optimize as run_optimize
     from designlab.optimize.report import write_report
     from designlab.optimize.robust import band_lines, load_sweep
 
@@ -190,33 +189,31 @@ def optimize(ctx: typer.Context,
     executor = make_executor(scheduler, workers)
     start_sweep_run(ctx, out, "optimize", config, cfg, overwrite, evaluator)
     try:
-        if method in SAMPLERS:
-            res = _run_study(cfg, out, method, trials or cfg.samples, executor, evaluator)
-        else:
-            with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
-                res = run_optimize(cfg, out, method=method, executor=executor,
-                                   progress=_sweep_callback(bar), maxiter=maxiter,
-                                   evaluator=evaluator)
+        # results.parquet, optimize.json and the report: all or none (a failed export of the
+        # chosen design or a full disk leaves the previous ones)
+        with FileSet() as outputs:
+            res = _run_optimize(cfg, out, method, trials, maxiter, executor, evaluator, outputs)
+            rows = list({r["key"]: r for r in [*res.sweep.rows, res.chosen]}.values())
+            chosen, chosen_params, choice, ties, unknown = _choose(res, rows, cfg)
+            _summary_table(res.sweep.rows, cfg, res.sweep.pareto_keys, chosen["key"],
+                           tie_keys=ties)
+            for line in band_lines(rows, cfg, [chosen["key"]], limit=1):
+                console.print("Monte Carlo band of the chosen design " + line,
+                              highlight=False, markup=False)
+            design_dir = out / "chosen"
+            files = _export_chosen(cfg, {**cfg.fixed, **chosen_params}, design_dir, formats,
+                                   fem_cache=out / "fem")
+            summary = {"method": res.method, "chosen_params": chosen_params, "chosen": chosen,
+                       "choice": choice, "not_distinguishable": ties,
+                       "error_bar_unknown": unknown, "surrogate": res.surrogate,
+                       "files": [str(f) for f in files]}
+            outputs.write_json(out / "optimize.json", summary)
+            write_report(out, res.sweep.rows, cfg, res.sweep.pareto_keys, chosen["key"],
+                         title=f"designlab optimize: {config.name}", tie_keys=ties,
+                         choice=choice, chosen_dir=design_dir, kind="optimize",
+                         uncertainty=getattr(evaluator, "spec", None), files=outputs)
     except KeyboardInterrupt:
         raise _interrupted()
-    rows = list({r["key"]: r for r in [*res.sweep.rows, res.chosen]}.values())
-    chosen, chosen_params, choice, ties, unknown = _choose(res, rows, cfg)
-    _summary_table(res.sweep.rows, cfg, res.sweep.pareto_keys, chosen["key"], tie_keys=ties)
-    for line in band_lines(rows, cfg, [chosen["key"]], limit=1):
-        console.print("Monte Carlo band of the chosen design " + line, highlight=False,
-                      markup=False)
-    design_dir = out / "chosen"
-    files = _export_chosen(cfg, {**cfg.fixed, **chosen_params}, design_dir, formats,
-                           fem_cache=out / "fem")
-    summary = {"method": res.method, "chosen_params": chosen_params, "chosen": chosen,
-               "choice": choice, "not_distinguishable": ties, "error_bar_unknown": unknown,
-               "surrogate": res.surrogate, "files": [str(f) for f in files]}
-    with FileSet() as outputs:   # optimize.json and the report: all or none (a full disk)
-        outputs.write_json(out / "optimize.json", summary)
-        write_report(out, res.sweep.rows, cfg, res.sweep.pareto_keys, chosen["key"],
-                     title=f"designlab optimize: {config.name}", tie_keys=ties, choice=choice,
-                     chosen_dir=design_dir, kind="optimize",
-                     uncertainty=getattr(evaluator, "spec", None), files=outputs)
     console.print(choice, highlight=False, markup=False)
     console.print("exported: " + ", ".join(f"{k}={v:.4g}" for k, v in chosen_params.items()),
                   highlight=False, markup=False)
@@ -225,7 +222,21 @@ def optimize(ctx: typer.Context,
               "print)")
 
 
-def _run_study(cfg, out: Path, method: str, trials: int, executor, evaluator):
+def _run_optimize(cfg, out: Path, method: str, trials, maxiter: int, executor, evaluator, files):
+    """The optimizer's result: an Optuna study (``method`` a sampler) or the sweep with the
+    optimizer of ``method``; ``results.parquet`` staged in ``files``."""
+    from designlab.optimize.optimizer import optimize as run_optimize
+    from designlab.optimize.study import SAMPLERS
+
+    if method in SAMPLERS:
+        return _run_study(cfg, out, method, trials or cfg.samples, executor, evaluator, files)
+    with progress_bar("designs", len(cfg.designs()), transient=False) as bar:
+        return run_optimize(cfg, out, method=method, executor=executor,
+                            progress=_sweep_callback(bar), maxiter=maxiter,
+                            evaluator=evaluator, files=files)
+
+
+def _run_study(cfg, out: Path, method: str, trials: int, executor, evaluator, files=None):
     """An Optuna study of ``trials`` finished trials in ``out`` (resumed when it exists), as
     the optimizer's result: its designs, their Pareto set and the best one."""
     from designlab.optimize.optimizer import OptimizeResult, _params
@@ -233,7 +244,7 @@ def _run_study(cfg, out: Path, method: str, trials: int, executor, evaluator):
 
     with progress_bar("trials", trials, transient=False) as bar:
         st = run_study(cfg, out, method, trials=trials, executor=executor,
-                       evaluator=evaluator, progress=_sweep_callback(bar))
+                       evaluator=evaluator, progress=_sweep_callback(bar), files=files)
     if st.sweep.best_key is None:
         raise ParameterError("constraints", cfg.constraints,
                              "constraints that at least one design of the study satisfies")

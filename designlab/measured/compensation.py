@@ -29,14 +29,14 @@ from typing import Callable, Protocol, Sequence
 
 import numpy as np
 
-from designlab.atomic import atomic_path, atomic_write_json
+from designlab.atomic import FileSet, os_error
 from designlab.measured import linear_fit
 from designlab.measured import mpl
 from designlab.measured import narx
 from designlab.measured.dataset import MAX_CARD_SAMPLES
 from designlab.measured.linear_fit import as_2d
 from designlab.calibration.metrics import ncc, rmse, wilcoxon
-from designlab.errors import DataError, OutputError, ParameterError
+from designlab.errors import DataError, ParameterError
 from designlab.params import rng, validate
 
 MODELS = ("linear", "mpl", "narx")
@@ -360,21 +360,21 @@ def records_from_card(path: str | Path, inputs: Sequence[str], outputs: Sequence
 def write_outputs(result: CompensationResult, records: Sequence[Record],
                   out_dir: str | Path) -> list[Path]:
     """``compensation.json`` (metrics, fits, Wilcoxon tables) and ``compensation.png``
-    (measured vs estimated outputs), written as a pair: the plot's temp file first, the JSON
-    inside it, so a failed write (a full disk) leaves neither."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    jpath, ppath = out / "compensation.json", out / "compensation.png"
-    for p in (jpath, ppath):   # the one rename that can fail once both are written
-        if p.is_dir():
-            raise OutputError(f"cannot write {p}: it is a directory")
+    (measured vs estimated outputs), written as a set: a failed write (a full disk, a folder
+    by either name) leaves both as they were."""
     import matplotlib.pyplot as plt
 
+    out = Path(out_dir)
+    jpath, ppath = out / "compensation.json", out / "compensation.png"
     fig = plot(result, records)
     try:
-        with atomic_path(ppath) as tmp:
-            fig.savefig(str(tmp), dpi=90, format="png")
-            atomic_write_json(jpath, result.to_json())
+        with FileSet() as files:
+            tmp = files.path(ppath)
+            try:
+                fig.savefig(str(tmp), dpi=90, format="png")
+            except OSError as exc:
+                raise os_error(ppath, exc) from None
+            files.write_json(jpath, result.to_json())
     finally:
         plt.close(fig)
     return [jpath, ppath]

@@ -75,7 +75,10 @@ def export_design(part_name: str, params: dict[str, Any], out: str | Path, *,
                   formats: str = "stl,3mf,step", settings: dict[str, Any] | None = None,
                   protocol: dict[str, Any] | None = None,
                   fem_cache: str | Path | None = None) -> list[Path]:
-    """Export the chosen design for printing and write its full prediction report."""
+    """Export the chosen design for printing and write its full prediction report. The
+    prediction runs first; files to print are written only for a design it predicted, and are
+    removed again when its report cannot be written (a full disk): no print files without
+    their prediction."""
     from designlab.predict.record import write_prediction
     from designlab.predict.run import predict
     from designlab.geometry.export import export_parts
@@ -86,7 +89,12 @@ def export_design(part_name: str, params: dict[str, Any], out: str | Path, *,
     out = Path(out)
     part_name = resolve(part_name)
     part = make_part(part_name, params)
-    res = export_parts({part_name: part}, out, formats=formats, png=True)
     pred = predict(part_name, params, protocol=protocol or None,
                    settings=(settings or {}).get("model"), fem_cache=fem_cache)
-    return list(res.files) + write_prediction(pred, out / "prediction")
+    res = export_parts({part_name: part}, out, formats=formats, png=True)
+    try:
+        return list(res.files) + write_prediction(pred, out / "prediction")
+    except BaseException:
+        for f in res.files:
+            Path(f).unlink(missing_ok=True)
+        raise

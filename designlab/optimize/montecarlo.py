@@ -37,10 +37,12 @@ def _run_key(spec: UncertaintySpec, params, settings, protocol) -> str:
 def monte_carlo(sensor: str, spec: UncertaintySpec, out: str | Path, *,
                 params: dict[str, Any] | None = None, settings: dict[str, Any] | None = None,
                 protocol: dict[str, Any] | None = None, executor=None,
-                progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+                progress: Callable[[int, int], None] | None = None,
+                files=None) -> dict[str, Any]:
     """N virtual builds of one design on ``executor`` (local processes by default), stored in
     ``out`` as they finish and resumed from it; returns (and writes ``out/uncertainty.json``)
-    the summary of :func:`summarize`."""
+    the summary of :func:`summarize`. ``files`` (a :class:`~designlab.atomic.FileSet`): the
+    summary is staged with it (the CLI commits it with its report)."""
     from designlab.atomic import atomic_write_json, ensure_dir, out_lock
     from designlab.geometry.parts import make_part
     from designlab.optimize.executors import LocalExecutor
@@ -98,5 +100,6 @@ def monte_carlo(sensor: str, spec: UncertaintySpec, out: str | Path, *,
         summary["wall_s"] = time.perf_counter() - t0
         summary["reused_builds"] = n - sum(len(batches[b]) for b in todo)
         summary["run_key"] = key
-        atomic_write_json(out / "uncertainty.json", summary)
+        (atomic_write_json if files is None else files.write_json)(out / "uncertainty.json",
+                                                                    summary)
     return summary

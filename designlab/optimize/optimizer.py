@@ -98,14 +98,17 @@ def check_method(method: str, config: SweepConfig) -> str:
 
 def optimize(config: SweepConfig, out: str | Path, *, method: str = "auto",
              evaluator: Callable | None = None, executor=None, maxiter: int = 10,
-             popsize: int = 6, seed: int = 0, progress=None) -> OptimizeResult:
-    """Optimise ``config.objectives`` over ``config.dimensions`` (see module docstring)."""
+             popsize: int = 6, seed: int = 0, progress=None, files=None) -> OptimizeResult:
+    """Optimise ``config.objectives`` over ``config.dimensions`` (see module docstring).
+    ``files`` (a :class:`~designlab.atomic.FileSet`): the table ``results.parquet`` is staged
+    with it (the CLI commits it with the report)."""
     method = check_method(method, config)
     names = list(config.objectives)
     evaluator = evaluator or default_evaluator
     executor = executor or LocalExecutor()
     store = ResultStore(out)
-    sweep = run_sweep(config, out, evaluator=evaluator, executor=executor, progress=progress)
+    sweep = run_sweep(config, out, evaluator=evaluator, executor=executor, progress=progress,
+                      files=files)
     dims = config.dimensions
     keyed = {r["key"]: r for r in sweep.rows}
 
@@ -132,6 +135,7 @@ def optimize(config: SweepConfig, out: str | Path, *, method: str = "auto",
         res = differential_evolution(f, bounds, maxiter=maxiter, popsize=popsize, seed=seed,
                                      polish=False, tol=1e-6)
         best = min(history, key=lambda r: _penalised(r, name, spec))
+        store.consolidate(files=files)      # with the designs the evolution added
         return OptimizeResult("de", sweep, best, _params(best, dims),
                               {"nfev": int(res.nfev), "fun": float(res.fun)}, history)
 
@@ -155,7 +159,7 @@ def optimize(config: SweepConfig, out: str | Path, *, method: str = "auto",
                             evaluator, store)
     best_sweep = min(sweep.rows, key=lambda r: _penalised(r, name, spec))
     chosen = min([row_opt, best_sweep], key=lambda r: _penalised(r, name, spec))
-    store.consolidate()
+    store.consolidate(files=files)
     return OptimizeResult("surrogate", sweep, chosen, _params(chosen, dims),
                           {"predicted": float(res.fun), "actual": _penalised(row_opt, name, spec),
                            "x": x_opt.tolist(), "n_train": len(y)})

@@ -205,13 +205,14 @@ def _run_batch(study, store: ResultStore, batch: list[tuple[int, int, dict]], co
 
 def run_study(config: SweepConfig, out: str | Path, method: str = "tpe", *, trials: int,
               evaluator: Callable | None = None, executor=None, batch: int | None = None,
-              seed: int | None = None, progress: Callable[[int, int, dict], Any] | None = None
-              ) -> StudyResult:
+              seed: int | None = None, progress: Callable[[int, int, dict], Any] | None = None,
+              files=None) -> StudyResult:
     """Run the study of ``out`` until it holds ``trials`` finished trials (see module
     docstring); ``progress(done, total, row)`` after each told trial. ``batch`` trials are
     asked at a time (default: the executor's workers, a Dask cluster's worker threads) and
     evaluated at once, on one pool or client kept for the whole study. One run per ``out`` at
-    a time (:func:`designlab.atomic.out_lock`)."""
+    a time (:func:`designlab.atomic.out_lock`). ``files`` (a :class:`~designlab.atomic.FileSet`):
+    the table ``results.parquet`` is staged with it (the CLI commits it with the report)."""
     from designlab.atomic import out_lock
 
     check_method(method, config)
@@ -223,10 +224,11 @@ def run_study(config: SweepConfig, out: str | Path, method: str = "tpe", *, tria
     keep = executor if hasattr(executor, "__enter__") else contextlib.nullcontext()
     with out_lock(out, "designlab optimize"), keep:
         return _run_study(config, out, method, trials, evaluator or default_evaluator,
-                          executor, batch, config.seed if seed is None else seed, progress)
+                          executor, batch, config.seed if seed is None else seed, progress,
+                          files)
 
 
-def _run_study(config, out, method, trials, evaluator, executor, batch, seed, progress):
+def _run_study(config, out, method, trials, evaluator, executor, batch, seed, progress, files):
     import optuna
 
     store = ResultStore(out)
@@ -258,7 +260,7 @@ def _run_study(config, out, method, trials, evaluator, executor, batch, seed, pr
         asked += len(new)
         evaluated += _run_batch(study, store, new, config, evaluator, executor, tell)
         done = len(study.get_trials(deepcopy=False, states=states))
-    return StudyResult(_result(study, store, config, evaluated), done, asked, out / STUDY_FILE,
+    return StudyResult(_result(study, store, config, evaluated, files), done, asked, out / STUDY_FILE,
                        {"sampler": method, "trials": done, "evaluated": evaluated,
                         "storage": str(out / STUDY_FILE), "study": STUDY_NAME})
 
@@ -274,12 +276,13 @@ def _progress(progress, total: int, start: int):
     return told
 
 
-def _result(study, store: ResultStore, config: SweepConfig, evaluated: int) -> SweepResult:
+def _result(study, store: ResultStore, config: SweepConfig, evaluated: int,
+            files=None) -> SweepResult:
     """The study's designs (trial order, each once) with their Pareto set, best and ties."""
     keys = list(dict.fromkeys(t.user_attrs["design_key"] for t in study.get_trials(deepcopy=False)
                               if "design_key" in t.user_attrs))
     rows = store.rows(keys)
-    table_path = store.consolidate()
+    table_path = store.consolidate(files=files)
     pareto, best = _pareto_and_best(rows, config)
     ties, unknown = compare_to_best(rows, config, best) if best is not None else ([], [])
     warnings = []

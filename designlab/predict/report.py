@@ -296,10 +296,11 @@ def nominal_build(summary: Mapping[str, Any], params: Mapping[str, Any] | None =
 def write_uncertainty_report(out: str | Path, summary: Mapping[str, Any], *,
                              params: Mapping[str, Any] | None = None,
                              settings: Mapping[str, Any] | None = None,
-                             protocol: Mapping[str, Any] | None = None) -> Path:
+                             protocol: Mapping[str, Any] | None = None, files=None) -> Path:
     """``OUT/report.html`` of ``designlab predict PART --samples N``: the "Scatter (Monte
     Carlo)" section (nominal build, mean, 5-95 % band and drivers of every metric, builds and
-    failed builds, the input distributions), the design and settings tables, the files."""
+    failed builds, the input distributions), the design and settings tables, the files.
+    ``files`` (a :class:`~designlab.atomic.FileSet`): the page is staged with it."""
     from designlab.geometry.parts import make_part
     from designlab.params import as_dict
     from designlab.sensors.registry import get_sensor
@@ -318,14 +319,16 @@ def write_uncertainty_report(out: str | Path, summary: Mapping[str, Any], *,
                           as_dict(make_part(sensor, dict(params or {}))))]
     if rec.settings is not None:
         tables.append(param_table("Model settings", rec.settings, dict(settings or {})))
-    files = [out / "uncertainty.json", out / "run.json"]
+    links = [out / "uncertainty.json", out / "run.json"]
     ctx = {"title": f"designlab predict {sensor} --samples {summary.get('builds')}",
            "subtitle": f"Monte Carlo of a {sensor} design ({rec.paper}): "
                        f"{summary.get('ok')} builds, {summary.get('failed', 0)} failed",
-           "scatter": sec, "tables": tables, "files": file_links(out, files),
+           "scatter": sec, "tables": tables, "files": file_links(out, links),
            "warnings": ([f"{summary.get('failed')} of {summary.get('builds')} builds failed "
                          "(Scatter section)"] if summary.get("failed") else [])}
-    return render_report(out / "report.html", ctx)
+    page = out / "report.html"
+    render_report(page if files is None else files.path(page), ctx)
+    return page
 
 
 def param_table(title: str, cls_or_obj: Any, values: Mapping[str, Any] | None = None

@@ -438,11 +438,12 @@ def test_a_sweep_report_on_a_full_disk_is_all_or_nothing(full, cheap_sweeps, tmp
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("full", ["optimize", "pareto", "report"])
+@pytest.mark.parametrize("full", ["results", "optimize", "pareto", "report"])
 def test_optimize_outputs_on_a_full_disk_are_all_or_nothing(full, cheap_sweeps, tmp_path,
                                                             capsys, monkeypatch, disk_full_at):
-    """optimize.json and the report set are written together: a full disk while writing any
-    of them leaves none (exit 2, one line, no temporary file)."""
+    """results.parquet, optimize.json and the report set are written together: a full disk
+    while writing any of them leaves none (exit 2, one line, no temporary file); the store's
+    rows stay for the rerun."""
     import designlab.cli.sweep as cli_sweep
 
     monkeypatch.setattr(cli_sweep, "_export_chosen", lambda *a, **k: [])   # no FEM here
@@ -454,5 +455,53 @@ def test_optimize_outputs_on_a_full_disk_are_all_or_nothing(full, cheap_sweeps, 
                      capsys)
     assert refused and rc == 2 and se.count("error:") == 1 and "no space left" in se, se
     left = sorted(p.name for p in out.iterdir())
-    assert left == ["cache", "fem", "results", "results.parquet", "run.json"] or \
-        left == ["cache", "results", "results.parquet", "run.json"], left
+    assert left == ["cache", "fem", "results", "run.json"] or \
+        left == ["cache", "results", "run.json"], left
+
+
+@pytest.mark.slow
+def test_a_failed_export_of_the_chosen_design_writes_no_optimize_outputs(cheap_sweeps, tmp_path,
+                                                                         capsys, monkeypatch):
+    """The chosen design's export fails (its prediction, a full disk): results.parquet,
+    optimize.json and the report are not written either (exit 2, one line)."""
+    import designlab.cli.sweep as cli_sweep
+    from designlab.errors import OutputError
+
+    def fails(*a, **k):
+        raise OutputError("cannot write chosen/fingertip.stl: no space left on the device")
+
+    monkeypatch.setattr(cli_sweep, "_export_chosen", fails)
+    a = tmp_path / "two.toml"
+    a.write_text(CFG_A + 'printed_volume_mm3 = "min"\n')
+    out = tmp_path / "out"
+    rc, _, se = _run(["optimize", a, "--out", out, "--workers", "1", "--method", "pareto"],
+                     capsys)
+    assert rc == 2 and se.count("error:") == 1 and "no space left" in se, se
+    assert not {"results.parquet", "optimize.json", "report.html"} & {
+        p.name for p in out.iterdir()}
+
+
+def test_the_chosen_design_is_exported_only_once_predicted(tmp_path, monkeypatch):
+    """export_design predicts first: a design whose prediction fails leaves no file to print;
+    one whose report cannot be written takes its print files with it."""
+    from designlab.errors import OutputError
+    from designlab.optimize import evaluate
+    import designlab.predict.record as record
+    import designlab.predict.run as run
+
+    def no_prediction(*a, **k):
+        raise OutputError("the prediction failed")
+
+    monkeypatch.setattr(run, "predict", no_prediction)
+    with pytest.raises(OutputError):
+        evaluate.export_design("flexure", {}, tmp_path / "a", formats="stl")
+    assert not (tmp_path / "a").exists() or not list((tmp_path / "a").rglob("*.stl"))
+    monkeypatch.setattr(run, "predict", lambda *a, **k: object())
+
+    def full_disk(*a, **k):
+        raise OutputError("cannot write prediction.json: no space left on the device")
+
+    monkeypatch.setattr(record, "write_prediction", full_disk)
+    with pytest.raises(OutputError):
+        evaluate.export_design("flexure", {}, tmp_path / "b", formats="stl")
+    assert not list((tmp_path / "b").rglob("*.stl"))

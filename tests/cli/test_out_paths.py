@@ -29,29 +29,21 @@ def test_an_out_longer_than_the_system_allows_is_one_line(make, tmp_path, capsys
     assert not os.listdir(tmp_path)
 
 
-def test_a_monte_carlo_report_that_cannot_be_written_takes_its_summary_with_it(
-        tmp_path, capsys, monkeypatch):
-    """On a full disk uncertainty.json stood without its report.html: now neither (the sample
-    files stay, a rerun resumes from them)."""
-    from designlab.errors import OutputError
-    from designlab.optimize import montecarlo
-    from designlab.predict import report, uncertainty
-
+@pytest.mark.parametrize("full", ["uncertainty", "report"])
+def test_a_monte_carlo_summary_and_its_report_are_written_together(full, tmp_path, capsys,
+                                                                   disk_full_at):
+    """A full disk while writing uncertainty.json or its report.html leaves neither (the
+    summary stood without its report): one line, exit 2, no temporary file; the sample files
+    stay and a rerun with room resumes from them and writes both."""
     out = tmp_path / "mc"
-
-    def fake_monte_carlo(part, spec, out_dir, **kw):
-        (out_dir / "samples").mkdir(parents=True)
-        (out_dir / "samples" / "k.000000.json").write_text("{}")
-        (out_dir / "uncertainty.json").write_text("{}")
-        return {"ok": 2, "failed": 0, "fem": {"solves_this_run": 0}, "failed_errors": {}}
-
-    def full_disk(out_dir, summary, **kw):
-        raise OutputError(f"cannot write {out_dir / 'report.html'}: no space left on the device")
-
-    monkeypatch.setattr(montecarlo, "monte_carlo", fake_monte_carlo)
-    monkeypatch.setattr(uncertainty, "summary_rows", lambda s: [])
-    monkeypatch.setattr(report, "write_uncertainty_report", full_disk)
+    argv = ["predict", "flexure", "--samples", "2", "--workers", "1", "--out", str(out)]
+    refused = disk_full_at(rf"^\.+{full}\.")
     with pytest.raises(SystemExit) as e:
-        main(["predict", "flexure", "--samples", "2", "--workers", "1", "--out", str(out)])
-    assert e.value.code == 2 and "no space left" in capsys.readouterr().err
-    assert sorted(p.name for p in out.rglob("*")) == ["k.000000.json", "samples"]
+        main(argv)
+    assert refused and e.value.code == 2 and "no space left" in capsys.readouterr().err
+    top = sorted(p.name for p in out.iterdir())
+    assert "uncertainty.json" not in top and "report.html" not in top, top
+    assert not [n for n in top if ".tmp" in n] and (out / "samples").is_dir(), top
+    disk_full_at("^$")       # room again
+    main(argv)
+    assert (out / "uncertainty.json").is_file() and (out / "report.html").is_file()

@@ -231,8 +231,9 @@ def test_records_beyond_the_card_budget_are_refused(monkeypatch):
 
 
 @pytest.mark.parametrize("fail", ["json", "png", "folder"])
-def test_outputs_are_written_as_a_pair_or_not_at_all(tmp_path, monkeypatch, fail):
-    """A full disk while writing either file leaves neither (the JSON stood alone before)."""
+def test_outputs_are_written_as_a_pair_or_not_at_all(tmp_path, monkeypatch, disk_full_at, fail):
+    """A full disk while writing either file, or a folder by the plot's name, leaves neither
+    file and no temporary one."""
     import errno
 
     from designlab.errors import OutputError
@@ -248,9 +249,7 @@ def test_outputs_are_written_as_a_pair_or_not_at_all(tmp_path, monkeypatch, fail
         assert [p.name for p in (tmp_path / "out").iterdir()] == ["compensation.png"]
         return
     if fail == "json":
-        def no_space(*a, **k):
-            raise OutputError("cannot write compensation.json: no space left on the device")
-        monkeypatch.setattr(comp, "atomic_write_json", no_space)
+        disk_full_at(r"^\.compensation\..*\.json$")
     else:
         import matplotlib.figure
 
