@@ -19,14 +19,13 @@ Layout: ``OUT/<part>/<part>-<body>.stl``, ``<part>.3mf``, ``<part>.step``, ``<pa
 
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
 import trimesh
 
+from designlab.atomic import FileSet
 from designlab.errors import OutputError, ParameterError
 from designlab.geometry.body import Body
 from designlab.geometry.printability import BodyReport, PrintabilityError, check_part
@@ -197,56 +196,36 @@ def _jobs(prepared: Prepared, formats: tuple[str, ...],
     return jobs
 
 
-class _Staging:
-    """Temp files in their target directories, moved into place together by :meth:`commit`,
-    or deleted (with the directories this staging created) by :meth:`abort`."""
+class _Staging(FileSet):
+    """A :class:`~designlab.atomic.FileSet` whose :meth:`run` renders jobs into a target
+    directory; :meth:`abort` also removes the directories this staging created."""
 
     def __init__(self):
-        self.temps: list[tuple[Path, Path]] = []
+        super().__init__()
         self.created: list[Path] = []
 
     def run(self, target: Path, jobs) -> None:
+        from designlab.atomic import ensure_dir, os_error, sweep_temps
+
         d = target
         while not d.exists():
             self.created.append(d)
             d = d.parent
-        from designlab.atomic import ensure_dir, sweep_temps, temp_prefix
-
         ensure_dir(target)
         sweep_temps(target)  # what a killed export left (its writer is gone)
         for fname, writer in jobs:
-            fd, tmp = tempfile.mkstemp(prefix=temp_prefix(fname),
-                                       suffix=".tmp" + Path(fname).suffix, dir=target)
-            os.close(fd)
-            self.temps.append((Path(tmp), target / fname))
+            tmp = self.path(target / fname)
             try:
-                writer(Path(tmp))
+                writer(tmp)
             except OSError as exc:
                 if isinstance(exc, OutputError):
                     raise
-                from designlab.atomic import os_error
-
                 raise os_error(target / fname, exc) from None
-            if Path(tmp).stat().st_size == 0:
+            if tmp.stat().st_size == 0:
                 raise OutputError(f"writing {fname} produced an empty file")
 
-    def commit(self) -> list[Path]:
-        umask = os.umask(0)
-        os.umask(umask)
-        for tmp, final in self.temps:
-            try:
-                os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the usual file mode
-                os.replace(tmp, final)
-            except OSError as exc:   # a folder by the target's name, a full disk: no temps left
-                from designlab.atomic import os_error
-
-                self.abort()
-                raise os_error(final, exc) from None
-        return [final for _, final in self.temps]
-
     def abort(self) -> None:
-        for tmp, _ in self.temps:
-            tmp.unlink(missing_ok=True)
+        super().abort()
         for d in sorted(set(self.created), key=lambda x: len(x.parts), reverse=True):
             try:
                 d.rmdir()
