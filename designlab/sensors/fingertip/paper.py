@@ -223,14 +223,12 @@ def _table_ii_section(r, tii, own, defs, dr, g1, g2) -> dict[str, Any]:
              f"{table_ii_dome()['z0_mm']:.2f} mm above the ball centre, so its "
              f"{TABLE_II_TOTAL_HEIGHT_MM:g} mm total height leaves "
              f"{TABLE_II_TOTAL_HEIGHT_MM - table_ii_dome()['pole_mm']:.2f} mm under the "
-             "ball; the paper draws no base (docs/fingertip_contact.md, 'Fourth "
-             "investigation')") if own else
+             "ball; the paper draws no base (docs/validation/fingertip.md)") if own else
             ("this design's base, cap, bolt and sensors; Table II does not give the "
              "tested sensor's base: with its heights measured from the ball centre "
              f"its {TABLE_II_TOTAL_HEIGHT_MM:g} mm total height leaves "
              f"{TABLE_II_TOTAL_HEIGHT_MM - table_ii_dome()['pole_mm']:.2f} mm under "
-             "the ball (CantileverFingertip.table_ii; docs/fingertip_contact.md, "
-             "'Fourth investigation')")),
+             "the ball (CantileverFingertip.table_ii; docs/validation/fingertip.md)")),
         "fig6_trend_paper": PAPER["trend_G1"],
         "heights_mm": list(tii.load_table_values()[0]),
         "radii_mm": list(tii.load_table_values()[1]),
