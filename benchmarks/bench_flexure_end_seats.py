@@ -1,4 +1,4 @@
-"""Asymmetric ends of the beam chain against seed 002's measured K_c (docs/notes/flexure_investigation.md).
+"""Asymmetric ends of the beam chain against seed 002's measured K_c (docs/validation/flexure.md).
 
     .venv/bin/python benchmarks/bench_flexure_end_seats.py [--discretisation]
 
@@ -8,8 +8,8 @@ zero-coupling point (mm above the spring centre, x / y), the rocking stiffness a
 centre (1 / C_ww, independent of the camera offset) and the lateral stiffness; then the held-out
 checks (the end condition chosen on the couplings only, its diagonal error held out, and the
 reverse). ``--discretisation``: the default chain per ``elements_per_turn`` with node contacts
-(before) and line contacts (default), the line contacts' sensitivities, and the 18 rows at 72
-and 144 beams per turn. Prints wall and CPU seconds."""
+(the earlier scheme) and line contacts (default), the line contacts' sensitivities, and the 18
+rows at 72 and 144 beams per turn. Prints wall and CPU seconds."""
 
 from __future__ import annotations
 
@@ -36,11 +36,11 @@ LEVELS = (24, 36, 48, 72, 108, 144)
 
 
 def discretisation(paper) -> None:
-    """The default (bonded / bonded) chain per elements_per_turn, with the node contacts of
-    before (``contact_spacing_mm=0``) and the line contacts (default): goal metrics unloaded and
-    at 10 N, closed contacts at 10 N, the spread over the six levels; the line contacts'
-    sensitivity to their spacing, the refinement mesh, the window rule and the penalty; the 18
-    rows at 72 and 144 beams per turn."""
+    """The default (bonded / bonded) chain per elements_per_turn, with the node contacts
+    (``contact_spacing_mm=0``, the earlier scheme) and the line contacts (default): goal metrics
+    unloaded and at 10 N, closed contacts at 10 N, the spread over the six levels; the line
+    contacts' sensitivity to their spacing, the refinement mesh, the window rule and the
+    penalty; the 18 rows at 72 and 144 beams per turn."""
     from designlab.sensors.flexure import beam_chain as bc
     from designlab.sensors.flexure import chain_geometry as cg
 
@@ -62,7 +62,7 @@ def discretisation(paper) -> None:
         return out
 
     print("elements_per_turn " + " / ".join(map(str, LEVELS)))
-    levels("node contacts (contact_spacing_mm=0, before)", contact_spacing_mm=0.0)
+    levels("node contacts (contact_spacing_mm=0)", contact_spacing_mm=0.0)
     levels("line contacts, beams not refined (contact_mesh_mm=0)", contact_mesh_mm=0.0)
     levels("line contacts (default)")
     M, h = paper["K_c_measured"], fr.camera_offset(paper)

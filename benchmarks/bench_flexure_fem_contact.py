@@ -1,5 +1,5 @@
-"""Solid FEM with contact: convergence in the contact stations and the mesh (docs/notes/flexure_investigation.md,
-"Solid FEM: contact discretisation").
+"""Solid FEM with contact: convergence in the contact stations and the mesh (the model:
+docs/models/flexure_contact_fem.md; the results: docs/validation/flexure.md).
 
     .venv/bin/python benchmarks/bench_flexure_fem_contact.py [--stations 18,36,72,144]
                                                              [--spacings 0.5,0.25,0.1]
@@ -15,7 +15,7 @@ model / measured), unloaded and at the 10 N working load, the contact counts (no
 ``--stations`` per turn, and how many stations have no node on the top contact line; line
 contacts: ``--spacings`` mm between points along the wire), the condensed dofs, the spring-centre diagonal at 10 N, wall and CPU s.
 
-Mesh convergence (docs/notes/flexure_investigation.md, "Solid FEM: contact discretisation"): ``--edges`` takes
+Mesh convergence: ``--edges`` takes
 ``default`` (the curvature-sized mesh of ``designlab flexure --fem``) or edge lengths in mm,
 honoured (``helix_fem.helix_mesh``); ``--json-out FILE`` appends one JSON line per run (one
 process per edge keeps ``/usr/bin/time`` peak memory per mesh), and
@@ -28,12 +28,11 @@ spring-centre diagonals over the three finest edges of FILE when their ratios ar
 ``f3 + (f3 - f2) / (ratio^p - 1)`` for a monotone sequence (``f1, f2, f3`` coarse to fine),
 "not monotone" otherwise.
 
-``--curved`` (the default since 2026-11-26, ``helix_fem.CURVED_DEFAULT``) / ``--straight``: TET10
+``--curved`` (the default, ``helix_fem.CURVED_DEFAULT``) / ``--straight``: TET10
 with the wire surface's mid-edge nodes on the wire's surface, or on the chords (``helix_mesh(...,
 curved=...)``, the same corners and cells); ``--curve-by projection`` (default: onto the swept
 circle) or ``gmsh`` (gmsh's second-order nodes on the B-rep, a second gmsh run); the JSON lines
-carry ``curved`` and ``curve_by`` and the extrapolation groups the runs by them (docs/notes/flexure_investigation.md,
-"Solid FEM: contact discretisation").
+carry ``curved`` and ``curve_by`` and the extrapolation groups the runs by them.
 
     .venv/bin/python benchmarks/bench_flexure_fem_contact.py --curving default,0.5
 
@@ -261,7 +260,7 @@ def richardson_table(path: str) -> None:
     for r in rows:
         if r["edge_mm"] is not None:
             curved = bool(r.get("curved", False))
-            # runs before 2026-11-26 curved by gmsh only
+            # a curved run without ``curve_by`` (written before the projection existed) is gmsh's
             by = r.get("curve_by", "gmsh" if curved else None)
             groups.setdefault((curved, by, r["contacts"], r["n"]), {})[r["edge_mm"]] = r
     for (curved, by, kind, n), by_edge in groups.items():

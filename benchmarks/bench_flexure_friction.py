@@ -1,4 +1,4 @@
-"""Coulomb friction in the beam chain against seed 002's measured K_c (docs/notes/flexure_investigation.md).
+"""Coulomb friction in the beam chain against seed 002's measured K_c (docs/validation/flexure.md).
 
     .venv/bin/python benchmarks/bench_flexure_friction.py [--quick | --end-conditions] [--line]
 
@@ -8,8 +8,8 @@ and the paper's own fit (``loop_stiffness``: loops about the relaxed spring, F =
 the camera frame at the paper's offset (11.09 mm) and with the fitted offset: mean |error| over
 the measured diagonal and the coupling ratios model / measured. Prints wall and CPU seconds.
 
-The friction runs use the node contacts (``contact_spacing_mm=0``, the chain the friction
-section of docs/notes/flexure_investigation.md was measured with); ``--line``: the default line contacts instead,
+The friction runs use the node contacts (``contact_spacing_mm=0``, the earlier contact scheme);
+``--line``: the default line contacts instead,
 without mu = 1e4 (its preload does not converge with line contacts)."""
 
 from __future__ import annotations

@@ -1,6 +1,7 @@
-"""The small-pitch helix of docs/notes/flexure_investigation.md "FEM 6x6" against the zero-pitch closed form, with
-straight-sided and curved TET10 (the default): FEM / closed form at the spring centre per
-diagonal term, the compliance's asymmetry and the CPU time of each.
+"""A small-pitch helix (5 plain coils, pitch angle 0.08 rad, spring index 5) against the
+zero-pitch closed form (docs/validation/flexure.md), with straight-sided and curved TET10 (the
+default): FEM / closed form at the spring centre per diagonal term, the compliance's asymmetry
+and the CPU time of each.
 
     .venv/bin/python benchmarks/bench_flexure_small_pitch.py
 """

@@ -3,7 +3,7 @@ mesh, auto solver) side by side with the previous pipeline (``mesher=tetwild``,
 ``solver=direct``) in the same run.
 
     OMP_NUM_THREADS=1 python benchmarks/bench_predict.py [fingertip strap ...] [--no-peer]
-    OMP_NUM_THREADS=1 python benchmarks/bench_predict.py --contact   (issue 12: < 2 s, relaxation kept)
+    OMP_NUM_THREADS=1 python benchmarks/bench_predict.py --contact   (goal: < 2 s, relaxation kept)
     OMP_NUM_THREADS=1 python benchmarks/bench_predict.py --calculix  (the CalculiX peer alone)
 
 CalculiX peer (with the fingertip, unless ``--no-peer``): the fingertip's own mesh (gmsh TET10 of
@@ -15,7 +15,7 @@ printed: both times and the largest nodal displacement difference (ccx prints 7 
 
 Each prediction runs in a fresh process (no FEM cache from an earlier one), so the times are
 what a user's first ``designlab predict PART`` costs, including the coarser mesh of the
-discretisation error bar (``mesh_convergence``). Goals (issue 11): fingertip <= 10 s, its mesh
+discretisation error bar (``mesh_convergence``). Goals: fingertip <= 10 s, its mesh
 <= 2 s; strap <= 15 s. ``cpu`` counts the imports the prediction needs (OpenCascade, gmsh,
 scipy...); ``+ write`` is what ``designlab predict --out`` adds: ``write_prediction`` (the
 plots, the loop model, the design render, the report) into a temporary folder; its stages are
@@ -155,12 +155,12 @@ def calculix_peer() -> None:
 
 
 def contact_protocol(repeats: int = 3) -> None:
-    """Issue 12 goal: the full Table II protocol of the contact model (14 locations x 6
+    """The goal: the full Table II protocol of the contact model (14 locations x 6
     rotations x preconditioning + measured loop, the ABS relaxation kept: the default
     ``structure_moduli="relaxing"``) in < 2 s once the FEM is condensed. Wall and process time
     of the best of ``repeats`` runs on the default mesh; beside it, alternating, the same
-    protocol on the relaxed structure (``structure_moduli="long_time"``, the default before
-    2026-11-26: the same long-time condensation without the instantaneous one)."""
+    protocol on the relaxed structure (``structure_moduli="long_time"``: the same long-time
+    condensation without the instantaneous one)."""
     import dataclasses
     import warnings
 

@@ -1,4 +1,4 @@
-"""Issue 17's Monte Carlo goal: 1000 virtual builds of the fingertip (default inputs: printed
+"""The Monte Carlo goal: 1000 virtual builds of the fingertip (default inputs: printed
 modulus, three FSS015 gains, bolt preload, friction) in under 2 minutes on 2 workers, the FEM
 solved at most once, and the same run on a Dask LocalCluster giving identical numbers.
 

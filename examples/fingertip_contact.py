@@ -1,6 +1,6 @@
 """Seed 001 hanging-weight test with contact mechanics at the ball, end to end on the Table II
-points of the tall fingertip on the 11 mm base (``CantileverFingertip.tested()``, the model's
-Table II design until 26 Nov 2026; the tested sensor read from its table is
+points of the tall fingertip on the 11 mm base (``CantileverFingertip.tested()``, an earlier
+reading of the tested sensor; the tested sensor read from its table is
 ``CantileverFingertip.table_ii()``: ``examples/fingertip_table_ii_readings.py``): mesh,
 condense once, run the full protocol, print the numbers beside the paper's, the effect of the
 bolt preload, the friction coefficients at which G1 falls from h1 to h9 (20 and 40 N preload;

@@ -1,8 +1,8 @@
-"""Issue 12's three unmet goals (compressed-sensor change h9 -> h1, lowest mean G2, P_z error
-3x the radial) and the r1 -> r5 change: every candidate explanation of
-docs/notes/fingertip_contact_investigation.md ("Second investigation") with the number it gives, on the Table II
-points of the tall fingertip on the 11 mm base (``CantileverFingertip.tested()``, the model's
-Table II design until 26 Nov 2026) and the Table III design, default mesh and settings.
+"""The three seed 001 goals the fingertip model does not meet (compressed-sensor change
+h9 -> h1, lowest mean G2, P_z error 3x the radial) and the r1 -> r5 change: every candidate
+explanation with the number it gives (the results: docs/validation/fingertip.md), on the Table II
+points of the tall fingertip on the 11 mm base (``CantileverFingertip.tested()``, an earlier
+reading of the tested sensor) and the Table III design, default mesh and settings.
 
     .venv/bin/python examples/fingertip_contact_candidates.py
 

@@ -1,11 +1,11 @@
-"""Issue 12's goal "P_z relative error >= 3x the x/y errors, as in Fig. 9": the errors of the
+"""The seed 001 goal "P_z relative error >= 3x the x/y errors, as in Fig. 9": the errors of the
 Table III design in each of the two calibration targets (``FIG9_DEFINITIONS``: the paper's
 eq. 3 normal component, Fig. 9's "normal forces", and the full applied force), split into the
 model term and the readout term, the least-squares gains, the ceiling a least-squares fit puts
 on the ratio, an ideal sensor's errors, the x-y rotation error, the per-sensor coefficients the
 fitted A implies beside the paper's eq. 9, and two checks: the same protocol with every load
 moved to its arm-free point (lateral loads at the equator, axial at the pole: no moment about
-the ball) and the readout seed. docs/notes/fingertip_contact_investigation.md, "Third investigation: the P_z error".
+the ball) and the readout seed. The result and why: docs/validation/fingertip.md.
 
     .venv/bin/python examples/fingertip_pz_error.py
 """

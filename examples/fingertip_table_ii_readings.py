@@ -1,16 +1,16 @@
-"""Issue 12's Table II goals under the three readings of the tested sensor's geometry
-(docs/notes/fingertip_contact_investigation.md, "Fourth investigation: the tested sensor's base"):
+"""The Table II goals of seed 001 under the three readings of the tested sensor's geometry
+(the paper draws no base; the results: docs/validation/fingertip.md):
 
-- ``tall, on the 11 mm base``: ``CantileverFingertip.tested()``, the model's Table II sensor
-  until 26 Nov 2026 (h 28.5, r 9 on the optimised sensor's base, 11 mm below the ball centre;
+- ``tall, on the 11 mm base``: ``CantileverFingertip.tested()``, an earlier reading of the
+  tested sensor (h 28.5, r 9 on the optimised sensor's base, 11 mm below the ball centre;
   arms = Table II heights). Its fingertip top, 37.5 mm up, does not carry Table II's load
   points as the dome they lie on (R 6.37 mm centred at h5).
 - ``(a) datum at the ball centre``: ``examples/fingertip_table_ii.toml`` (``CantileverFingertip.
-  table_ii()``, the model's Table II sensor since 26 Nov 2026): the fingertip that the load
+  table_ii()``, the model's Table II sensor): the fingertip that the load
   points describe (h 16.70, r 6.37), arms = Table II heights, and the 48.5 mm total height
   leaving 25.43 mm below the ball centre (base 22.43 mm, M2.5 bolt 24.43 mm).
-- ``(b) datum 14.43 mm above the ball centre``: the tested fingertip on the optimised base (the
-  second investigation's reading): arms = Table II heights + 14.43 mm.
+- ``(b) datum 14.43 mm above the ball centre``: the tested fingertip on the optimised base:
+  arms = Table II heights + 14.43 mm.
 
 Each runs the paper's Table II protocol (14 locations x 6 rotations, preconditioning loop, 200
 readout draws) through the contact model on its own condensed FEM (default mesh and settings:
@@ -64,7 +64,7 @@ def readings() -> dict[str, CantileverFingertip]:
 
 
 def goals(part, fs: FingertipModelSettings, cf=None) -> dict:
-    """Issue 12's Table II goals of ``part`` as ``paper_comparison`` states them (``cf``: its
+    """The Table II goals of ``part`` as ``paper_comparison`` states them (``cf``: its
     condensed structure, when already made at these settings' mesh and moduli)."""
     if cf is None:
         cf = condense_fingertip(part, mesh_fingertip(part, fs), fs, fs.structure_moduli)
@@ -135,7 +135,7 @@ def main() -> int:
               f"{g1['sd_over_draws_pct']:.2f} % (met {g1['met']}), G1 falls {r['trend']['met']}, "
               f"h9 -> h1 {d['relative_to_first_span']['value_pct']:.1f} / "
               f"{d['percent_of_applied_force']['value_pct']:.1f} % of the applied force")
-    # issue 12: "also report the coefficient that would match them" (the lowest means): the
+    # the coefficient that would match the paper's lowest means (a goal asks for it): the
     # friction coefficient is an interface property, so the structure is condensed once
     print("\n(a), the friction coefficient that would match the paper's lowest means "
           "(0.98 % G1, 2.19 % G2):")

@@ -14,7 +14,7 @@ and lets the loop look for the pose reference point in it:
 1. poses drawn uniformly at random, 92 training + 410 validation: translations over the ranges
    of Sec. V-A (1 mm along x_c and y_c, 4 mm along z_c: +-0.5 / +-0.5 / +-2 mm; Sec. V-B-3 says
    only "randomly within the workspace"), rotations +-0.05 rad about each axis (the paper gives
-   no rotation range; +-0.05 rad is the loop amplitude docs/notes/flexure_investigation.md uses);
+   no rotation range; +-0.05 rad is the loop amplitude of docs/validation/flexure.md);
 2. wrench = measured K_c (its 21 fitted upper-triangular entries, mirrored as the paper does)
    x pose, SI -> N mm, N; noise: the LIPMM's repeatability on the pose (1 um, 0.001 deg, Sec.
    V) and on the wrench the ATI-like noise assumed by examples/flexure_stiffness.py (3 N mm,

@@ -3,7 +3,7 @@
 Run from the project root:  python examples/flexure_stiffness.py [--fem]
 
 1. The closed-form K_f of the Visiflex spring (catalogue reading of the paper's parameters, see
-   docs/notes/flexure_investigation.md), moved to the camera frame with seed 002 eq. 3.
+   docs/validation/flexure.md), moved to the camera frame with seed 002 eq. 3.
 2. A virtual LIPMM experiment: 92 random fingertip poses, wrenches from a "true" stiffness (the
    paper's measured K_c) plus sensor noise; the 21-entry least-squares fit recovers K_c.
 3. The reverse use on 410 test poses seen through a noisy pose estimate (the camera's ~20 um

@@ -1,4 +1,4 @@
-"""The Python API of issue 14: parts with params()/show()/_repr_png_, dl.predict on a part
+"""The Python API: parts with params()/show()/_repr_png_, dl.predict on a part
 object, the Prediction's summary/plot/_repr_html_, and the getting-started notebook."""
 
 from __future__ import annotations

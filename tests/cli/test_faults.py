@@ -1,4 +1,4 @@
-"""Faults (issue 15): a worker process killed mid-design does not end a sweep.
+"""Faults: a worker process killed mid-design does not end a sweep.
 
 The local pool: the design whose worker died is run again on a rebuilt pool; one that kills its
 worker every time is recorded failed with the reason, and the designs that were only pending in

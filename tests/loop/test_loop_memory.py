@@ -1,4 +1,4 @@
-"""The loop's memory budget (issue 15, item 4): the fits work on at most ``max_fit_samples``
+"""The loop's memory budget: the fits work on at most ``max_fit_samples``
 training samples (longer training data is low-passed and decimated, loop.json's ``budget``
 says by how much), the NARX peer trains on at most ``PEER_ROWS`` rows and is applied to a long
 record in chunks; validation always uses every held-out sample. Data under the budget goes

@@ -1,5 +1,5 @@
 """Facet sets from named B-rep faces (gmsh physical surface groups), with the facet predicates
-as the fallback (issue 11, item 1)."""
+as the fallback."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """One FEM per distinct model on a Dask cluster: two fingertip designs of an (h, r) sweep share
 one FEM; on a LocalCluster of two worker processes the real FEM stage is computed and its cache
-file written once, and the other design reads that file (issue 11, item 2)."""
+file written once, and the other design reads that file."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Faults on Dask (issue 15, item 6): a worker process killed mid-design.
+"""Faults on Dask: a worker process killed mid-design.
 
 A real ``LocalCluster`` (worker processes, 2 workers of 1 thread) runs a flexure sweep in which
 one design's evaluation SIGKILLs its own worker process every time it runs. The design is run

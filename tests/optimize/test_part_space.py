@@ -1,4 +1,4 @@
-"""Each part's whole documented parameter space (issue 15, boundaries).
+"""Each part's whole documented parameter space, to its boundaries.
 
 * Every parameter is drawn from its documented range (half of the draws keep the default, so
   that interior designs are reached too). A rejected set must fail with one line naming a

@@ -1,4 +1,4 @@
-"""Issue 17: noise budgets, the Monte Carlo of a design, bad input."""
+"""Uncertainty: noise budgets, the Monte Carlo of a design, bad input."""
 
 from __future__ import annotations
 

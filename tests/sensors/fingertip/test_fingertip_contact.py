@@ -1,4 +1,4 @@
-"""Contact mechanics at the fingertip's ball (issue 12): closed-form checks of the Hertz,
+"""Contact mechanics at the fingertip's ball: closed-form checks of the Hertz,
 Mindlin and Coulomb laws and the incremental solver, the fingertip contact model on a lumped
 3-fold symmetric structure (fast) and on the meshed Table II design (slow)."""
 
@@ -247,7 +247,7 @@ def test_meshed_table_ii_protocol_and_fine_step_check(meshed):
         rep = run_contact_test(PART, HangingWeightTest(), ContactSettings(), meshed)
     assert set(rep["hysteresis_percent"]["by_location"]) == {
         *(f"h{i}" for i in range(1, 10)), *(f"r{i}" for i in range(1, 6))}
-    # issue 12's G1 trend from friction alone: falls from h1 to h9, h1 >= 2 x h9; the partial
+    # seed 001's G1 trend from friction alone: falls from h1 to h9, h1 >= 2 x h9; the partial
     # slip of the Hertz circles keeps percent-level hysteresis where the whole contacts stick
     # (h7..h9), the elastic-perfectly-plastic law leaves 0.01 % there
     v = [rep["hysteresis_percent"]["by_location_noise_free"][f"h{i}"] for i in range(1, 10)]
@@ -370,7 +370,7 @@ def test_paper_definition_records_its_zero_span_rotations():
 
 @pytest.mark.slow
 def test_sweep_goal_lowest_g1_friction_hysteresis_at_the_lowest_h():
-    """Issue 12's sweep goal on a coarse mesh: over h in {0, 8, 22} at r = 9 with the Table II
+    """The sweep goal on a coarse mesh: over h in {0, 8, 22} at r = 9 with the Table II
     load points, the lowest noise-free G1 hysteresis is at h = 0 (the fingertip's height only
     moves the load points: one condensed FEM serves the three designs)."""
     from designlab.sensors.fingertip.model import FingertipModelSettings, fem_key, mesh_fingertip
@@ -508,7 +508,7 @@ def test_relaxing_structure_without_relaxation_is_the_quasi_static_protocol():
 def test_relaxing_hold_grid_agrees_with_every_sample(monkeypatch):
     """The relaxing solve steps through a hold on :func:`hold_times` (steps doubling before the
     read window); stepping every ``dt_s`` through the whole hold reads the same loops (the
-    Table II protocol on the meshed default: 2e-6 N of ~10 N, docs/notes/fingertip_contact_investigation.md)."""
+    Table II protocol on the meshed default: 2e-6 N of ~10 N)."""
     import dataclasses
 
     from designlab.sensors.fingertip import contact as fc

@@ -1,5 +1,6 @@
-"""Issue 12's second investigation: the readings of the paper's compressed-sensor change, the
-Table II dome and height datum, the bolt head's seat (closed-form and lumped checks, fast)."""
+"""The candidate explanations of the unmet seed 001 goals: the readings of the paper's
+compressed-sensor change, the Table II dome and height datum, the bolt head's seat (closed-form
+and lumped checks, fast)."""
 
 import math
 import warnings

@@ -1,4 +1,4 @@
-"""Issue 12's third investigation: Fig. 9's applied-vs-estimated errors per axis in the paper's
+"""The P_z error goal: Fig. 9's applied-vs-estimated errors per axis in the paper's
 definition (eq. 3 normal component) and with the full force (closed-form and lumped checks)."""
 
 import math

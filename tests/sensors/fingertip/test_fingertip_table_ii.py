@@ -1,5 +1,5 @@
 """The seed 001 Table II sensor read with its heights measured from the ball centre
-(``examples/fingertip_table_ii.toml``; docs/notes/fingertip_contact_investigation.md, "Fourth investigation"): the
+(``examples/fingertip_table_ii.toml``; docs/validation/fingertip.md): the
 geometry the table implies, and what its tall base does to the moment sensitivity."""
 
 import dataclasses

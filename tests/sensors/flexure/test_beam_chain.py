@@ -38,9 +38,9 @@ def test_many_coils_small_pitch_plain_ends_match_the_closed_form():
 def test_solid_geometry_matches_the_solid_fem_within_10_percent():
     """The chain on the meshed part's centreline (dead turns 0.1 d clear, ground faces clamped,
     no contact) against the solid TET10 FEM of the same part (gmsh mesh, 67851 nodes,
-    `fem_stiffness(VISIFLEX_CATALOG)` on 2026-11-23; K at the centre, N*mm/rad and N/mm:
-    538.1, 538.2, 647.8, 4.559, 4.558, 2.4125). The chain clamps whole wire sections where the
-    solid holds only the ground face, so it is 7-8 % stiffer."""
+    straight-sided: `fem_stiffness(VISIFLEX_CATALOG, curved=False)`; K at the centre, N*mm/rad
+    and N/mm: 538.1, 538.2, 647.8, 4.559, 4.558, 2.4125). The chain clamps whole wire sections
+    where the solid holds only the ground face, so it is 7-8 % stiffer."""
     from designlab.geometry.flexure import SpringFlexure
 
     solid = np.array([538.07, 538.16, 647.77, 4.5588, 4.5577, 2.4125])

@@ -1,4 +1,4 @@
-"""Coulomb friction inside the beam chain's contact solve (issue 18): the return map with a
+"""Coulomb friction inside the beam chain's contact solve: the return map with a
 tangential penalty, solved incrementally; checks against the frictionless solve, the stuck
 bound and the textbook loop of a single contact."""
 

@@ -1,8 +1,8 @@
-"""Line contacts of the beam chain (issue 18): contact points at a fixed spacing along the wire,
+"""Line contacts of the beam chain: contact points at a fixed spacing along the wire,
 moving with the beams' shape functions, the beams refined where a contact can close. The 10 N
 working-load state converges with the wire discretisation (node contacts did not), the point
 loads are statically those of the contact, and the contact forces balance the load
-(docs/notes/flexure_investigation.md, "Beam chain": line contacts)."""
+(docs/models/flexure_beam_chain.md; the convergence: docs/validation/flexure.md)."""
 
 import numpy as np
 import pytest
@@ -29,7 +29,7 @@ def _diag_errors(paper, **kw):
 
 @pytest.mark.slow
 def test_working_load_state_converges_with_the_beams():
-    """10 N diagonal error over 24 ... 144 beams per turn, measured 2026-11-25
+    """10 N diagonal error over 24 ... 144 beams per turn
     (bench_flexure_end_seats.py --discretisation): line contacts 12.34 / 12.72 / 12.86 / 12.96
     / 13.00 / 13.01 % (spread 0.67, monotone: the chords' own convergence, the unloaded chain
     spreads 0.57); node contacts 14.83 / 11.16 / 15.43 / 14.77 / 10.67 / 14.83 % (spread 4.76).
@@ -38,7 +38,7 @@ def test_working_load_state_converges_with_the_beams():
     line = _diag_errors(paper)
     assert np.ptp(line) < 1.0, line
     assert np.all(np.diff(line) > -0.02), line              # converges from below
-    assert np.all(line < 15.0)                              # issue 18's diagonal goal
+    assert np.all(line < 15.0)                              # the diagonal goal
     assert line[-1] == pytest.approx(13.0, abs=0.1)
     nodes = _diag_errors(paper, contact_spacing_mm=0.0)
     assert np.ptp(nodes) > 3.0, nodes                       # what the line contacts fixed
@@ -123,8 +123,8 @@ def test_contacts_outside_the_windows_get_refined():
 
 
 def test_node_contacts_are_the_scheme_before():
-    """contact_spacing_mm = 0: one contact per node, no refinement (the chain of 2026-11-25
-    before the line contacts: 10 N diagonal error 11.16 %, 4 closed contacts)."""
+    """contact_spacing_mm = 0: one contact per node, no refinement (the earlier node-contact
+    chain: 10 N diagonal error 11.16 %, 4 closed contacts)."""
     r = bc.chain_stiffness(VISIFLEX_CATALOG, cg.ChainSettings(contact_spacing_mm=0.0))
     assert r.info["contacts"] == 126 and r.info["working_load"]["closed_contacts"] == 4
     assert r.info["nodes"] == 136

@@ -1,7 +1,6 @@
 """Per-end conditions of the beam chain (seat_base / seat_tip): the symmetric default unchanged,
 the zero-coupling point moving towards the rotationally compliant end, the offset-independent
-rocking stiffness, and issue 18's goals over every end combination (docs/notes/flexure_investigation.md,
-"Asymmetric ends")."""
+rocking stiffness, and seed 002's goals over every end combination (docs/validation/flexure.md)."""
 
 import numpy as np
 import pytest
@@ -63,7 +62,7 @@ def test_zero_coupling_point_moves_towards_the_rotationally_compliant_end():
         r = bc.chain_stiffness(VISIFLEX_CATALOG, cg.ChainSettings(seat_base=base, seat_tip=tip,
                                                                   **UNLOADED))
         zc[base, tip] = r.zero_coupling()["mean_mm"]
-    assert zc["contact", "potted"] < -2.0          # measured 2026-11-25: -2.46 mm
+    assert zc["contact", "potted"] < -2.0          # -2.46 mm with the line contacts
     assert zc["potted", "contact"] > 2.0
     assert zc["contact", "potted"] == pytest.approx(-zc["potted", "contact"], abs=0.05)
     assert zc["bonded", "potted"] < -1.0           # bonded is softer than potted: -1.26 mm
@@ -92,7 +91,7 @@ def test_rocking_at_the_elastic_centre_does_not_depend_on_the_offset(paper):
 
 
 def test_no_end_combination_meets_both_goals_at_the_paper_offset(table, paper):
-    """Measured 2026-11-25 (benchmarks/bench_flexure_end_seats.py, line contacts): 0 of 18 rows
+    """benchmarks/bench_flexure_end_seats.py (line contacts): 0 of 18 rows
     meet both goals; the default (bonded/bonded at 10 N) is 12.7 %, 1.75 / 2.03x; the measured
     rocking stiffness at its elastic centre (1.25-1.29 N*m/rad) is above every end
     combination's (0.50-0.88)."""

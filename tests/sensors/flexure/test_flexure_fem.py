@@ -97,7 +97,7 @@ def test_flexure_geometry_from_spring():
 def test_small_pitch_helix_axial_stiffness_matches_closed_form():
     """Meshed helix (5 plain coils, pitch angle 0.08 rad, spring index 5) vs the zero-pitch
     closed form: axial stiffness within 10 % (the flat end footprints clamped on the discs
-    shorten the free wire by ~0.35 turn, so the curved FEM is ~8 % stiffer; docs/notes/flexure_investigation.md,
+    shorten the free wire by ~0.35 turn, so the curved FEM is ~8 % stiffer;
     benchmarks/bench_flexure_small_pitch.py); ~30 s."""
     from designlab.sensors.flexure.helix_fem import fem_stiffness
     from designlab.sensors.flexure.spring import HelicalSpring, stiffness_zero_pitch
@@ -131,7 +131,7 @@ def test_solid_fem_with_contact_condenses_exactly_and_contact_stiffens():
     loaded = np.diag(res.at(res.centre, "loaded"))
     assert loaded[5] > 1.1 * free[5] and loaded[3] > 1.05 * free[3]
     assert res.info["working_load"]["closed_contacts"] > 0
-    # the chain stiffens like the solid at 10 N (issue 18: the fast model checked against the
+    # the chain stiffens like the solid at 10 N (the fast model checked against the
     # reference): loaded / no contact, axial and lateral, chain against solid
     from designlab.sensors.flexure.beam_chain import chain_stiffness
     from designlab.sensors.flexure.chain_geometry import with_settings
@@ -141,8 +141,8 @@ def test_solid_fem_with_contact_condenses_exactly_and_contact_stiffens():
     gain_solid = loaded / free
     gain_chain = np.diag(ch.at(ch.centre, loaded=True)) / np.diag(ch0.K_centre)
     assert gain_chain[5] == pytest.approx(gain_solid[5], rel=0.05)             # axial, ~1.3
-    # lateral: chain +24 %, solid +14 % (2026-11-25, both with k_n = E* x spacing in mm; the
-    # solid with node contacts); solid with line contacts (default since 2026-11-25) +18 %
+    # lateral: chain +24 %, solid +14 % (both with k_n = E* x spacing in mm; the solid with
+    # node contacts); solid with line contacts (the default) +18 %
     assert gain_chain[3:5].mean() == pytest.approx(gain_solid[3:5].mean(), rel=0.10)
     assert np.all(gain_chain[:5] > 1.0) and np.all(gain_solid[[0, 1, 3, 4, 5]] > 1.0)
     kept = fem_contact_stiffness(VISIFLEX_CATALOG, gaps="meshed", mesh=res.mesh,
@@ -164,13 +164,13 @@ def test_contact_spacing_is_checked_before_meshing():
 
 @pytest.mark.slow
 def test_solid_line_contacts_remove_the_node_contacts_scatter():
-    """docs/notes/flexure_investigation.md, "Solid FEM: contact discretisation": at the 10 N working load the node
-    contacts (one node per station, 36 per turn, the scheme before 2026-11-25) rock the tip 21 %
+    """docs/models/flexure_contact_fem.md: at the 10 N working load the node
+    contacts (one node per station, 36 per turn, the earlier scheme) rock the tip 21 %
     stiffer about y than about x (606 / 734 N*mm/rad) and their 10 N diagonal error scatters
     14.8-22.0 % over 18-144 stations; line contacts (points every 0.5 mm of wire interpolated
     between the contact line's nodes) are x/y symmetric within 3 % (718 / 703) and close more
-    contact points than stations. Same mesh for both, straight TET10 as when these numbers were
-    measured (minutes on a shared machine)."""
+    contact points than stations. Same mesh for both, straight TET10, which these numbers are
+    for (minutes on a shared machine)."""
     from designlab.sensors.flexure.chain_geometry import ChainSettings
     from designlab.sensors.flexure.contact_fem import fem_contact_stiffness
     from designlab.sensors.flexure.spring import VISIFLEX_CATALOG
@@ -198,11 +198,10 @@ def test_solid_line_contacts_remove_the_node_contacts_scatter():
 
 @pytest.mark.slow
 def test_helix_mesh_honours_the_edge_asked():
-    """docs/notes/flexure_investigation.md, "Solid FEM: contact discretisation": the edge length asked is the mesh's
-    (before, every edge from 0.7 mm up gave one curvature-sized mesh, 67851 TET10 nodes: the
-    first try faceted the wire section below the 5 % volume check and the fallback sized the
-    wire by its curvature); an edge too coarse for the section is a ParameterError, not that
-    mesh."""
+    """The edge length asked is the mesh's, not that of a fallback sized by the wire's
+    curvature (which gave one mesh, 67851 TET10 nodes, for every edge from 0.7 mm up, where the
+    first try facets the wire section beyond the 5 % volume check); an edge too coarse for the
+    section is a ParameterError, not that mesh."""
     pytest.importorskip("gmsh")
     from designlab.errors import ParameterError
     from designlab.sensors.flexure.helix_fem import flexure_from_spring, helix_mesh
@@ -213,7 +212,7 @@ def test_helix_mesh_honours_the_edge_asked():
     fine, fi = helix_mesh(flex, 0.5, order=1)
     # corner edges follow the size asked (gmsh's median edge is 1.0-1.2x it)
     assert 1.0 < ci["median_edge_mm"] / 0.65 < 1.2 and 1.0 < fi["median_edge_mm"] / 0.5 < 1.2
-    # (0.65 / 0.5)^3 = 2.2 more cells, 1.8x the corner nodes (6766 -> 12416, 2026-11-26)
+    # (0.65 / 0.5)^3 = 2.2 more cells, 1.8x the corner nodes (6766 -> 12416)
     assert 1.8 < fine.n_cells / coarse.n_cells < 2.6
     assert 1.5 < fine.n_points / coarse.n_points < 2.2
     assert ci["sized_by"].endswith("curvature 0: ok, %d cells" % coarse.n_cells)
@@ -225,8 +224,8 @@ def test_helix_mesh_honours_the_edge_asked():
 
 @pytest.mark.slow
 def test_helix_mesh_curved_by_projection_default_mesh():
-    """docs/notes/flexure_investigation.md, "Solid FEM: contact discretisation": the default mesh curved by
-    projection (the default since 2026-11-26): the same corners and cells as straight, every
+    """docs/models/flexure_contact_fem.md: the default mesh curved by
+    projection (the default): the same corners and cells as straight, every
     moved mid-node on the wire surface (1e-6 mm) or, on the ground faces, on its plane; the
     wire volume within 0.5 % (straight: -3.4 %), no inverted cell, the same points twice."""
     pytest.importorskip("gmsh")
@@ -269,7 +268,7 @@ def test_helix_mesh_curved_by_projection_default_mesh():
 
 @pytest.mark.slow
 def test_helix_mesh_curved_by_projection_matches_gmsh():
-    """docs/notes/flexure_investigation.md, "Solid FEM: contact discretisation": ``curve_by="gmsh"`` (gmsh's
+    """docs/models/flexure_contact_fem.md: ``curve_by="gmsh"`` (gmsh's
     second-order nodes on the B-rep, a second gmsh run) and the projection (the default) move
     the same mid-nodes, to within 0.01 mm (the part's spline centreline against the closed
     form one), and nothing else; both close the faceting volume loss (-4.6 % at 0.65 mm),

@@ -1,7 +1,6 @@
-"""Issue 18's goal pair against what no camera offset changes: the lateral/rocking ratio at the
+"""Seed 002's goal pair against what no camera offset changes: the lateral/rocking ratio at the
 elastic centre and the smallest diagonal error it allows with the couplings within 1.5x
-(``report.bending_invariants``, ``report.diagonal_error_floor``; docs/notes/flexure_investigation.md, "Why the
-couplings do not come within 1.5x")."""
+(``report.bending_invariants``, ``report.diagonal_error_floor``; docs/validation/flexure.md)."""
 
 import itertools
 
@@ -77,7 +76,7 @@ def test_a_real_model_never_beats_its_floor(paper, chain_loaded):
 
 
 def test_symmetric_helix_models_cannot_meet_both_goals_at_the_paper_offset(paper):
-    """Measured 2026-11-26 (`designlab flexure`): the models' ratios are 7949-12477 1/m^2
+    """`designlab flexure`: the models' ratios are 7949-12477 1/m^2
     against the measured 4652 / 5113; at the paper's 11.09 mm the floor is 17.1 % for the chain
     at 10 N (19.6 % Timoshenko), above the goal's 15 %, while the measured ratio allows 10.5 %."""
     r = fr.flexure_report(VISIFLEX_CATALOG, paper=paper,

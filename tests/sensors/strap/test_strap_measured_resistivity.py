@@ -1,5 +1,5 @@
 """A measured resistivity of the printed trace replaces the back-calculated rho_eff in the
-strap's electrical model (issue 16: material data that is the printed TPU's)."""
+strap's electrical model (material data that is the printed TPU's)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The strap's Monte Carlo model (issue 17): the FEM stage on the support-stiffness grid, what
+"""The strap's Monte Carlo model: the FEM stage on the support-stiffness grid, what
 is exact (a common modulus scale of both TPUs with the support), the interpolation's error, the
 build's readout against the virtual test's, and ``designlab predict strap --samples N``.
 Cheap: a short protocol on a coarse TET4 mesh."""
