@@ -699,12 +699,14 @@ def mesh_bodies(bodies: Mapping[str, Body] | Sequence[Body],
     return mesh_bodies_detailed(bodies, facet_sets, **kw).mesh
 
 
-def mesh_part_detailed(part: Any, *, refine: bool = True, **kw: Any) -> MeshResult:
-    """Mesh ``part.mesh_bodies()`` of ``part.build()`` with the part's facet sets and, with
-    ``refine``, its refinement spheres (added to any ``refinement`` given)."""
+def mesh_part_detailed(part: Any, *, refine: bool = True, names: Sequence[str] | None = None,
+                       **kw: Any) -> MeshResult:
+    """Mesh ``part.mesh_bodies()`` (or the bodies ``names``) of ``part.build()`` with the part's
+    facet sets and, with ``refine``, its refinement spheres (added to any ``refinement``
+    given)."""
     built = part.build()
     try:
-        bodies = [built[name] for name in part.mesh_bodies()]
+        bodies = [built[name] for name in (part.mesh_bodies() if names is None else names)]
     except KeyError as exc:
         raise MeshingError(f"part {type(part).__name__} names mesh body {exc} that build() "
                            f"does not return (has {', '.join(built)})") from None

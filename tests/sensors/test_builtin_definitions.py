@@ -167,6 +167,35 @@ def test_predict_runs_a_subclass_of_a_built_in_with_its_physics(tmp_path, run_cl
     assert pred["model"].startswith("linear") and pred["condition_number"] > 1
 
 
+@pytest.mark.parametrize("base", [dl.Fingertip, dl.Strap, dl.Flexure])
+def test_a_subclass_may_not_change_what_its_physics_does_not_read(base, tmp_path, run_cli):
+    """A built-in's subclass that changes its transducers (a stiffer force sensor, another
+    gauge) would run the built-in's physics, which takes them from its own settings: refused
+    in one line naming the declaration; the same override returning the built-in's
+    declaration, or new defaults alone, are accepted."""
+    def noisier(self):
+        return [dataclasses.replace(t, noise_V=2 * t.noise_V) if hasattr(t, "noise_V") else
+                dataclasses.replace(t, noise=2 * t.noise) for t in base.transducers(self)]
+
+    changed = type("Changed", (base,), {"name": "changed_" + base.name, "transducers": noisier})
+    with pytest.raises(ParameterError) as exc:
+        sensor_record(changed)
+    assert exc.value.name == "Changed.transducers()" and "does not read" not in str(exc.value)
+    assert "without reading transducers()" in str(exc.value)
+    same = type("Same", (base,), {"name": "same_" + base.name,
+                                  "transducers": lambda self: base.transducers(self)})
+    assert sensor_record(same).run is sensor_record(base).run
+    if base is dl.Fingertip:   # and through the CLI: one line, exit 2, nothing written
+        src = tmp_path / "stiff.py"
+        src.write_text("import dataclasses\nimport designlab as dl\n\n\n"
+                       "class StiffTip(dl.Fingertip):\n    name = 'stiff_tip'\n\n"
+                       "    def transducers(self):\n        return [dataclasses.replace("
+                       "t, stiffness_N_per_mm=2000.0) for t in super().transducers()]\n")
+        rc, _, err = run_cli(["predict", src, "--out", tmp_path / "run"])
+        assert rc == 2 and err.count("error:") == 1 and "StiffTip.transducers()" in err, err
+        assert not (tmp_path / "run").exists()
+
+
 @pytest.mark.slow
 def test_the_generic_test_on_the_flexures_declaration_meets_its_own_fem():
     """Two code paths, one sensor: the generic virtual test of the flexure's declaration (the

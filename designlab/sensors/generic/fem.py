@@ -37,9 +37,11 @@ class Channel:
 
 
 def mesh_definition(defn, settings) -> MeshResult:
-    """The definition's bodies meshed together, one region per body."""
-    return mesh_part_detailed(defn, order=settings.order, edge_length=settings.edge_length,
-                              quality=settings.mesh_quality, mesher=settings.mesher)
+    """The definition's declared bodies (:meth:`solids`) meshed together, one region per body
+    (a built-in's CAD part meshes fewer, those its own physics models)."""
+    return mesh_part_detailed(defn, names=tuple(defn.solids()), order=settings.order,
+                              edge_length=settings.edge_length, quality=settings.mesh_quality,
+                              mesher=settings.mesher)
 
 
 def _coupled(model: Model, name: str, face, what: str, at=None):

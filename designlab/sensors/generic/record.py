@@ -44,11 +44,35 @@ def sensor_record(cls: type) -> Sensor:
     )
 
 
+#: the declarations a physics does not read (it takes the geometry from the part's CAD and the
+#: rest from its own protocol and settings): a subclass that changes them needs the generic test
+UNREAD_BY_PHYSICS = ("supports", "transducers", "loads", "protocol")
+
+
 def _physics_record(cls: type, physics) -> Sensor:
     unknown = sorted(set(physics.hooks) - set(HOOKS))
     if unknown:
         raise ParameterError(f"{cls.__name__}.physics.hooks", ", ".join(unknown),
                              "hooks of the sensor record: " + ", ".join(HOOKS))
+    _check_declarations_read(cls, physics)
     return Sensor(name=cls.name, paper=physics.paper, protocol=physics.protocol,
                   settings=physics.settings, run=physics.run, plots=physics.plots,
                   gains=physics.gains, **physics.hooks)
+
+
+def _check_declarations_read(cls: type, physics) -> None:
+    """A subclass of a definition with a physics (a built-in with new defaults) may not change
+    a declaration the physics does not read: its virtual test would silently ignore it. Refused
+    in one line naming the declaration and where the physics takes it from."""
+    owner = next(c for c in cls.__mro__ if c.__dict__.get("physics") is physics)
+    changed = [m for m in UNREAD_BY_PHYSICS if getattr(cls, m) is not getattr(owner, m)]
+    if owner is cls or not changed:
+        return
+    design = cls()
+    for m in changed:
+        if getattr(cls, m)(design) != getattr(owner, m)(design):
+            raise ParameterError(
+                f"{cls.__name__}.{m}()", f"differs from {owner.__name__}.{m}()",
+                f"unchanged: the {physics.name} physics runs the virtual test without reading "
+                f"{m}() (it takes the geometry from the CAD part and the rest from its "
+                "protocol and settings: --setting NAME=VALUE)")
