@@ -555,7 +555,8 @@ def _write_documents(w: _Staging) -> None:
 
 def _publish(stage: Path, final: Path, names: list[str]) -> None:
     """The staging folder becomes ``final`` (new or empty), else its files are renamed into
-    it, ``prediction.json`` removed first and renamed last."""
+    it, ``prediction.json`` removed first and renamed last; a folder by a file's name stops
+    the set before anything moves."""
     import os
     import shutil
 
@@ -565,6 +566,11 @@ def _publish(stage: Path, final: Path, names: list[str]) -> None:
             final.rmdir()
         os.rename(stage, final)
     else:
+        for name in names:   # what would stop a rename, before the first one
+            if (final / name).is_dir() and not (final / name).is_symlink():
+                from designlab.errors import OutputError
+
+                raise OutputError(f"cannot write {final / name}: it is a directory")
         (final / "prediction.json").unlink(missing_ok=True)
         for name in names:
             os.replace(stage / name, final / name)  # prediction.json is the last

@@ -47,3 +47,19 @@ def test_a_monte_carlo_summary_and_its_report_are_written_together(full, tmp_pat
     disk_full_at("^$")       # room again
     main(argv)
     assert (out / "uncertainty.json").is_file() and (out / "report.html").is_file()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["report.html", "design.png", "run.json", "prediction.json"])
+def test_a_folder_by_an_output_name_stops_predict_before_anything_moves(name, tmp_path, capsys):
+    """A folder in --out by the name of one of predict's files: one line naming that file,
+    exit 2, and --out as it was (it named --out itself and left the files moved before it)."""
+    out = tmp_path / "o"
+    (out / name).mkdir(parents=True)
+    with pytest.raises(SystemExit) as e:
+        main(["predict", "flexure", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and err.count("error:") == 1
+    assert f"cannot write {out / name}: it is a directory" in err, err
+    assert sorted(p.name for p in out.iterdir()) == [name]
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
