@@ -169,7 +169,7 @@ def predict(part: str = typer.Argument(..., help="strap | fingertip | flexure, o
             measured: Optional[Path] = typer.Option(None, "--measured", help="Measured printed-material data (JSON, docs/formats.md): replaces the stand-ins of the materials it names."),
             out: Path = typer.Option(..., "--out", help="Output directory."),
             samples: Optional[int] = typer.Option(None, "--samples", help="Monte Carlo: N virtual builds with scattered inputs and readout noise (resumable in --out)."),
-            uncertainty: Optional[Path] = typer.Option(None, "--uncertainty", help="TOML with an [uncertainty] table (default: the documented distributions)."),
+            uncertainty: Optional[Path] = typer.Option(None, "--uncertainty", help="TOML with an \\[uncertainty] table (default: the documented distributions)."),
             scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Monte Carlo on a Dask scheduler tcp://HOST:PORT."),
             workers: Optional[int] = typer.Option(None, "--workers", help="Monte Carlo: local worker processes (default: all cores)."),
             overwrite: bool = typer.Option(False, "--overwrite", help="Write into an --out that holds another command's run (same-named files are replaced)."),
