@@ -21,13 +21,14 @@ Row = tuple[str, str]
 
 def _overrides(part: str, config: Optional[Path], set_: Optional[List[str]]) -> dict:
     """The design's parameters: the part's table of ``--config`` (its [uncertainty] left
-    out), then ``--set``."""
+    out), then ``--set`` (``NAME=VALUE``, or ``PART.NAME=VALUE`` as export takes it)."""
     overrides = {}
     if config is not None:
         data = part_config(part, load_toml(config))
         data = {k: v for k, v in data.items() if k != "uncertainty"}
         overrides.update(data.get(part, data))
-    overrides.update(parse_sets(set_))
+    prefix = f"{part}."
+    overrides.update({k.removeprefix(prefix): v for k, v in parse_sets(set_).items()})
     return overrides
 
 

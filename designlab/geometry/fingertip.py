@@ -80,7 +80,7 @@ class CantileverFingertip:
     fingertip_radius: float = field(default=9.0, metadata=rng(5.5, 15, unit="mm",
                                                               doc="seed 001: diameter 18"))
     ball_diameter: float = field(default=9.4, metadata=rng(
-        6, 12, unit="mm", doc="seed 001: 9.4; takes the bolt; at least 9.18 with the 5 mm "
+        6, 12, unit="mm", doc="seed 001: 9.4; takes the bolt; at least 9.182 with the 5 mm "
                               "sensors and the 0.5 mm gap (the wells stay under the base's top)"))
     gap: float = field(default=0.5, metadata=rng(0.2, 3, unit="mm",
                                                  doc="fingertip-to-base clearance"))

@@ -85,7 +85,7 @@ class ArchStrap:
                                                           doc="apex to gauge centre, arc length"))
     lead_length: float = field(default=1.6, metadata=rng(
         0, 15, unit="mm", doc=("trace from the meander to its connection pads, along the arch (0: "
-                               "none, with legs = 2)")))
+                               "none, with legs = 2 and pad_width = trace_width)")))
     pad_width: float = field(default=2.0, metadata=rng(
         0.8, 8, unit="mm", doc=("connection pad width across the strap (wires are melted into the "
                                 "pads)")))
@@ -316,7 +316,7 @@ class ArchStrap:
             self._check_legs_fit(avail, need)
         within("pad_width", self.pad_width, w,
                min((n - 1) * (w + g) - g, field_range(ArchStrap, "pad_width")[1]),
-               "trace_width to outer leg spacing - trace_gap")
+               f"trace_width to outer leg spacing - trace_gap, with legs = {n}")
         # pad_length is measured on the arch's centreline; the pad is shortest at its inner edge
         r_in = self.radius + float(self.leg_offsets[0]) - self.pad_width / 2
         at_least("pad_length", self.pad_length, MIN_TRACE * self.radius / r_in,

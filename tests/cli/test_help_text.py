@@ -1,5 +1,6 @@
-"""Help text is shown as written: a bracketed word in an option's help (a TOML table such as
-``[uncertainty]``, an optional part ``[:Class]``) is not eaten as rich markup."""
+"""The command line as written: a bracketed word in an option's help (a TOML table such as
+``[uncertainty]``, an optional part ``[:Class]``) is not eaten as rich markup; a parameter
+named with its part (``--set flexure.active_coils=2``) is taken by predict as by export."""
 
 from __future__ import annotations
 
@@ -33,3 +34,11 @@ def test_every_bracketed_word_of_the_help_is_shown():
             assert w in shown, (name, w)
             checked += 1
     assert checked >= 3
+
+
+def test_predict_takes_a_parameter_named_with_its_part_as_export_does():
+    """``--set flexure.active_coils=2`` (export's form) names the part's own parameter."""
+    from designlab.cli.predict import _overrides
+
+    assert _overrides("flexure", None, ["flexure.active_coils=2", "wire_radius=0.9"]) == \
+        {"active_coils": "2", "wire_radius": "0.9"}
