@@ -3,7 +3,9 @@
 ``LocalExecutor``: a process pool on this machine (all cores by default). ``DaskExecutor``: a
 Dask distributed cluster (``tcp://HOST:PORT``), for sweeps on a cluster. Both yield
 ``(index, result, error)`` with ``error`` the one-line text of an exception, so a failing
-design never stops the sweep.
+design never stops the sweep; the text carries its kind (:mod:`designlab.optimize.failures`):
+a write the file system refused (a full disk) is not the design's failure, and the sweep stops
+on it instead of storing it.
 
 A worker process that dies mid-design (killed, out of memory, a crash in native code) does not
 stop the sweep either. Local pool: a death fails every task still in that pool
@@ -26,10 +28,11 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
-import traceback
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable, Iterator, Sequence
+
+from designlab.optimize.failures import error_text, one_line
 
 Result = tuple[int, Any, str | None]
 
@@ -38,16 +41,17 @@ MAX_RETRIES = 1
 
 
 def _one_line(exc: BaseException) -> str:
-    msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-    return f"{type(exc).__name__}: {msg}" if msg else type(exc).__name__
+    return one_line(exc)
 
 
 def _guarded(fn: Callable[[Any], Any], task: Any) -> tuple[Any, str | None]:
+    """``(fn(task), None)``, or ``(None, error)`` with the error an
+    :class:`~designlab.optimize.failures.ErrorText` that says whether it is the design's or a
+    refused write's (a full disk: the caller stops the run rather than storing it)."""
     try:
         return fn(task), None
     except Exception as exc:  # recorded per design, the sweep goes on
-        msg = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-        return None, f"{type(exc).__name__}: {msg}" if msg else traceback.format_exc(limit=1)
+        return None, error_text(exc)
 
 
 def _worker_init(parent_pid: int) -> None:

@@ -21,8 +21,9 @@ import numpy as np
 from scipy.interpolate import RBFInterpolator
 from scipy.optimize import differential_evolution
 
-from designlab.errors import ParameterError
+from designlab.errors import OutputError, ParameterError
 from designlab.optimize.executors import LocalExecutor
+from designlab.optimize.failures import error_text, is_write_failure, write_failure_message
 from designlab.optimize.space import Dimension, SweepConfig, objective_value
 from designlab.optimize.store import ResultStore, design_key
 from designlab.optimize.sweep import (SweepResult, _row, default_evaluator, materials_fingerprint,
@@ -57,7 +58,9 @@ def _evaluate_one(config: SweepConfig, params: dict[str, float], evaluator, stor
         metrics = evaluator(task)
         err = None
     except Exception as exc:
-        metrics, err = {}, f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+        metrics, err = {}, error_text(exc)
+        if is_write_failure(err):     # a full disk: not the design's failure, nothing stored
+            raise OutputError(write_failure_message(err)) from None
     elapsed = time.perf_counter() - t0
     row = _row(task, metrics, err, elapsed, config)
     store.put(key, row, {"metrics": metrics, "elapsed_s": elapsed} if err is None else None)

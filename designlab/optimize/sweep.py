@@ -11,8 +11,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-from designlab.errors import ClusterError
+from designlab.errors import ClusterError, OutputError
 from designlab.optimize.executors import LocalExecutor, LostTasks, cluster_lost
+from designlab.optimize.failures import is_write_failure, write_failure_message
 from designlab.optimize.pareto import non_dominated
 from designlab.optimize.space import SweepConfig, feasible, objective_value
 from designlab.optimize.store import ResultStore, design_key, flatten_metrics
@@ -151,13 +152,15 @@ def _pending(store: ResultStore, tasks: list[dict], config: SweepConfig,
              retry_failed: bool) -> tuple[int, list[dict]]:
     """(designs reused, tasks still to evaluate): a design in the store is reused (with
     ``retry_failed``, only if it did not fail; a design whose row says the cluster was lost,
-    never); one cached (finished) but killed before its
+    or that a write of it was refused (a full disk), never); one cached (finished) but killed before its
     row was written gets its row now."""
     done_keys = store.keys()
     failed = [r for r in store.rows() if r.get("status") != "ok"] if done_keys else []
     # a design the cluster lost (stored so by an older run) is not done; with retry_failed
     # no failed design is
-    done_keys -= {r["key"] for r in failed if retry_failed or cluster_lost(r.get("error"))}
+    # a design whose write the file system refused (a full disk) is not done either
+    done_keys -= {r["key"] for r in failed if retry_failed or cluster_lost(r.get("error"))
+                  or is_write_failure(r.get("error"))}
     todo = [t for t in tasks if t["key"] not in done_keys]
     reused = len(tasks) - len(todo)
     remaining = []
@@ -176,11 +179,17 @@ def _evaluate(store: ResultStore, executor, evaluator, tasks: list[dict], config
     """Evaluate ``tasks`` on the executor, storing each row (and its result) as it finishes;
     ``progress(done, row)`` after each. Designs the executor lost (its cluster failed) get no
     row: :class:`~designlab.errors.ClusterError` names them after the others are stored, and
-    the same command runs them again."""
+    the same command runs them again. A design whose file could not be written (a full disk,
+    :func:`~designlab.optimize.failures.is_write_failure`) stops the run with a one-line
+    :class:`~designlab.errors.OutputError` and gets no row either."""
     n_done = 0
     try:
         for i, res, err in executor.run(_Timed(evaluator), tasks):
             t = tasks[i]
+            if is_write_failure(err):
+                # the file system's failure, not the design's: nothing stored for it (a rerun
+                # evaluates it); the run stops, the designs finished stay stored
+                raise OutputError(write_failure_message(err))
             if err is None:
                 row = _row(t, res["metrics"], None, res["elapsed_s"], config)
                 store.put(t["key"], row, res)

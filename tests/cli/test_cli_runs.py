@@ -437,6 +437,95 @@ def test_a_sweep_report_on_a_full_disk_is_all_or_nothing(full, cheap_sweeps, tmp
     assert [p.name for p in out.iterdir() if ".tmp" in p.name] == []
 
 
+def _fem_writing(task):
+    """The analytic design, after writing its FEM stage to the sweep's ``fem/`` (as the real
+    evaluator does): a full disk fails that write."""
+    from designlab.atomic import atomic_write_bytes
+    from sweep_fixtures import quadratic
+
+    atomic_write_bytes(Path(task["fem_cache"]) / f"{task['key']}.npz", b"stage")
+    return quadratic(task)
+
+
+@pytest.mark.parametrize("cmd", [["sweep"], ["optimize", "--method", "pareto"]])
+def test_a_design_on_a_full_disk_stops_the_run_and_is_not_stored_failed(
+        cmd, cheap_sweeps, tmp_path, capsys, monkeypatch, disk_full_at):
+    """A design whose FEM stage cannot be written (no space left) did not fail for a reason of
+    its own: the run stops with exit 2 and one line naming the file and the full disk (not
+    "constraints that no design satisfies"), stores no row for it and writes no table or
+    report; once there is room, the same command evaluates every design."""
+    import designlab.cli.sweep as cli_sweep
+    import designlab.optimize.sweep as sw
+
+    monkeypatch.setattr(sw, "default_evaluator", _fem_writing)
+    monkeypatch.setattr(cli_sweep, "_export_chosen", lambda *a, **k: [])   # no FEM here
+    a, _ = cheap_sweeps
+    a.write_text(CFG_A + 'printed_volume_mm3 = "min"\n')
+    out = tmp_path / "out"
+    refused = disk_full_at(r"\.npz$")
+    rc, so, se = _run([*cmd, a, "--out", out, "--workers", "1"], capsys)
+    assert refused and rc == 2, (rc, so, se)
+    lines = [x for x in se.splitlines() if x.startswith("error:")]
+    assert len(lines) == 1 and "no space left" in lines[0] and ".npz" in lines[0], se
+    assert "constraints" not in se and "failed" not in so
+    assert not (out / "results.parquet").exists() and not (out / "report.html").exists()
+    assert not list((out / "results").glob("*.parquet")) if (out / "results").exists() else True
+    disk_full_at("^$")       # room again
+    rc, so, se = _run([*cmd, a, "--out", out, "--workers", "1"], capsys)
+    assert rc == 0, se
+    rows = pd.read_parquet(out / "results.parquet")
+    assert len(rows) == 4 and (rows["status"] == "ok").all()
+    if cmd == ["sweep"]:
+        assert "4 evaluated, 0 from the store, 0 failed" in so
+
+
+def test_a_design_stored_failed_for_a_full_disk_is_evaluated_again(cheap_sweeps, tmp_path,
+                                                                    capsys):
+    """A row an older run stored with a full-disk error is not the design's result: a plain
+    rerun evaluates that design again (a design's own failure stays reused)."""
+    from designlab.optimize.space import load_sweep_config
+    from designlab.optimize.store import ResultStore
+    from designlab.optimize.sweep import _row, tasks_of
+
+    a, _ = cheap_sweeps
+    out = tmp_path / "out"
+    assert _run(["sweep", a, "--out", out, "--workers", "1"], capsys)[0] == 0
+    cfg, store = load_sweep_config(a), ResultStore(out)
+    t = tasks_of(cfg)[0]
+    (store.cache_dir / f"{t['key']}.json").unlink()
+    store.put(t["key"], _row(t, {}, f"OutputError: cannot write {out}/fem/x.npz: no space left "
+                                    "on the device", float("nan"), cfg), None)
+    rc, so, _ = _run(["sweep", a, "--out", out, "--workers", "1"], capsys)
+    assert rc == 0 and "1 evaluated, 3 from the store, 0 failed" in so, so
+
+
+def test_a_write_failure_keeps_its_kind_across_processes():
+    """The worker's error text says whether the file system refused a write; the kind
+    survives pickling (the process pool, Dask) and is read from the text alone too."""
+    import errno
+    import pickle
+
+    from designlab.atomic import os_error
+    from designlab.optimize.executors import _guarded
+    from designlab.optimize.failures import is_write_failure
+
+    def full(task):
+        try:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        except OSError as exc:
+            raise os_error(Path("/o/fem/k.npz"), exc) from None
+
+    def own(task):
+        raise ValueError("h=4 is a deliberately failing design")
+
+    _, err = _guarded(full, None)
+    assert is_write_failure(pickle.loads(pickle.dumps(err))) and is_write_failure(str(err))
+    _, err = _guarded(own, None)
+    assert not is_write_failure(pickle.loads(pickle.dumps(err)))
+    assert not is_write_failure("ParameterError: x='no space left on the device' is not "
+                                "allowed")
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("full", ["results", "optimize", "pareto", "report"])
 def test_optimize_outputs_on_a_full_disk_are_all_or_nothing(full, cheap_sweeps, tmp_path,
