@@ -19,7 +19,8 @@ import time
 from pathlib import Path
 from typing import Any, Callable
 
-from designlab.errors import ParameterError
+from designlab.errors import ModelError, OutputError, ParameterError
+from designlab.optimize.failures import is_write_failure, write_failure_message
 from designlab.predict.uncertainty import (UncertaintySpec, _fem_stage, build_values, draw,
                                            run_batch, summarize)
 
@@ -34,6 +35,15 @@ def _run_key(spec: UncertaintySpec, params, settings, protocol) -> str:
     return hashlib.sha256(blob.encode()).hexdigest()[:20]
 
 
+def no_build_message(summary: dict[str, Any], rows: list[dict[str, Any]]) -> str:
+    """One line for a Monte Carlo whose every build failed: how many, and the first error."""
+    first = next((r.get("error") for r in rows if r.get("status") != "ok"), None) or "?"
+    kinds = len(summary.get("failed_errors") or {})
+    return (f"all {summary['builds']} builds of the Monte Carlo failed, so it has no result "
+            f"(first error: {first}" + (f"; {kinds} different errors" if kinds > 1 else "")
+            + "): check the [uncertainty] distributions against the inputs' ranges")
+
+
 def monte_carlo(sensor: str, spec: UncertaintySpec, out: str | Path, *,
                 params: dict[str, Any] | None = None, settings: dict[str, Any] | None = None,
                 protocol: dict[str, Any] | None = None, executor=None,
@@ -41,7 +51,10 @@ def monte_carlo(sensor: str, spec: UncertaintySpec, out: str | Path, *,
                 files=None) -> dict[str, Any]:
     """N virtual builds of one design on ``executor`` (local processes by default), stored in
     ``out`` as they finish and resumed from it; returns (and writes ``out/uncertainty.json``)
-    the summary of :func:`summarize`. ``files`` (a :class:`~designlab.atomic.FileSet`): the
+    the summary of :func:`summarize`; a Monte Carlo whose every build failed is a one-line
+    :class:`~designlab.errors.ModelError` naming the first error (no summary written), and a
+    write the file system refused (a full disk) a one-line
+    :class:`~designlab.errors.OutputError`. ``files`` (a :class:`~designlab.atomic.FileSet`): the
     summary is staged with it (the CLI commits it with its report)."""
     from designlab.atomic import atomic_write_json, ensure_dir, out_lock
     from designlab.geometry.parts import make_part
@@ -84,6 +97,8 @@ def monte_carlo(sensor: str, spec: UncertaintySpec, out: str | Path, *,
             progress(len(done), n)
         for j, res, err in executor.run(run_batch, tasks):
             b = todo[j]
+            if is_write_failure(err):      # a full disk: not the builds' failure, none stored
+                raise OutputError(write_failure_message(err, "builds"))
             if err is not None:
                 res = {"rows": [{"index": i, "status": "failed", "error": err}
                                 for i in batches[b]], "fem_solves": 0}
@@ -95,6 +110,8 @@ def monte_carlo(sensor: str, spec: UncertaintySpec, out: str | Path, *,
                 progress(len(done), n)
         rows = [done[i] for i in range(n)]
         summary = summarize(spec, cols, V, rows)
+        if not summary["ok"]:
+            raise ModelError(no_build_message(summary, rows))
         summary["fem"] = {"solves_this_run": int(parent_solves + worker_solves),
                           "parent_s": t_fem, "cache": fem_dir}
         summary["wall_s"] = time.perf_counter() - t0

@@ -110,6 +110,31 @@ class UncertaintySpec:
                 "inputs": {k: v.to_json() for k, v in self.inputs.items()}}
 
 
+def input_range(sensor: str, inp: Input) -> dict[str, Any] | None:
+    """The values a build of ``sensor`` accepts for input ``inp`` (a field's lo/hi metadata):
+    the input's own ``allowed``, else the sensor's model setting, part parameter or protocol
+    field of the same name (the build passes the value through it), else for a ``*_scale``
+    input a positive number (a scale of a modulus, a gain, a width); None: no range known."""
+    import dataclasses
+
+    if inp.allowed is not None:
+        return dict(inp.allowed)
+    from designlab.sensors.registry import get_sensor
+
+    s = get_sensor(sensor)
+    for cls in (s.settings, s.part, s.protocol):
+        try:
+            fields = {f.name: f for f in dataclasses.fields(cls)}
+        except TypeError:
+            continue
+        meta = fields[inp.name].metadata if inp.name in fields else None
+        if meta and (meta.get("lo") is not None or meta.get("hi") is not None):
+            return dict(meta)
+    if inp.name.endswith("_scale"):
+        return {"lo": 0.0, "lo_open": True}
+    return None
+
+
 def _int(name: str, v: Any, lo: int, hi: int) -> int:
     if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
         raise ParameterError(name, v, f"an integer, {lo} <= value <= {hi}")
@@ -147,6 +172,9 @@ def parse_uncertainty(sensor: str, table: dict[str, Any] | None, *, samples: int
             raise ParameterError(f"uncertainty.{n}.source", src, "text")
         dists[n] = Distribution(kind, **{k: v[k] for k in _KEYS[kind] if k in v},
                                 source=src).check(n)
+        meta = input_range(sensor, inp)
+        if meta is not None:
+            dists[n].check_within(n, meta, dists[n].short())
     n_samples = samples if samples is not None else opts.get("samples", 200)
     n_samples = _int("--samples" if samples is not None else "uncertainty.samples", n_samples,
                      2, MAX_SAMPLES)
@@ -164,12 +192,18 @@ def load_uncertainty(sensor: str, path: str | Path | None, *, samples: int | Non
     from designlab.params import load_toml
 
     table = None
-    if path is not None:
-        data = load_toml(path, "--uncertainty")
-        table = data.get("uncertainty", data)
-        if not isinstance(table, dict):
-            raise ParameterError("uncertainty", table, "a TOML table")
-    return parse_uncertainty(sensor, table, samples=samples)
+    if path is None:
+        return parse_uncertainty(sensor, table, samples=samples)
+    data = load_toml(path, "--uncertainty")
+    table = data.get("uncertainty", data)
+    if not isinstance(table, dict):
+        raise ParameterError(f"{path}: uncertainty", table, "a TOML table")
+    try:
+        return parse_uncertainty(sensor, table, samples=samples)
+    except ParameterError as exc:      # the line names the file that holds the key
+        if not str(exc.name).startswith("uncertainty"):
+            raise
+        raise ParameterError(f"{path}: {exc.name}", exc.value, exc.allowed) from None
 
 
 # ----------------------------------------------------------------------------------- drawing

@@ -83,6 +83,29 @@ class Distribution:
                                      f"inside the bounds [{self.lo}, {self.hi}] (bounds that "
                                      "exclude the mean truncate away the distribution's centre)")
 
+    def check_within(self, name: str, meta: dict[str, Any], value: str) -> None:
+        """Refuse a distribution that puts a share of its draws outside the values a build
+        accepts (``meta``: a field's lo/hi metadata): its 1st and 99th percentiles must lie
+        inside them (each build outside fails; a std of 1e10 mm fails every one)."""
+        from designlab.params import allowed_text, check_field
+
+        p1, p99 = (float(x) for x in self.ppf(np.array([0.01, 0.99])))
+        try:
+            for x in (p1, p99):
+                check_field(name, x, meta)
+        except ParameterError:
+            raise ParameterError(
+                f"uncertainty.{name}", value,
+                f"a distribution whose 1st to 99th percentiles ({p1:.4g} to {p99:.4g}) lie "
+                f"within the input's range {allowed_text(meta)} (a build outside it "
+                "fails)") from None
+
+    def short(self) -> str:
+        """The distribution as its TOML table, e.g. ``{dist="normal", mean=0.03, std=1e+10}``."""
+        keys = [k for k in ("mean", "std", "lo", "hi", "value") if getattr(self, k) is not None]
+        return "{" + ", ".join([f'dist="{self.dist}"'] + [f"{k}={getattr(self, k):g}"
+                                                          for k in keys]) + "}"
+
     @property
     def center(self) -> float:
         if self.dist == "fixed":
@@ -124,6 +147,10 @@ class Input:
     default: Distribution
     doc: str
     per_build: int = 1
+    #: the values a build accepts, as a parameter field's metadata (``lo``, ``hi``,
+    #: ``lo_open``, ``hi_open``, ``unit``); None: found by
+    #: :func:`designlab.predict.uncertainty.input_range`
+    allowed: dict[str, Any] | None = None
 
 
 @dataclass(frozen=True)

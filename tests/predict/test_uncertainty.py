@@ -36,6 +36,70 @@ def test_bad_spec_is_one_line_naming_it(table, name, text):
     assert "\n" not in msg and name in msg and text in msg
 
 
+@pytest.mark.parametrize("part, table, ok", [
+    ("flexure", {"pose_noise_mm": {"dist": "normal", "mean": 0.03, "std": 1e10}}, False),
+    ("flexure", {"pose_noise_mm": {"dist": "normal", "mean": 0.03, "std": 6.0}}, False),
+    ("flexure", {"pose_noise_mm": {"dist": "fixed", "value": 11.0}}, False),
+    ("flexure", {"pose_noise_mm": {"dist": "normal", "mean": 0.03, "std": 0.02}}, False),
+    ("flexure", {"pose_noise_mm": {"dist": "normal", "mean": 0.03, "std": 0.005}}, True),
+    ("flexure", {"pose_noise_mm": {"dist": "normal", "mean": 0.03, "std": 0.02, "lo": 0.0}},
+     True),
+    ("flexure", {"pose_noise_mm": {"dist": "uniform", "lo": 0.0, "hi": 10.0}}, True),
+    ("strap", {"tpu_modulus_scale": {"dist": "normal", "mean": 1.0, "std": 0.6}}, False),
+    ("strap", {"tpu_modulus_scale": {"dist": "normal", "mean": 1.0, "std": 0.1}}, True),
+    ("fingertip", {"friction_coefficient": {"dist": "uniform", "lo": 0.1, "hi": 3.0}}, False),
+])
+def test_a_distribution_with_draws_outside_the_inputs_range_is_refused(part, table, ok):
+    """A distribution whose 1st-99th percentiles leave the values a build accepts (a model
+    setting's range, a positive scale) is refused before any build, in one line naming the
+    input, the distribution and the range (a std of 1e10 mm failed every build)."""
+    if ok:
+        parse_uncertainty(part, table)
+        return
+    with pytest.raises(ParameterError) as e:
+        parse_uncertainty(part, table)
+    msg, (name,) = str(e.value), table
+    assert "\n" not in msg and f"uncertainty.{name}=" in msg and "percentiles" in msg
+    assert "range" in msg and "dist=" in msg
+
+
+def test_every_default_distribution_is_inside_its_inputs_range():
+    from designlab.predict.uncertainty import input_range, sensor_inputs
+
+    for part in ("fingertip", "flexure", "strap"):
+        spec = parse_uncertainty(part, None)
+        for inp in sensor_inputs(part):
+            meta = input_range(part, inp)
+            if meta is not None:
+                spec.inputs[inp.name].check_within(inp.name, meta, "default")
+
+
+def test_a_monte_carlo_whose_every_build_fails_is_an_error(tmp_path, monkeypatch):
+    """Every build fails: one-line error naming the first build's error, exit 2 from the CLI,
+    no summary written (no empty table reported as a result)."""
+    import dataclasses
+
+    from designlab.errors import ModelError
+    from designlab.optimize.executors import LocalExecutor
+    from designlab.optimize.montecarlo import monte_carlo
+    from designlab.sensors import registry
+    from designlab.sensors.distributions import Input, MonteCarloModel
+
+    def build(ctx, values, seed):
+        raise ValueError(f"gain={values['gain']:.3g} refused by this build")
+
+    toy = MonteCarloModel((Input("gain", Distribution("uniform", lo=1.0, hi=2.0), "a gain"),),
+                          ("twice_gain",), lambda part, settings, protocol, cache: {}, build)
+    monkeypatch.setitem(registry.SENSORS, "strap",
+                        dataclasses.replace(registry.SENSORS["strap"], uncertainty=toy))
+    spec = parse_uncertainty("strap", {"samples": 4})
+    with pytest.raises(ModelError) as e:
+        monte_carlo("strap", spec, tmp_path, executor=LocalExecutor(1))
+    msg = str(e.value)
+    assert "\n" not in msg and "all 4 builds" in msg and "refused by this build" in msg
+    assert not (tmp_path / "uncertainty.json").exists()
+
+
 def test_numpy_numbers_are_numbers():
     d = Distribution("normal", mean=np.int64(20), std=np.float64(2.0)).check("bolt_preload_N")
     assert d.mean == 20
@@ -267,6 +331,8 @@ def test_fingertip_Pz_worst_as_fig9(fingertip_fem):
 @pytest.mark.parametrize("toml, text", [
     ("[uncertainty]\nbolt_preload_N = { dist = 'normal', mean = 20.0, std = -2.0 }\n", ">= 0"),
     ("[uncertainty]\nwire_modulus = { dist = 'fixed', value = 1.0 }\n", "hysteresis_percent"),
+    ("[uncertainty]\nsamples = 4\npose_noise_mm = { dist = 'normal', mean = 0.03, std = 1e10 }\n",
+     "percentiles"),
 ])
 def test_cli_bad_uncertainty_exit_2_one_line(tmp_path, toml, text):
     import subprocess
@@ -280,7 +346,7 @@ def test_cli_bad_uncertainty_exit_2_one_line(tmp_path, toml, text):
                         str(tmp_path / "o")], capture_output=True, text=True)
     assert r.returncode == 2
     lines = [x for x in r.stderr.splitlines() if x.strip()]
-    assert len(lines) == 1 and text in lines[0]
+    assert len(lines) == 1 and text in lines[0] and str(f) in lines[0]
     assert not (tmp_path / "o" / "uncertainty.json").exists()
 
 
