@@ -613,3 +613,30 @@ def test_a_failed_glb_leaves_no_buffer_file(tmp_path, monkeypatch):
     with pytest.raises(OutputError, match="glTF export"):
         save_assembly_gltf(None, tmp_path / "part.glb")
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_a_render_that_cannot_fit_the_address_space_limit_is_refused(tmp_path):
+    """Under ``ulimit -v`` (6 GB) an 8000 x 8000 render aborted the interpreter (the renderer
+    cannot fail an allocation): refused in one line naming a size that fits, which renders."""
+    import resource
+    import sys
+
+    script = ("import designlab as dl\nfrom designlab.errors import ParameterError\n"
+              "try:\n    dl.Strap().render('big.png', size=(8000, 8000))\n"
+              "except ParameterError as e:\n    print(e)\n")
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (6_000_000_000, 6_000_000_000))
+
+    res = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True,
+                         text=True, preexec_fn=limit, timeout=600)
+    assert res.returncode == 0, res.stderr[-2000:]
+    m = re.search(r"size=\(8000, 8000\) is not allowed: .* about (\d+) x \1 px", res.stdout)
+    assert m and not (tmp_path / "big.png").exists(), res.stdout
+    side = int(m.group(1))
+    ok = subprocess.run([sys.executable, "-c", f"import designlab as dl\n"
+                         f"dl.Strap().render('fits.png', size=({side}, {side}))\n"],
+                        cwd=tmp_path, capture_output=True, text=True, preexec_fn=limit,
+                        timeout=600)
+    assert ok.returncode == 0 and (tmp_path / "fits.png").stat().st_size > 0, ok.stderr[-2000:]
