@@ -137,6 +137,21 @@ class FileSet:
 
     def __init__(self):
         self.temps: list[tuple[Path, Path]] = []
+        self.created: list[Path] = []      # folders made for the set, removed by abort if empty
+
+    def make_dir(self, folder: str | Path) -> Path:
+        """``folder`` and its missing parents, remembered so :meth:`abort` removes the empty
+        ones (a failed set leaves no empty ``--out``)."""
+        folder = Path(folder)
+        d = folder
+        while not d.exists():
+            self.created.append(d)
+            d = d.parent
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise os_error(folder, exc) from None
+        return folder
 
     def path(self, target: str | Path, *, keep_suffix: bool = True) -> Path:
         """A new temporary path for ``target`` (same suffix unless ``keep_suffix=False``); a
@@ -145,8 +160,8 @@ class FileSet:
         for tmp, final in [t for t in self.temps if t[1] == target]:
             tmp.unlink(missing_ok=True)
             self.temps.remove((tmp, final))
+        self.make_dir(target.parent)
         try:
-            target.parent.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=temp_prefix(target.stem),
                                        suffix=".tmp" + (target.suffix if keep_suffix else ""))
         except OSError as exc:
@@ -203,10 +218,17 @@ class FileSet:
         return done
 
     def abort(self) -> None:
-        """Remove every temporary not yet moved into place."""
+        """Remove every temporary not yet moved into place, and the folders made for the set
+        that are left empty."""
         for tmp, _ in self.temps:
             tmp.unlink(missing_ok=True)
         self.temps = []
+        for d in sorted(set(self.created), key=lambda x: len(x.parts), reverse=True):
+            try:
+                d.rmdir()
+            except OSError:
+                pass
+        self.created = []
 
     def __enter__(self) -> "FileSet":
         return self

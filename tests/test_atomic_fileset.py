@@ -61,3 +61,20 @@ def test_an_empty_file_or_a_folder_in_the_way_aborts_the_set(tmp_path):
         with FileSet() as fs:
             fs.path(tmp_path / "c.json")
     assert os.listdir(tmp_path) == ["b.png"]
+
+
+def test_an_aborted_set_removes_the_folders_it_made_and_no_other(tmp_path):
+    """A failed set leaves no empty --out behind: the folders made for it go, a folder that
+    was there or holds another file stays."""
+    from designlab.atomic import FileSet
+
+    (tmp_path / "kept").mkdir()
+    fs = FileSet()
+    fs.write_bytes(tmp_path / "new" / "deep" / "a.json", b"{}")
+    fs.write_bytes(tmp_path / "kept" / "b.json", b"{}")
+    fs.write_bytes(tmp_path / "other" / "c.json", b"{}")
+    (tmp_path / "other" / "theirs.txt").write_text("x")     # written meanwhile by another
+    fs.abort()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["kept", "other"]
+    assert [p.name for p in (tmp_path / "other").iterdir()] == ["theirs.txt"]
+    assert list((tmp_path / "kept").iterdir()) == []

@@ -198,20 +198,12 @@ def _jobs(prepared: Prepared, formats: tuple[str, ...],
 
 class _Staging(FileSet):
     """A :class:`~designlab.atomic.FileSet` whose :meth:`run` renders jobs into a target
-    directory; :meth:`abort` also removes the directories this staging created."""
-
-    def __init__(self):
-        super().__init__()
-        self.created: list[Path] = []
+    directory."""
 
     def run(self, target: Path, jobs) -> None:
-        from designlab.atomic import ensure_dir, os_error, sweep_temps
+        from designlab.atomic import os_error, sweep_temps
 
-        d = target
-        while not d.exists():
-            self.created.append(d)
-            d = d.parent
-        ensure_dir(target)
+        self.make_dir(target)
         sweep_temps(target)  # what a killed export left (its writer is gone)
         for fname, writer in jobs:
             tmp = self.path(target / fname)
@@ -223,14 +215,6 @@ class _Staging(FileSet):
                 raise os_error(target / fname, exc) from None
             if tmp.stat().st_size == 0:
                 raise OutputError(f"writing {fname} produced an empty file")
-
-    def abort(self) -> None:
-        super().abort()
-        for d in sorted(set(self.created), key=lambda x: len(x.parts), reverse=True):
-            try:
-                d.rmdir()
-            except OSError:
-                pass
 
 
 def write_all(prepared: Iterable[Prepared], out_dir: str | Path,
