@@ -62,6 +62,12 @@ def write_vtu(mesh: TetMesh, path: str | os.PathLike, point_data: dict | None = 
     path = Path(path)
     if path.suffix != ".vtu":
         raise DataError(f"mesh file {path} must end in .vtu")
+    return atomic_write_bytes(path, vtu_bytes(mesh, point_data, cell_data, field_data))
+
+
+def vtu_bytes(mesh: TetMesh, point_data: dict | None = None, cell_data: dict | None = None,
+              field_data: dict | None = None) -> bytes:
+    """The binary ``.vtu`` file of :func:`write_vtu`, made in memory."""
     grid = to_pyvista(mesh)
     for k, v in (point_data or {}).items():
         grid.point_data[k] = np.asarray(v, float)
@@ -75,11 +81,11 @@ def write_vtu(mesh: TetMesh, path: str | os.PathLike, point_data: dict | None = 
     # is made in memory, as pyvista's save would write it, and written here
     from pyvista.core.utilities.writer import XMLUnstructuredGridWriter
 
-    writer = XMLUnstructuredGridWriter(path, grid)
+    writer = XMLUnstructuredGridWriter("mesh.vtu", grid)
     writer._apply_kwargs_safely(texture=None, data_format="binary", compression="zlib")
     writer.writer.WriteToOutputStringOn()
     writer.writer.Write()
-    return atomic_write_bytes(path, writer.writer.GetOutputString().encode())
+    return writer.writer.GetOutputString().encode()
 
 
 def read_vtu(path: str | os.PathLike) -> TetMesh:

@@ -90,15 +90,17 @@ class MeshResult:
 
 
 def save_mesh(result: MeshResult, out_dir: str | Path) -> tuple[Path, Path]:
-    """Write ``mesh.vtu`` and ``mesh.json`` (:meth:`MeshResult.report`) into ``out_dir``; the
-    report is written only after the mesh, each atomically."""
-    from designlab.atomic import atomic_write_json
-    from designlab.mesh.io import write_vtu
+    """Write ``mesh.vtu`` and ``mesh.json`` (:meth:`MeshResult.report`) into ``out_dir`` as a
+    set: both or neither (a full disk leaves the previous pair and no empty folder)."""
+    from designlab.atomic import FileSet
+    from designlab.mesh.io import vtu_bytes
 
     out = Path(out_dir)
     report = result.report()
-    vtu = write_vtu(result.mesh, out / "mesh.vtu")
-    atomic_write_json(out / "mesh.json", report, indent=2)
+    data = vtu_bytes(result.mesh)
+    with FileSet() as files:
+        vtu = files.write_bytes(out / "mesh.vtu", data)
+        files.write_json(out / "mesh.json", report, indent=2)
     return vtu, out / "mesh.json"
 
 

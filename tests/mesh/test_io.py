@@ -48,3 +48,22 @@ class _FullOpen:
                 raise OSError(errno.ENOSPC, "No space left on device")
             fh.write = write
         return fh
+
+
+@pytest.mark.parametrize("full", ["vtu", "json"])
+def test_save_mesh_writes_the_pair_or_neither(full, tmp_path, disk_full_at):
+    """mesh.vtu and mesh.json as a set: a full disk at either leaves neither, nor the --out
+    folder made for them (the VTU stood alone when the report did not fit)."""
+    from build123d import Box
+
+    from designlab.geometry.body import Body
+    from designlab.mesh.meshing import mesh_bodies_detailed, save_mesh
+
+    res = mesh_bodies_detailed([Body("b", Box(4, 4, 4), "ABS")], {}, edge_length=2.0)
+    refused = disk_full_at(rf"^\.mesh\..*\.{full}$")
+    with pytest.raises(OutputError, match="no space left"):
+        save_mesh(res, tmp_path / "out")
+    assert refused and not (tmp_path / "out").exists()
+    disk_full_at("^$")
+    vtu, js = save_mesh(res, tmp_path / "out")
+    assert read_vtu(vtu).n_cells == res.mesh.n_cells and js.is_file()
