@@ -336,8 +336,10 @@ def write_prediction(prediction: Prediction, out: str | Path,
         _publish(stage, final, w.names)
     except OSError as exc:  # a full or read-only disk: one line, nothing half-written
         shutil.rmtree(stage, ignore_errors=True)
-        from designlab.errors import DesignlabError
+        from designlab.errors import DesignlabError, OutputError
 
+        if isinstance(exc, OutputError):     # it names the file in --out, not the staging one
+            raise OutputError(str(exc).replace(str(stage), str(final))) from None
         if isinstance(exc, DesignlabError):
             raise
         raise os_error(final, exc) from None

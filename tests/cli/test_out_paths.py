@@ -63,3 +63,17 @@ def test_a_folder_by_an_output_name_stops_predict_before_anything_moves(name, tm
     assert f"cannot write {out / name}: it is a directory" in err, err
     assert sorted(p.name for p in out.iterdir()) == [name]
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+@pytest.mark.slow
+def test_a_full_disk_while_predicting_names_the_file_in_out(tmp_path, capsys, disk_full_at):
+    """The message names --out's file, not the hidden staging folder it was written in first;
+    nothing is left beside or in --out."""
+    out = tmp_path / "o"
+    refused = disk_full_at(r"^\.+prediction\.")
+    with pytest.raises(SystemExit) as e:
+        main(["predict", "flexure", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert refused and e.value.code == 2 and err.count("error:") == 1, err
+    assert f"{out / 'prediction.json'}" in err and "staging" not in err, err
+    assert not out.exists() and not list(tmp_path.iterdir())
