@@ -143,15 +143,19 @@ class Prediction:
 
     def to_json(self) -> dict[str, Any]:
         """The ``prediction.json`` document: the design, the protocol and model settings
-        ``predict`` ran (``FEMSettings`` fields included), the version, the warnings, then the
-        metrics. Those five keys are the Prediction's own: a metric of the same name does not
+        ``predict`` ran (``FEMSettings`` fields included), the version, the warnings, the
+        definitions (readable name, definition and unit of each top-level metric present), then
+        the metrics. Those six keys are the Prediction's own: a metric of the same name does not
         replace them (a sensor reports its sub-models' settings under another key, e.g. the
         fingertip's ``contact_settings``)."""
         from designlab.params import as_dict
+        from designlab.sensors.labels import METRICS
 
         head = {"design": self.design, "protocol": _plain(as_dict(self.protocol)),
                 "settings": _plain(as_dict(self.settings)), "designlab": __version__,
-                "warnings": list(self.warnings)}
+                "warnings": list(self.warnings),
+                "definitions": {k: f"{name} [{unit}]" if unit else name
+                                for k, (name, unit) in METRICS.items() if k in self.metrics}}
         return {**head, **{k: v for k, v in self.metrics.items() if k not in head}}
 
     def sensor_model(self) -> "SensorModel":

@@ -143,3 +143,18 @@ def test_sweep_report_in_chromium(tmp_path):
     attrs = open_in_chromium(tmp_path / "s" / "report.html", tmp_path,
                              ARTIFACTS / "report_sweep.png")
     assert attrs["broken"] == "0" and int(attrs["images"]) == 2
+
+
+def test_prediction_json_defines_its_metrics(tmp_path):
+    """prediction.json carries each top-level metric's readable name, definition and unit: the
+    fingertip's non-linearity says it takes every channel, noise-only ones included."""
+    import json
+
+    from designlab.cli import main
+
+    main(["predict", "flexure", "--out", str(tmp_path / "o")])
+    doc = json.loads((tmp_path / "o" / "prediction.json").read_text())
+    assert doc["definitions"]["condition_number"] == "condition number of the calibration matrix"
+    from designlab.sensors.labels import METRICS
+
+    assert "noise-only channels included" in METRICS["linearity_percent_span"][0]
