@@ -145,6 +145,7 @@ def test_sweep_report_in_chromium(tmp_path):
     assert attrs["broken"] == "0" and int(attrs["images"]) == 2
 
 
+@pytest.mark.slow
 def test_prediction_json_defines_its_metrics(tmp_path):
     """prediction.json carries each top-level metric's readable name, definition and unit: the
     fingertip's non-linearity says it takes every channel, noise-only ones included."""
