@@ -29,6 +29,7 @@ def test_an_out_longer_than_the_system_allows_is_one_line(make, tmp_path, capsys
     assert not os.listdir(tmp_path)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("full", ["uncertainty", "report"])
 def test_a_monte_carlo_summary_and_its_report_are_written_together(full, tmp_path, capsys,
                                                                    disk_full_at):
