@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from designlab.atomic import atomic_write_json
+from designlab.atomic import atomic_write_json, jsonable
 from designlab.errors import DesignlabError, ModelError, ParameterError
 from designlab.loop import effects as fx
 from designlab.loop.base_models import Base
@@ -109,6 +109,7 @@ def load_model(path: str | Path, what: str = "--base") -> SensorModel:
     except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
         raise ModelError(f"{p}: malformed model section ({type(exc).__name__}: "
                          f"{str(exc)[:80]})") from None
+    _check_shapes(p, eff)
     return SensorModel(base, eff, {o: str(v.get("unit", "")) for o, v in outs.items()},
                        inputs, prov)
 
@@ -166,6 +167,42 @@ def _check_sections(p: Path, outs, inputs, prov) -> None:
                 if not isinstance(x, list) or not all(ok(y) for y in x):
                     raise ModelError(f"{p}: {where}.{key}={str(x)[:40]} is not allowed: a list "
                                      f"of {'names' if key == 'nuisance' else 'numbers'}")
+
+
+def _numbers(n: int) -> str:
+    return f"{n} number{'' if n == 1 else 's'}"
+
+
+def _check_shapes(p: Path, effects: dict[str, list[fx.Fitted]]) -> None:
+    """Every effect's settings, ``beta`` and ``alpha`` of the lengths the effect reads: one
+    line naming the key, the value with its length and the length allowed (a short ``beta``
+    would otherwise fail inside the prediction, after the data are read)."""
+    for o, fits in effects.items():
+        for i, f in enumerate(fits):
+            where, name = f"model.outputs.{o}.effects[{i}]", f.effect.name
+            try:
+                k = f.effect.width(f.theta)
+            except (KeyError, TypeError, ValueError) as exc:
+                why = (f"it has no {exc.args[0]!r}" if isinstance(exc, KeyError) else str(exc))
+                raise ModelError(f"{p}: {where}.theta={str(jsonable(f.theta))[:60]} is not "
+                                 f"allowed: the settings effect {name} reads ({why[:60]})"
+                                 ) from None
+            if k is not None and len(f.beta) != k:
+                raise ModelError(f"{p}: {where}.beta={str(list(f.beta))[:60]} "
+                                 f"({_numbers(len(f.beta))}) is not allowed: {_numbers(k)}, one "
+                                 f"per regressor of effect {name} at its theta")
+            nuis = len(f.nuisance)
+            allowed = {int(f.effect.intercept) + nuis: (
+                f"{'an intercept and ' if f.effect.intercept else ''}one gain per nuisance "
+                f"input ({nuis})")}
+            if f.runs and f.effect.intercept:
+                allowed.setdefault(len(f.runs) + nuis, f"one offset per run ({len(f.runs)}) "
+                                   "and one gain per nuisance input")
+            if len(f.alpha) not in allowed:
+                ok = " or ".join(_numbers(n) for n in sorted(allowed))
+                raise ModelError(f"{p}: {where}.alpha={str(list(f.alpha))[:60]} "
+                                 f"({_numbers(len(f.alpha))}) is not allowed: {ok} "
+                                 f"({'; '.join(allowed.values())})")
 
 
 #: the numbers each base kind's predict reads per output (``linear``: ``intercept`` and ``gains``)

@@ -194,6 +194,13 @@ class Effect:
         """The regressors for settings ``theta``: (n,) or (n, k)."""
         raise NotImplementedError
 
+    def width(self, theta: dict) -> int | None:
+        """How many regressors :meth:`features` gives at settings ``theta`` (the length of a
+        fitted ``beta``), read from the settings alone so that a model file is checked when it
+        is loaded; None when only the data can tell (the check is then left to the
+        prediction). A wrong or missing setting raises KeyError, TypeError or ValueError."""
+        return None
+
     def describe(self, f: Fitted) -> dict:
         """Parameters of the fitted effect under their physical names."""
         return {"theta": dict(f.theta), "coefficients": list(f.beta)}
@@ -233,6 +240,23 @@ class Effect:
         """The effect's input channel and its label with unit (a :meth:`regressor`)."""
         d = ctx.data
         return d.inputs[self.channel], f"{self.channel} ({d.units.get(self.channel, '')})"
+
+
+def count(theta: dict, key: str) -> int:
+    """The length of setting ``key``, a non-empty list of numbers or names (for
+    :meth:`Effect.width`); TypeError or ValueError when it is not one, KeyError when missing."""
+    v = theta[key]
+    if not isinstance(v, (tuple, list)) or not v:
+        raise TypeError(f"{key} is not a non-empty list")
+    return len(v)
+
+
+def whole(theta: dict, key: str, lo: int) -> int:
+    """Setting ``key``, a whole number at least ``lo`` (for :meth:`Effect.width`)."""
+    v = theta[key]
+    if isinstance(v, bool) or not isinstance(v, int) or v < lo:
+        raise ValueError(f"{key} is not a whole number >= {lo}")
+    return v
 
 
 def ordered() -> list[type[Effect]]:

@@ -29,6 +29,9 @@ class CrossAxis(Effect):
     def features(self, ctx: Context, theta: dict) -> np.ndarray:
         return ctx.data.inputs[self.channel] - theta["reference"]
 
+    def width(self, theta: dict) -> int:
+        return 1
+
     def describe(self, f: Fitted) -> dict:
         return {"coupling": f.beta[0], "reference": f.theta["reference"]}
 

@@ -36,6 +36,9 @@ class CrossGain(Effect):
         dx = ctx.data.inputs[self.channel] - theta["reference"]
         return dx * ctx.yhat
 
+    def width(self, theta: dict) -> int:
+        return 1
+
     def describe(self, f: Fitted) -> dict:
         return {"relative_gain_per_unit": f.beta[0], "reference": f.theta["reference"],
                 "unit": "relative gain per input unit"}

@@ -68,6 +68,9 @@ class Damage(Effect):
         alpha = np.maximum(running_max(xr, d.segment), 0.0)
         return xr * damage(alpha, theta["eta"], theta["R"])
 
+    def width(self, theta: dict) -> int:
+        return 1
+
     def describe(self, f: Fitted) -> dict:
         th = f.theta
         linear = th["eta"] is None

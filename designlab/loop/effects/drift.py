@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from designlab.loop.effects.base import Context, Effect, Fitted
+from designlab.loop.effects.base import Context, Effect, Fitted, whole
 
 
 #: the settling variant's time constants over the longest run: a geometric grid fine enough
@@ -40,6 +40,11 @@ class Drift(Effect):
             return np.exp(-ctx.data.time_in_run() / theta["tau_s"])
         s = ctx.data.time_in_run() / theta["duration_s"]
         return np.column_stack([s ** k for k in range(1, theta["order"] + 1)])
+
+    def width(self, theta: dict) -> int:
+        if theta["variant"] == "settling":
+            return 1
+        return whole(theta, "order", 1)
 
     def describe(self, f: Fitted) -> dict:
         th, b = f.theta, list(f.beta)

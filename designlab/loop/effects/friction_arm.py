@@ -41,6 +41,9 @@ class FrictionArm(Effect):
         z = dahl(d.inputs[self.channel], np.array([theta["xc"]]), d.segment)[:, 0]
         return np.column_stack([d.inputs[theta["location"]] * z, z])
 
+    def width(self, theta: dict) -> int:
+        return 2
+
     def describe(self, f: Fitted) -> dict:
         return {"location": f.theta["location"], "x_c": f.theta["xc"],
                 "friction_per_arm": f.beta[0], "friction_at_zero_arm": f.beta[1],

@@ -41,6 +41,9 @@ class GainOffset(Effect):
         coef[:k] = np.linalg.lstsq(X[:, :k], target, rcond=None)[0]
         return coef
 
+    def width(self, theta: dict) -> int:
+        return 2
+
     def describe(self, f: Fitted) -> dict:
         return {"offset": f.beta[0], "relative_gain": f.beta[1],
                 "unit": "offset in output units; gain relative to the model's (0.08 = +8 %)"}

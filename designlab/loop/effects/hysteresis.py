@@ -8,6 +8,7 @@ from designlab.loop.effects.base import (
     Context,
     Effect,
     Fitted,
+    count,
     dahl,
     play,
     rate,
@@ -52,6 +53,9 @@ class Hysteresis(Effect):
         if theta["variant"] == "dahl":
             return dahl(x, np.array([theta["xc"]]), d.segment)
         return play(x, np.array(theta["widths"]), d.segment)
+
+    def width(self, theta: dict) -> int:
+        return count(theta, "widths") if theta["variant"] == "maxwell_slip" else 1
 
     def describe(self, f: Fitted) -> dict:
         th, b = f.theta, list(f.beta)

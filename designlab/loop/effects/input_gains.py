@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from designlab.loop.effects.base import Context, Effect, Fitted, varying_drives
+from designlab.loop.effects.base import Context, Effect, Fitted, count, varying_drives
 
 
 class InputGains(Effect):
@@ -39,6 +39,12 @@ class InputGains(Effect):
     def features(self, ctx: Context, theta: dict) -> np.ndarray:
         return np.column_stack([ctx.data.inputs[n] - m
                                 for n, m in zip(theta["inputs"], theta["reference"])])
+
+    def width(self, theta: dict) -> int:
+        n = count(theta, "inputs")
+        if count(theta, "reference") != n:
+            raise ValueError("inputs and reference differ in length")
+        return n
 
     def describe(self, f: Fitted) -> dict:
         return {"gains": dict(zip(f.theta["inputs"], f.beta[:len(f.theta["inputs"])])),

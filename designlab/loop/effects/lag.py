@@ -55,6 +55,9 @@ class Lag(Effect):
         d = ctx.data
         return shift(ctx.yhat, theta["delay"], d.t, d.segment) - ctx.yhat
 
+    def width(self, theta: dict) -> int:
+        return 1
+
     def describe(self, f: Fitted) -> dict:
         return {"delay_s": f.theta["delay"], "max_lag_s": f.theta.get("max_lag_s"),
                 "coefficient": float(f.beta[0])}

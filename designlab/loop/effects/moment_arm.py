@@ -32,6 +32,9 @@ class MomentArm(Effect):
         dl = ctx.data.inputs[self.channel] - theta["reference"]
         return np.column_stack([dl * ctx.yhat, dl])
 
+    def width(self, theta: dict) -> int:
+        return 2
+
     def describe(self, f: Fitted) -> dict:
         return {"relative_gain_per_unit": f.beta[0], "offset_per_unit": f.beta[1],
                 "reference": f.theta["reference"]}

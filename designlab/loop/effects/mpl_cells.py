@@ -41,6 +41,9 @@ class MPLCells(Effect):
         s = mpl.cell_states(x, np.array([pt]), np.array([ps]), d.dt, "exact", starts=starts)
         return x - s[0]
 
+    def width(self, theta: dict) -> int:
+        return 1
+
     def describe(self, f: Fitted) -> dict:
         return {"P_T": f.theta["P_T"], "P_S_per_s": f.theta["P_T"] / (2 * f.theta["tau"]),
                 "tau_s": f.theta["tau"], "w": f.beta[0],

@@ -48,6 +48,9 @@ class Mullins(Effect):
         xm = running_max(x, d.segment)
         return np.column_stack([(x - theta["x0"]) * (1 - np.exp(-(xm - x) / theta["m"])), xm])
 
+    def width(self, theta: dict) -> int:
+        return 2
+
     def describe(self, f: Fitted) -> dict:
         return {"m": f.theta["m"], "softening": f.beta[0], "set_per_max": f.beta[1],
                 "x0": f.theta["x0"], "unit": "m in input units; softening and set in output "

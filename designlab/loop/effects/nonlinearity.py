@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from designlab.loop.effects.base import Context, Effect, Fitted, varying_drives
+from designlab.loop.effects.base import Context, Effect, Fitted, varying_drives, whole
 
 
 class Nonlinearity(Effect):
@@ -31,6 +31,9 @@ class Nonlinearity(Effect):
     def features(self, ctx: Context, theta: dict) -> np.ndarray:
         u = (ctx.data.inputs[self.channel] - theta["center"]) / theta["scale"]
         return np.column_stack([u ** k for k in range(2, theta["order"] + 1)])
+
+    def width(self, theta: dict) -> int:
+        return whole(theta, "order", 2) - 1
 
     def describe(self, f: Fitted) -> dict:
         th = f.theta

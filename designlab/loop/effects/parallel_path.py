@@ -39,6 +39,9 @@ class ParallelPath(Effect):
         x = ctx.data.inputs[self.channel]
         return np.maximum(x - theta["engage"], 0.0) / theta["scale"]
 
+    def width(self, theta: dict) -> int:
+        return 1
+
     def describe(self, f: Fitted) -> dict:
         return {"engage": f.theta["engage"], "gain_change": f.beta[0] / f.theta["scale"],
                 "form": "gain_change * max(x - engage, 0)"}

@@ -67,6 +67,9 @@ class PrandtlIshlinskii(Effect):
         alpha = np.linalg.lstsq(N, target - F @ p, rcond=None)[0] if N.shape[1] else []
         return np.r_[p, alpha]
 
+    def width(self, theta: dict) -> int:
+        return N_OPERATORS
+
     def describe(self, f: Fitted) -> dict:
         widths = f.theta["R"] * np.geomspace(0.005, 0.5, N_OPERATORS)
         return {"envelope": f.theta["envelope"], "sign": f.theta["sign"],

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from designlab.loop.effects.base import Context, Effect, Fitted, highpass
+from designlab.loop.effects.base import Context, Effect, Fitted, count, highpass
 from designlab.loop.effects.relaxation import prony_grid
 from designlab.measured.card import ELECTRICAL
 
@@ -38,6 +38,9 @@ class PiezoRelaxation(Effect):
                 ctx.pred_cache[tau] = highpass(ctx.yhat, tau, ctx.data.dt, ctx.data.segment)
             cols.append(ctx.pred_cache[tau])
         return np.column_stack(cols)
+
+    def width(self, theta: dict) -> int:
+        return count(theta, "tau")
 
     def describe(self, f: Fitted) -> dict:
         return {"tau_s": list(f.theta["tau"]), "g": list(f.beta),

@@ -110,6 +110,9 @@ class PoseReference(Effect):
         coef[:k] = np.linalg.lstsq(X[:, :k], target, rcond=None)[0]
         return coef
 
+    def width(self, theta: dict) -> int:
+        return 1
+
     def describe(self, f: Fitted) -> dict:
         return {"offset": f.beta[0], "axis": f.theta["axis"], "partner": f.theta["partner"],
                 "unit": "offset in the translation's unit (mm) along +axis: the point the "

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from designlab.loop.effects.base import Context, Effect, Fitted, highpass, varying_drives
+from designlab.loop.effects.base import Context, Effect, Fitted, count, highpass, varying_drives
 from designlab.loop.effects.relaxation import prony_grid
 from designlab.measured.card import ELECTRICAL
 
@@ -54,6 +54,9 @@ class QuasiLinearViscoelastic(Effect):
                     ctx.cache[ck] = highpass(u ** k, tau, d.dt, d.segment)
                 cols.append(ctx.cache[ck])
         return np.column_stack(cols)
+
+    def width(self, theta: dict) -> int:
+        return 2 + 3 * count(theta, "tau")
 
     def describe(self, f: Fitted) -> dict:
         b = list(f.beta)

@@ -10,6 +10,7 @@ from designlab.loop.effects.base import (
     Context,
     Effect,
     Fitted,
+    count,
     highpass,
     varying_drives,
 )
@@ -60,6 +61,9 @@ class Relaxation(Effect):
                 ctx.cache[ck] = highpass(x, tau, ctx.data.dt, ctx.data.segment)
             cols.append(ctx.cache[ck])
         return np.column_stack(cols)
+
+    def width(self, theta: dict) -> int:
+        return count(theta, "tau")
 
     def describe(self, f: Fitted) -> dict:
         return {"tau_s": list(f.theta["tau"]), "g": list(f.beta),

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from designlab.loop.effects.base import TARE_S, Context, Effect, Fitted
+from designlab.loop.effects.base import TARE_S, Context, Effect, Fitted, count
 
 
 class RunOffset(Effect):
@@ -54,6 +54,9 @@ class RunOffset(Effect):
             else:
                 extra[m] = float(np.mean(f.beta)) if f.beta else 0.0
         return extra
+
+    def width(self, theta: dict) -> int:
+        return count(theta, "runs")
 
     def describe(self, f: Fitted) -> dict:
         return {"offsets": dict(zip(f.theta["runs"], f.beta)), "tare_s": f.theta["tare_s"]}

@@ -31,6 +31,9 @@ class Thermal(Effect):
         dT = ctx.data.inputs[self.channel] - theta["reference"]
         return np.column_stack([dT * ctx.yhat, dT])
 
+    def width(self, theta: dict) -> int:
+        return 2
+
     def describe(self, f: Fitted) -> dict:
         return {"tcr_per_C": f.beta[0], "offset_per_C": f.beta[1],
                 "reference_C": f.theta["reference"]}
