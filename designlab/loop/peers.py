@@ -109,8 +109,8 @@ def narx_peer(data: Dataset, output: str, max_rows: int | None) -> tuple[np.ndar
         raise DataError(f"a training run's inner fit part has {short[0]} samples; the NARX "
                         f"peer needs more than {params.max_delay + 1}")
     U, Y = np.vstack(us), np.vstack(ys)
-    u_mean, u_std = U.mean(0), narx._std(U)
-    y_mean, y_std = Y.mean(0), narx._std(Y)
+    u_mean, u_std = U.mean(0), narx._std(U, names)
+    y_mean, y_std = Y.mean(0), narx._std(Y, [output])
     D = params.max_delay
     stride = narx.row_stride(sum(a.shape[0] - D for a in us), max_rows)
     sel = [None if stride == 1 else np.arange(0, a.shape[0] - D, stride) for a in us]

@@ -58,6 +58,10 @@ from designlab.params import load_toml
 #: largest magnitude of a data value (no sensor reads 1e20 in any unit of UNITS): at 1e99,
 #: the product of two sums of squares (a correlation) already overflows float64
 MAX_ABS_VALUE = 1e20
+#: smallest spread (max - min) of a column that varies: below it the products of squares a fit
+#: forms (a variance, a correlation's product of two variances) underflow to 0 in float64 and
+#: the column looks constant, or gives NaN, to every fit
+MIN_SPREAD = 1e-60
 
 MAX_FILE_BYTES = 2 * 1024 ** 3     # one data file
 MIN_TIME_STEP_S = 1e-9             # smallest step of a time column (a 1 GHz clock)
@@ -133,7 +137,9 @@ def read_table(path: Path, columns: list[str] | None = None, header: bool | None
     return out
 
 
-def _numeric(data: dict, col: str, path: Path) -> np.ndarray:
+def _numeric(data: dict, col: str, path: Path, spread: bool = True) -> np.ndarray:
+    """Column ``col`` as finite floats of at most :data:`MAX_ABS_VALUE`, varying by 0 or at
+    least :data:`MIN_SPREAD` (``spread``; a time column's steps are checked instead)."""
     if col not in data:
         import re
 
@@ -157,6 +163,12 @@ def _numeric(data: dict, col: str, path: Path) -> np.ndarray:
         raise DataError(f"{path}: column '{col}' has {huge.size} value(s) beyond "
                         f"+-{MAX_ABS_VALUE:g}, first at data row {huge[0] + 1}; allowed: "
                         f"|value| <= {MAX_ABS_VALUE:g} (a sensor reading in its card's unit)")
+    width = float(np.ptp(arr)) if arr.size and spread else 0.0
+    if 0 < width < MIN_SPREAD:
+        raise DataError(f"{path}: column '{col}' varies by {width:.3g} only (largest |value| "
+                        f"{float(np.max(np.abs(arr))):.3g}); allowed: a spread of 0 (constant) "
+                        f"or >= {MIN_SPREAD:g}: a smaller one is below the precision a fit "
+                        "needs (its squares underflow to 0; is the unit right?)")
     return arr
 
 
@@ -495,7 +507,7 @@ def _prepare_file(fpath: Path, data: dict, channels: dict, t_scale: float, rep: 
     for name, (_, ch) in channels.items():
         tcol = ch.time_column
         if tcol not in clocks:
-            tt = _numeric(data, tcol, fpath) * t_scale
+            tt = _numeric(data, tcol, fpath, spread=False) * t_scale
             d = np.diff(tt)
             bad = np.flatnonzero(d <= 0)
             if bad.size:

@@ -85,7 +85,8 @@ def fit_linear(u, y, mix="auto") -> LinearFit:
     m = mix_matrix(n_in, n_out, mix)
     if m is None:
         X = np.column_stack([u, np.ones(len(u))])
-        coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+        with np.errstate(all="ignore"):   # an extreme scale fails as LinAlgError, said as data
+            coef, *_ = np.linalg.lstsq(X, y, rcond=None)
         return LinearFit(A=_tup(coef[:-1].T), b=tuple(coef[-1].tolist()))
     c = u @ m.T                                         # (T, n_out) one channel per output
     A = np.empty((n_out, n_in))
@@ -93,7 +94,8 @@ def fit_linear(u, y, mix="auto") -> LinearFit:
     for j in range(n_out):
         if np.ptp(c[:, j]) == 0:
             raise DataError(f"channel {j} (mix {m[j].tolist()}) is constant: nothing to fit")
-        slope, icpt = np.polyfit(c[:, j], y[:, j], 1)
+        with np.errstate(all="ignore"):   # values near 1e-300: polyfit's column scale
+            slope, icpt = np.polyfit(c[:, j], y[:, j], 1)   # underflows, SVD fails (LinAlgError)
         A[j], b[j] = slope * m[j], icpt
     return LinearFit(A=_tup(A), b=tuple(b.tolist()), channels=_tup(m))
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -263,9 +264,24 @@ def fit(u, y, params: NARXParams = NARXParams(),
     return model, report
 
 
-def _std(a: np.ndarray) -> np.ndarray:
-    s = a.std(0)
-    if np.any(s == 0):
-        raise DataError(f"channel(s) {np.flatnonzero(s == 0).tolist()} are constant: "
-                        "nothing to learn from")
+def _std(a: np.ndarray, names: Sequence[str] | None = None) -> np.ndarray:
+    """Per-channel standard deviation (the network's scaling); a one-line DataError naming the
+    channels (``names``, else their indices) that are constant or vary too little to scale:
+    a spread below :data:`~designlab.measured.dataset.MIN_SPREAD`, whose squares underflow."""
+    from designlab.measured.dataset import MIN_SPREAD
+
+    with np.errstate(under="ignore"):
+        s = a.std(0)
+    spread = np.ptp(a, axis=0)
+    label = (lambda j: repr(names[j])) if names is not None else str
+    flat = [label(j) for j in np.flatnonzero(spread == 0)]
+    if flat:
+        raise DataError(f"channel(s) {', '.join(flat)} are constant: nothing to learn from")
+    tiny = np.flatnonzero(~(s >= MIN_SPREAD) | (spread < MIN_SPREAD))
+    if tiny.size:
+        j = tiny[0]
+        raise DataError(f"channel(s) {', '.join(label(k) for k in tiny)} vary by "
+                        f"{float(spread[j]):.3g} only; allowed: a spread >= {MIN_SPREAD:g}: a "
+                        "smaller one is below the precision a fit needs (its squares "
+                        "underflow to 0; is the unit right?)")
     return s

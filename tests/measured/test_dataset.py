@@ -390,13 +390,20 @@ def test_a_card_holds_at_most_the_memory_budgets_samples(tmp_path, monkeypatch):
     ("split", "[split] train=0.9999999999999999 is not allowed: a fraction leaving at least 10 "
               "samples to training and to validation (it leaves 399 and 1)"),
     ("latin-1", "cannot parse as CSV (the header row is not UTF-8 text"),
+    ("tiny-values", "run.csv: column 'F' varies by 2e-300 only (largest |value| 1e-300); allowed: "
+                    "a spread of 0 (constant) or >= 1e-60: a smaller one is below the precision "
+                    "a fit needs"),
 ])
 def test_values_that_break_the_numbers_are_named(tmp_path, change, message):
     """Steps of 1e-310 s (1 / step overflows), a cut-off that makes the filter singular, a split
-    leaving one validation sample and a latin-1 header: one line, not an internal error."""
+    leaving one validation sample, a latin-1 header and readings that vary near 1e-300 (no fit
+    can scale them; they looked constant to the loop): one line naming the file, not an
+    internal error."""
     t, P, F = signals(400)
     if change == "tiny-steps":
         t = t * 1e-309
+    if change == "tiny-values":
+        F = np.sin(t) * 1e-300
     write_csv(tmp_path / "run.csv", {"t": t, "P": P, "F": F})
     body = BASIC.format(punit="mm")
     if change == "lowpass":

@@ -74,6 +74,9 @@ def test_records_and_bad_input():
         (lambda: narx.fit(u, y[:-1]), DataError, "lengths differ"),
         (lambda: narx.fit(np.where(np.arange(1200)[:, None] == 7, np.nan, u), y), DataError, "NaN"),
         (lambda: narx.fit(u, np.ones_like(y)), DataError, "constant"),
+        (lambda: narx.fit(u * 1e-300, y), DataError,
+         r"channel\(s\) 0, 1 vary by .* only; allowed: a spread >= 1e-60: a smaller one is below "
+         r"the precision a fit needs"),
         (lambda: narx.NARXParams(hidden=0), ParameterError, "hidden"),
         (lambda: narx.NARXParams(output_delays=-1), ParameterError, "output_delays"),
         (lambda: net.predict(u[:, :1]), DataError, "channels"),
@@ -82,3 +85,11 @@ def test_records_and_bad_input():
         with pytest.raises(exc, match=text) as info:
             call()
         assert "\n" not in str(info.value)
+
+
+def test_the_scaling_names_the_channels_it_cannot_use():
+    a = np.column_stack([np.ones(50), np.sin(np.arange(50)) * 1e-300, np.arange(50.0)])
+    with pytest.raises(DataError, match=r"^channel\(s\) 'p' are constant: nothing to learn"):
+        narx._std(a, ["p", "sensor_1", "r"])
+    with pytest.raises(DataError, match=r"^channel\(s\) 'sensor_1' vary by 2e-300 only"):
+        narx._std(a[:, 1:], ["sensor_1", "r"])
