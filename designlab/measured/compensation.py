@@ -40,6 +40,13 @@ from designlab.errors import DataError, ParameterError
 from designlab.params import rng, validate
 
 MODELS = ("linear", "mpl", "narx")
+#: most samples (training and validation records together) the costly models take at their
+#: default settings: on 2 cores, 200 000 samples (one input, one output, 80 % training) cost
+#: 84 s of CPU for the NARX network (fit and closed-loop evaluation; 29 s at 50 000) and 84 s
+#: for the mPL model (35 s at 50 000), about 1.5 to 2.5 minutes of wall time as the machine's
+#: load varies; the cost grows with the samples, so a larger record is refused before the fit
+#: rather than run for many minutes
+MAX_FIT_SAMPLES = {"mpl": 200_000, "narx": 200_000}
 
 
 @dataclass(frozen=True, eq=False)
@@ -276,6 +283,7 @@ def compare(train: Sequence[Record], validate_on: Sequence[Record], models=MODEL
     if rows > MAX_CARD_SAMPLES:
         raise DataError(f"the records hold {rows} samples; at most {MAX_CARD_SAMPLES} in all (the "
                         "memory budget of a dataset card: shorten or decimate the files)")
+    _check_cost(models, rows, records[0], options)
     for m in models:
         if progress:
             progress(f"fitting {m}")
@@ -294,6 +302,36 @@ def compare(train: Sequence[Record], validate_on: Sequence[Record], models=MODEL
     return res
 
 
+def fit_limit(model: str, like: Record, options: CompensationOptions) -> int | None:
+    """The most samples (all records together) ``model`` is fitted on with these options:
+    :data:`MAX_FIT_SAMPLES` scaled down by the work per sample beyond the measured default
+    (one mPL fit per output and per cell; NARX features, neurons and iterations). None: no
+    limit (the linear fit)."""
+    base = MAX_FIT_SAMPLES.get(model)
+    if base is None:
+        return None
+    n_in, n_out = like.u.shape[1], like.y.shape[1]
+    o = options
+    if model == "mpl":
+        factor = n_out * max(o.mpl_cells or o.mpl_max_cells, 3) / 3
+    else:
+        feats = o.narx_input_delays * n_in + o.narx_output_delays * n_out
+        factor = max(feats, 50) / 50 * max(o.narx_hidden, 10) / 10 * max(o.narx_max_iter, 400) / 400
+    return int(base / max(factor, 1.0))
+
+
+def _check_cost(models: Sequence[str], rows: int, like: Record,
+                options: CompensationOptions) -> None:
+    """Refuse, before any fit, a costly model on more samples than :func:`fit_limit` allows
+    (such a fit runs for many minutes): one line naming the model, the samples, the limit."""
+    for m in models:
+        limit = fit_limit(m, like, options)
+        if limit is not None and rows > limit:
+            raise DataError(f"the records hold {rows} samples; the {m} model fits at most {limit} "
+                            "(about 2 minutes on 2 cores with these settings): use --model linear, "
+                            "or shorten or decimate the files")
+
+
 # ----------------------------------------------------------------------------- files
 
 def load_record(path: str | Path, inputs: Sequence[str], outputs: Sequence[str], *,
@@ -308,7 +346,7 @@ def load_record(path: str | Path, inputs: Sequence[str], outputs: Sequence[str],
 
     cols = list(inputs) + list(outputs) + ([time] if time else [])
     table = read_table(Path(path))
-    data = {c: _numeric(table, c, Path(path)) for c in cols}
+    data = {c: _numeric(table, c, Path(path), spread=c != time) for c in cols}
     if time:
         steps = np.diff(data[time])
         if steps.size == 0 or np.any(steps <= 0):
