@@ -200,6 +200,7 @@ def _card_cases():
         "split": (CARD + "[split]\ntrain = 2\n", "split.train"),
         "role": (CARD.replace('path = "run.csv"', 'path = "run.csv"\nrole = "test"'), "role"),
         "allow-type": ("allow_outside_paths = 1\n" + CARD, "allow_outside_paths"),
+        "tiny-values": ("TINY" + CARD, "column 'F' varies by"),
     }
     out = []
     for k, (t, w) in bad.items():
@@ -220,7 +221,18 @@ def _model_cases():
                         '"model": {"base": {}, "outputs": [1]}}',
         "deep": "[" * 200_000 + "]" * 200_000,
     }
-    return [_case(f"model-{k}", "model", text=t) for k, t in docs.items()]
+    out = [_case(f"model-{k}", "model", text=t) for k, t in docs.items()]
+    effect = ('{"name": "gain_offset", "channel": null, "theta": {}, "beta": %s, "alpha": %s, '
+              '"nuisance": []}')
+    for k, e, expect in (("beta-short", effect % ("[1.0]", "[]"), "effects[0].beta=[1.0]"),
+                         ("alpha-long", effect % ("[0.0, 1.0]", "[0.0]"), "effects[0].alpha=")):
+        out.append(_case(f"model-{k}", "model", expect=[expect], text=(
+            '{"format": "designlab-model", "version": 1, "model": {"base": {"kind": "linear", '
+            '"inputs": {"force": ["displacement"]}, "parameters": {"force": {"intercept": 0.0, '
+            '"gains": {"displacement": 0.5}}}}, "outputs": {"force": {"unit": "N", "effects": ['
+            + e + ']}}, "inputs": {"displacement": {"unit": "mm", "quantity": "length", '
+            '"kind": "drive"}}}}')))
+    return out
 
 
 def _path_cases():
@@ -296,6 +308,10 @@ def _argv_for(case, tmp: Path, out: Path, files: dict) -> list[str]:
         if text.startswith("DUP"):
             text = text[3:]
             (tmp / "run.csv").write_text("t,P,F,F\n" + "".join(f"{i},1,2,3\n" for i in range(50)))
+        if text.startswith("TINY"):       # readings that vary near 1e-300 only
+            text = text[4:]
+            (tmp / "run.csv").write_text("t,P,F\n" + "".join(
+                f"{i * 0.01},{1 + i % 7},{(i % 5) * 1e-300}\n" for i in range(200)))
         if text.startswith("BINPQ"):
             text = text[5:]
             (tmp / "run.parquet").write_bytes(b"PAR1\x00\xff garbage" * 40)
