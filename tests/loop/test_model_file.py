@@ -93,7 +93,7 @@ def test_wrong_shaped_effect_parameters_are_refused_when_the_model_is_loaded(tmp
                                                                             match):
     """The lengths of every effect's beta, alpha and settings are checked by load_model, one
     line naming the file, the key, the value with its length and the length allowed (a short
-    beta failed inside the prediction, as an internal error in predict --model)."""
+    beta would otherwise fail inside the prediction, after the data are read)."""
     path, doc = _doc(tmp_path)
     doc["model"]["outputs"]["force"]["effects"].append(effect)
     path.write_text(json.dumps(doc))

@@ -1,6 +1,6 @@
 """The loop's black-box peer on data it cannot scale: an output that varies only near 1e-300
-looked constant to it ("channel(s) [0] are constant", naming no channel); it is named, with
-what is wrong."""
+is not constant, but its variance underflows to 0; the message names the channel and says
+so."""
 
 from __future__ import annotations
 

@@ -228,7 +228,7 @@ def test_files_that_break_the_fit_are_named(tmp_path, change, message):
 def test_values_near_1e300_are_one_data_sentence_without_a_numpy_warning():
     """Records (not files) of values near 1e-300: the linear fit's column scale underflows and
     its SVD fails; that is said as a sentence about the data, and numpy's divide-by-zero
-    warning does not reach the caller (the command line printed it as a raw line)."""
+    warning does not reach the caller (the command line would print it as a raw line)."""
     import warnings
 
     t = np.arange(400) * 0.01
@@ -303,7 +303,7 @@ def test_a_costly_model_beyond_its_limit_is_refused_before_the_fit(monkeypatch):
 @pytest.mark.parametrize("model", ["narx", "mpl"])
 def test_cli_refuses_a_costly_model_on_a_long_record_at_once(tmp_path, capsys, model):
     """A record over the limit (still under the card's memory budget) is refused in one line
-    before any fit: it ran for many minutes without a word."""
+    before any fit, instead of a silent fit of many minutes."""
     import time
 
     t = np.arange(200_001) * 0.01

@@ -397,7 +397,7 @@ def test_a_card_holds_at_most_the_memory_budgets_samples(tmp_path, monkeypatch):
 def test_values_that_break_the_numbers_are_named(tmp_path, change, message):
     """Steps of 1e-310 s (1 / step overflows), a cut-off that makes the filter singular, a split
     leaving one validation sample, a latin-1 header and readings that vary near 1e-300 (no fit
-    can scale them; they looked constant to the loop): one line naming the file, not an
+    can scale them; their squares underflow to 0): one line naming the file, not an
     internal error."""
     t, P, F = signals(400)
     if change == "tiny-steps":
