@@ -131,14 +131,19 @@ def bands(rows: list[dict[str, Any]], cfg) -> dict[str, dict[str, Any]]:
 def load_sweep(path: str | Path):
     """(SweepConfig, evaluator) of a sweep/optimize TOML: with an ``[uncertainty]`` table the
     robust config and a :class:`RobustEvaluator`, else the plain config and None (the sweep's
-    default evaluator)."""
+    default evaluator). A refused objective or constraint names the file."""
     from designlab.optimize.space import read_sweep_toml, sweep_config
 
     data = read_sweep_toml(path)
-    if "uncertainty" in data:
-        cfg, spec = robust_config(data)
-        return cfg, RobustEvaluator(spec)
-    return sweep_config(data), None
+    try:
+        if "uncertainty" in data:
+            cfg, spec = robust_config(data)
+            return cfg, RobustEvaluator(spec)
+        return sweep_config(data), None
+    except ParameterError as exc:   # an objective or constraint: the line names the file
+        if not str(exc.name).startswith(("objectives.", "constraints.")):
+            raise
+        raise ParameterError(f"{path}: {exc.name}", exc.value, exc.allowed) from None
 
 
 def band_lines(rows: list[dict[str, Any]], cfg, keys: list[str] | None = None,

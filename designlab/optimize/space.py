@@ -282,6 +282,10 @@ def sweep_config(data: dict[str, Any]) -> SweepConfig:
                   for k, v in _table("objectives", data.get("objectives", {})).items()}
     constraints = {k: _constraint(k, v)
                    for k, v in _table("constraints", data.get("constraints", {})).items()}
+    from designlab.optimize.metrics import check_metric_names
+
+    check_metric_names(settings, {"objectives": list(objectives),
+                                  "constraints": list(constraints)})
     return SweepConfig(part, dims, method, samples, seed, fixed, settings, objectives,
                        constraints, protocol)
 
