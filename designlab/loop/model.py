@@ -198,7 +198,7 @@ def _check_shapes(p: Path, effects: dict[str, list[fx.Fitted]]) -> None:
             if f.runs and f.effect.intercept:
                 allowed.setdefault(len(f.runs) + nuis, f"one offset per run ({len(f.runs)}) "
                                    "and one gain per nuisance input")
-            if len(f.alpha) not in allowed:
+            if f.alpha and len(f.alpha) not in allowed:   # none: no affine refit carried
                 ok = " or ".join(_numbers(n) for n in sorted(allowed))
                 raise ModelError(f"{p}: {where}.alpha={str(list(f.alpha))[:60]} "
                                  f"({_numbers(len(f.alpha))}) is not allowed: {ok} "

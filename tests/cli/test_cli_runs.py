@@ -455,9 +455,11 @@ def test_a_design_on_a_full_disk_stops_the_run_and_is_not_stored_failed(
     "constraints that no design satisfies"), stores no row for it and writes no table or
     report; once there is room, the same command evaluates every design."""
     import designlab.cli.sweep as cli_sweep
+    import designlab.optimize.optimizer as opt
     import designlab.optimize.sweep as sw
 
     monkeypatch.setattr(sw, "default_evaluator", _fem_writing)
+    monkeypatch.setattr(opt, "default_evaluator", _fem_writing)   # its own name for it
     monkeypatch.setattr(cli_sweep, "_export_chosen", lambda *a, **k: [])   # no FEM here
     a, _ = cheap_sweeps
     a.write_text(CFG_A + 'printed_volume_mm3 = "min"\n')
