@@ -328,6 +328,7 @@ def test_fingertip_Pz_worst_as_fig9(fingertip_fem):
 
 # ------------------------------------------------------------------------------------ CLI
 
+@pytest.mark.slow     # each case a new process importing the CLI: about 3 s
 @pytest.mark.parametrize("toml, text", [
     ("[uncertainty]\nbolt_preload_N = { dist = 'normal', mean = 20.0, std = -2.0 }\n", ">= 0"),
     ("[uncertainty]\nwire_modulus = { dist = 'fixed', value = 1.0 }\n", "hysteresis_percent"),
