@@ -40,8 +40,12 @@ def save_assembly_step(assy: cq.Assembly, path: str | Path) -> Path:
     from cadquery.occ_impl.exporters.assembly import exportAssembly
 
     def write(tmp):
-        if not exportAssembly(assy, tmp):
-            raise OutputError(f"STEP export of {path} failed")
+        if not exportAssembly(assy, tmp):   # OpenCascade says no more than that
+            import shutil
+
+            free = shutil.disk_usage(Path(tmp).parent).free
+            raise OutputError(f"STEP export of {path} failed (OpenCascade wrote no file; "
+                              f"{free / 1e6:.3g} MB free on its disk)")
     return _atomic(path, write)
 
 

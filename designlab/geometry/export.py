@@ -210,8 +210,8 @@ class _Staging(FileSet):
             try:
                 writer(tmp)
             except OSError as exc:
-                if isinstance(exc, OutputError):
-                    raise
+                if isinstance(exc, OutputError):   # named by the final file, not its temporary
+                    raise OutputError(str(exc).replace(str(tmp), str(target / fname))) from None
                 raise os_error(target / fname, exc) from None
             if tmp.stat().st_size == 0:
                 raise OutputError(f"writing {fname} produced an empty file")
