@@ -248,12 +248,7 @@ def test_cli_values_near_1e300_are_one_line(tmp_path, capsys):
     for name in ("tr", "va"):
         _write(tmp_path / f"{name}.csv", t, x, y)
     out = tmp_path / "out"
-    with pytest.raises(SystemExit) as info:
-        main(["compensate", "--train", str(tmp_path / "tr.csv"), "--validate",
-              str(tmp_path / "va.csv"), "--input", "x", "--output", "y", "--time", "t",
-              "--out", str(out)])
-    err = capsys.readouterr().err
-    assert info.value.code == 2
+    err = _refused(tmp_path, capsys, "--input", "x", "--output", "y", "--out", str(out))
     assert err.strip().splitlines() == [
         f"error: {tmp_path / 'tr.csv'}: column 'x' varies by 2e-300 only (largest |value| "
         "1e-300); allowed: a spread of 0 (constant) or >= 1e-60: a smaller one is below the "
@@ -313,13 +308,9 @@ def test_cli_refuses_a_costly_model_on_a_long_record_at_once(tmp_path, capsys, m
                    delimiter=",", header="t,r,f", comments="", fmt="%.6f")
     out = tmp_path / "out"
     t0 = time.perf_counter()
-    with pytest.raises(SystemExit) as info:
-        main(["compensate", "--train", str(tmp_path / "tr.csv"), "--validate",
-              str(tmp_path / "va.csv"), "--input", "r", "--output", "f", "--time", "t",
-              "--model", model, "--out", str(out)])
+    err = _refused(tmp_path, capsys, "--input", "r", "--output", "f", "--model", model,
+                   "--out", str(out))
     assert time.perf_counter() - t0 < 30
-    err = capsys.readouterr().err
-    assert info.value.code == 2
     assert err.strip().splitlines() == [
         f"error: the records hold 200001 samples; the {model} model fits at most 200000 (about "
         "2 minutes on 2 cores with these settings): use --model linear, or shorten or decimate "
@@ -356,3 +347,13 @@ def test_outputs_are_written_as_a_pair_or_not_at_all(tmp_path, monkeypatch, disk
     with pytest.raises(OutputError, match="no space left"):
         comp.write_outputs(res, [rec], tmp_path / "out")
     assert not (tmp_path / "out").exists()     # nor the folder made for them
+
+
+def _refused(tmp_path, capsys, *args) -> str:
+    """stderr of ``designlab compensate`` on tmp_path's tr.csv / va.csv (time column t) with
+    ``args``, which must exit 2."""
+    with pytest.raises(SystemExit) as info:
+        main(["compensate", "--train", str(tmp_path / "tr.csv"), "--validate",
+              str(tmp_path / "va.csv"), "--time", "t", *args])
+    assert info.value.code == 2
+    return capsys.readouterr().err
