@@ -40,10 +40,6 @@ Result = tuple[int, Any, str | None]
 MAX_RETRIES = 1
 
 
-def _one_line(exc: BaseException) -> str:
-    return one_line(exc)
-
-
 def _guarded(fn: Callable[[Any], Any], task: Any) -> tuple[Any, str | None]:
     """``(fn(task), None)``, or ``(None, error)`` with the error an
     :class:`~designlab.optimize.failures.ErrorText` that says whether it is the design's or a
@@ -143,7 +139,7 @@ class LocalExecutor:
                             died.append(i)
                             continue
                         except Exception as exc:  # e.g. a result that cannot be pickled
-                            res = (None, _one_line(exc))
+                            res = (None, one_line(exc))
                         yield (i, *res)
                 ended = True
             except BaseException:
@@ -300,9 +296,9 @@ class DaskExecutor:
                 except BaseException as exc:  # KilledWorker (after the retry), cancelled, lost
                     if _is_lost(exc, client):
                         lost.append(futures[fut])
-                        reason = reason or _one_line(exc)
+                        reason = reason or one_line(exc)
                         continue
-                    yield (futures[fut], None, DASK_FAILED + _one_line(exc))
+                    yield (futures[fut], None, DASK_FAILED + one_line(exc))
                     continue
                 yield (futures[fut], *res)
         finally:
